@@ -1,0 +1,55 @@
+"""The ``rheo-shaping`` command line tool.
+
+Each subcommand lives in its own module of this package and exposes
+``add_parser(subparsers)`` (which registers the subcommand and sets
+``func`` to a callable taking the parsed args and returning an exit code).
+User mistakes raise :class:`UserError`, which is printed without a
+traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+#: Subcommand modules, in the order ``--help`` lists them.
+SUBCOMMANDS = ("identify", "simulate", "reproduce", "cell", "record", "diagnose")
+
+
+class UserError(Exception):
+    """A mistake in the user's input: printed as ``error: <message>``, exit 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="rheo-shaping",
+        description="Robotic shaping of thin rheological sheets over a mould.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in SUBCOMMANDS:
+        try:
+            module = importlib.import_module(f"rheo_shaping.cli.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"rheo_shaping.cli.{name}":
+                continue  # not built yet
+            raise
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except UserError as exc:
+        print(f"rheo-shaping {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
