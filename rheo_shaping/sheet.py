@@ -1,0 +1,292 @@
+"""The sheet: a chain of lumped masses joined by three-element links (Sec. 4.1).
+
+N masses (spheres of radius ``r`` = half the sheet thickness) hang between
+two fixed bonds and are joined by N + 1 links.  Link i joins node i-1 and
+node i, where node -1 is the cake-top bond and node N the workplane bond.
+Every link is a three-element unit with constants scaled to its rest length
+(:mod:`rheo_shaping.material`); it carries tension only (a slack link buckles
+and carries nothing).  Spheres touch the obstacles (cake, workplane, tool)
+without friction and without interpenetration.
+
+One time step is implicit (backward Euler in the positions, the exact
+three-element update in the links).  Over a step the link force is affine in
+the link length (:func:`rheo_shaping.material.step_coefficients`), so the new
+positions minimise the incremental potential
+
+    E(x) = sum m |x - x_pred|^2 / (2 dt^2) + sum 1/2 S (l - L*)_+^2
+           + sum m g z + sum 1/2 K_c (r - d_obstacle(x))_+^2,
+
+a convex function but for the contact terms.  ``x_pred = x + dt v`` with
+inertia (``dynamic=True``), ``x_pred = x`` in the quasi-static regime where the
+first term is only a tiny proximal regulariser (m/dt^2 ~ 1e-2 N/m against link
+stiffnesses ~ 1e3 N/m).  Newton's method with a banded Cholesky solve and a
+backtracking line search finds the minimiser; its Hessian is block
+tridiagonal (half bandwidth 3).  The penalty stiffness K_c makes the largest
+penetration F_contact / K_c (0.1 um per newton at the default 1e7 N/m).
+See docs/model.md for why this formulation was chosen.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Protocol, Sequence
+
+import numpy as np
+from scipy.linalg import solveh_banded, LinAlgError
+
+from .material import elongation_step, step_coefficients
+
+
+class Shape(Protocol):
+    """What the sheet needs of an obstacle (see :mod:`rheo_shaping.geometry`)."""
+
+    def signed_distance(self, points: np.ndarray, offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+        ...
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A rigid obstacle; ``moving`` ones are placed at the tool pose each step."""
+
+    name: str
+    shape: Shape
+    moving: bool = False
+
+
+@dataclass(frozen=True)
+class ChainConstants:
+    """Everything constant about one chain (SI units, arrays over links/masses)."""
+
+    anchor_top: np.ndarray      # (2,) m, cake-top bond
+    anchor_bottom: np.ndarray   # (2,) m, workplane bond
+    rest_length: np.ndarray     # (N+1,) m
+    k1: np.ndarray              # (N+1,) N/m, scaled to each link's rest length
+    c1: np.ndarray              # (N+1,) N s/m
+    c2: np.ndarray              # (N+1,) N s/m (inf: no plastic flow)
+    mass: np.ndarray            # (N,) kg
+    radius: float               # m, sphere radius (half the thickness)
+    gravity: float = 9.81       # m/s^2
+
+    @property
+    def n_masses(self) -> int:
+        return int(self.mass.shape[0])
+
+
+@dataclass(frozen=True)
+class SheetState:
+    """State of the chain at time ``t`` [s]."""
+
+    t: float
+    x: np.ndarray          # (N, 2) m, sphere centres
+    v: np.ndarray          # (N, 2) m/s
+    e1: np.ndarray         # (N+1,) m, elastic (Kelvin-Voigt) elongation
+    p: np.ndarray          # (N+1,) m, plastic elongation (dashpot c2)
+    tension: np.ndarray    # (N+1,) N
+    contact: np.ndarray    # (n_obstacles, N, 2) N, force of each obstacle on each sphere
+    tool: np.ndarray       # (2,) m, tool reference point
+    newton_iterations: int = 0
+
+    def copy(self) -> "SheetState":
+        return replace(self, x=self.x.copy(), v=self.v.copy(), e1=self.e1.copy(),
+                       p=self.p.copy(), tension=self.tension.copy(),
+                       contact=self.contact.copy(), tool=self.tool.copy())
+
+
+class ConvergenceError(RuntimeError):
+    """Newton's method did not converge in a step."""
+
+
+class SheetModel:
+    """Implicit stepping of a chain of masses with tension-only links and contact."""
+
+    def __init__(self, constants: ChainConstants, obstacles: Sequence[Obstacle],
+                 contact_stiffness: float = 1e7, force_tol: float = 1e-9,
+                 max_newton: int = 50):
+        self.c = constants
+        self.obstacles = tuple(obstacles)
+        self.kc = float(contact_stiffness)
+        self.force_tol = float(force_tol)
+        self.max_newton = int(max_newton)
+        n = constants.n_masses
+        self._n = n
+        self._weight = np.zeros((n, 2))
+        self._weight[:, 1] = constants.mass * constants.gravity
+
+    # ------------------------------------------------------------------ state
+    def initial_state(self, x0: np.ndarray, tool=(np.nan, np.nan), t0: float = 0.0) -> SheetState:
+        """Masses at rest at ``x0`` (N, 2) with every link unstretched."""
+        n = self._n
+        x0 = np.asarray(x0, dtype=float).reshape(n, 2)
+        l = self.link_lengths(x0)
+        return SheetState(
+            t=t0, x=x0.copy(), v=np.zeros((n, 2)),
+            e1=np.zeros(n + 1), p=l - self.c.rest_length,   # free length = initial length
+            tension=np.zeros(n + 1), contact=np.zeros((len(self.obstacles), n, 2)),
+            tool=np.asarray(tool, dtype=float).copy())
+
+    def nodes(self, x: np.ndarray) -> np.ndarray:
+        """Bond, mass and bond positions (N+2, 2) [m]."""
+        return np.vstack((self.c.anchor_top, x, self.c.anchor_bottom))
+
+    def link_lengths(self, x: np.ndarray) -> np.ndarray:
+        d = np.diff(self.nodes(x), axis=0)
+        return np.hypot(d[:, 0], d[:, 1])
+
+    # ------------------------------------------------------------------ step
+    def step(self, state: SheetState, dt: float, tool=(np.nan, np.nan),
+             dynamic: bool = False) -> SheetState:
+        """Advance by ``dt`` [s] with the tool reference point at ``tool`` [m] at the end."""
+        c = self.c
+        tool = np.asarray(tool, dtype=float)
+        free_length = c.rest_length + state.e1 + state.p
+        F0, S = step_coefficients(c.k1, c.c1, c.c2, state.e1, dt)
+        L_star = free_length - F0 / S
+        inertia = c.mass / dt ** 2
+        x_pred = state.x + dt * state.v if dynamic else state.x
+        offsets = [tool if ob.moving else None for ob in self.obstacles]
+
+        guess = state.x + dt * state.v      # warm start: continue the last motion
+        x, iters = self._minimise(guess, x_pred, inertia, S, L_star, offsets)
+
+        l = self.link_lengths(x)
+        F, e1, p = elongation_step(c.k1, c.c1, c.c2, state.e1, state.p, l - free_length, dt)
+        contact = self._contact_forces(x, offsets)
+        v = (x - state.x) / dt   # quasi-static: only the warm start of the next step uses it
+        return SheetState(t=state.t + dt, x=x, v=v, e1=e1, p=p, tension=F,
+                          contact=contact, tool=tool.copy(), newton_iterations=iters)
+
+    # --------------------------------------------------------------- newton
+    def _geometry(self, x, offsets):
+        """Per present obstacle: (index, signed distance of the centres d [m], normals n)."""
+        out = []
+        for i, (ob, off) in enumerate(zip(self.obstacles, offsets)):
+            if ob.moving and (off is None or not np.all(np.isfinite(off))):
+                continue
+            d, nrm = ob.shape.signed_distance(x, off if ob.moving else (0.0, 0.0))
+            out.append((i, d, nrm))
+        return out
+
+    def _contact_forces(self, x, offsets) -> np.ndarray:
+        forces = np.zeros((len(self.obstacles), self._n, 2))
+        for i, d, nrm in self._geometry(x, offsets):
+            forces[i] = (self.kc * np.maximum(self.c.radius - d, 0.0))[:, None] * nrm
+        return forces
+
+    def _evaluate(self, x, x_pred, inertia, S, L_star, offsets):
+        """Energy, gradient (N, 2) and banded Hessian of the step's potential at ``x``."""
+        n = self._n
+        nodes = self.nodes(x)
+        d = nodes[1:] - nodes[:-1]                      # (N+1, 2)
+        l = np.hypot(d[:, 0], d[:, 1])
+        u = d / l[:, None]
+        stretch = np.maximum(l - L_star, 0.0)
+        T = S * stretch                                  # link forces of this iterate
+        f = T[:, None] * u                               # (N+1, 2)
+        dx = x - x_pred
+        energy = 0.5 * (np.dot(inertia, np.einsum("ij,ij->i", dx, dx)) + np.dot(T, stretch)) \
+            + np.dot(self._weight[:, 1], x[:, 1])
+        grad = inertia[:, None] * dx + self._weight + f[:-1] - f[1:]
+
+        # link Hessian blocks K (u u^T + (l-L)/l (I - u u^T)) for taut links
+        a = np.where(stretch > 0.0, S, 0.0)
+        b = T / l
+        uxx, uzz, uxz = u[:, 0] ** 2, u[:, 1] ** 2, u[:, 0] * u[:, 1]
+        hxx = a * uxx + b * (1.0 - uxx)
+        hzz = a * uzz + b * (1.0 - uzz)
+        hxz = (a - b) * uxz
+        dxx = inertia + hxx[:-1] + hxx[1:]
+        dzz = inertia + hzz[:-1] + hzz[1:]
+        dxz = hxz[:-1] + hxz[1:]
+        geo = self._geometry(x, offsets)
+        for _, dist, nrm in geo:
+            pen = self.c.radius - dist
+            if not np.any(pen > 0.0):
+                continue
+            kp = np.where(pen > 0.0, self.kc, 0.0)
+            fp = kp * pen
+            energy += 0.5 * np.dot(fp, pen)
+            grad -= fp[:, None] * nrm
+            dxx = dxx + kp * nrm[:, 0] ** 2
+            dzz = dzz + kp * nrm[:, 1] ** 2
+            dxz = dxz + kp * nrm[:, 0] * nrm[:, 1]
+
+        # upper band storage, half bandwidth 3: ab[3 + i - j, j] = H[i, j]
+        ab = np.zeros((4, 2 * n))
+        ab[3, 0::2] = dxx
+        ab[3, 1::2] = dzz
+        ab[2, 1::2] = dxz
+        off_xz = -hxz[1:-1]
+        ab[2, 2::2] = off_xz          # H[z_j, x_j+1]
+        ab[1, 2::2] = -hxx[1:-1]      # H[x_j, x_j+1]
+        ab[1, 3::2] = -hzz[1:-1]      # H[z_j, z_j+1]
+        ab[0, 3::2] = off_xz          # H[x_j, z_j+1]
+        return float(energy), grad, ab, geo
+
+    def _newton_step(self, grad, ab, geo):
+        """Newton step with the contact set predicted on the quadratic model.
+
+        Masses the plain step would push into an obstacle get that obstacle's
+        penalty, linearised (the gradient of 1/2 K_c (r - d - n.dx)^2 at dx = 0
+        and its Hessian K_c n n^T); masses the model would then hold with an
+        adhesive (negative) force are let go again.  A few banded solves at
+        most, and only when the contact set changes.
+        """
+        r, kc = self.c.radius, self.kc
+        forced = [np.zeros(self._n, dtype=bool) for _ in geo]
+        for _ in range(8):
+            g = grad.copy()
+            band = ab
+            if any(f.any() for f in forced):
+                band = ab.copy()
+                for (_, dist, nrm), f in zip(geo, forced):
+                    if not f.any():
+                        continue
+                    kf = np.where(f, kc, 0.0)
+                    g -= (kf * (r - dist))[:, None] * nrm
+                    band[3, 0::2] += kf * nrm[:, 0] ** 2
+                    band[3, 1::2] += kf * nrm[:, 1] ** 2
+                    band[2, 1::2] += kf * nrm[:, 0] * nrm[:, 1]
+            try:
+                step = solveh_banded(band, -g.reshape(-1), check_finite=False).reshape(-1, 2)
+            except (LinAlgError, ValueError) as exc:  # pragma: no cover - SPD by construction
+                raise ConvergenceError(f"singular Newton system: {exc}") from None
+            changed = False
+            for (_, dist, nrm), f in zip(geo, forced):
+                pen_new = r - dist - np.einsum("ij,ij->i", nrm, step)
+                enter = (~f) & (dist >= r) & (pen_new > 1e-12)
+                leave = f & (pen_new < 0.0)
+                if enter.any() or leave.any():
+                    f |= enter
+                    f &= ~leave
+                    changed = True
+            if not changed:
+                break
+        return step, g
+
+    def _minimise(self, x, x_pred, inertia, S, L_star, offsets):
+        args = (x_pred, inertia, S, L_star, offsets)
+        energy, grad, ab, geo = self._evaluate(x, *args)
+        for it in range(1, self.max_newton + 1):
+            if np.max(np.abs(grad)) < self.force_tol:
+                return x, it - 1
+            step, g_model = self._newton_step(grad, ab, geo)
+            slope = float(np.dot(grad.reshape(-1), step.reshape(-1)))
+            if slope >= 0.0:   # the contact prediction spoilt descent: plain Newton step
+                step = solveh_banded(ab, -grad.reshape(-1), check_finite=False).reshape(-1, 2)
+                slope = float(np.dot(grad.reshape(-1), step.reshape(-1)))
+            alpha = 1.0
+            while True:
+                trial = x + alpha * step
+                e_trial, g_trial, ab_trial, geo_trial = self._evaluate(trial, *args)
+                # the roundoff allowance lets converged Newton steps through
+                if (e_trial <= energy + 1e-4 * alpha * slope + 1e-15 * abs(energy)
+                        or alpha < 1e-8):
+                    break
+                alpha *= 0.5
+            x, energy, grad, ab, geo = trial, e_trial, g_trial, ab_trial, geo_trial
+            if np.max(np.abs(alpha * step)) < 1e-14:
+                return x, it
+        if np.max(np.abs(grad)) < 1e3 * self.force_tol:
+            return x, self.max_newton
+        raise ConvergenceError(
+            f"Newton did not converge in {self.max_newton} iterations "
+            f"(force residual {np.max(np.abs(grad)):.3g} N)")
