@@ -113,13 +113,16 @@ class SheetModel:
 
     # ------------------------------------------------------------------ state
     def initial_state(self, x0: np.ndarray, tool=(np.nan, np.nan), t0: float = 0.0) -> SheetState:
-        """Masses at rest at ``x0`` (N, 2) with every link unstretched."""
+        """Masses at rest at ``x0`` (N, 2), no elastic or plastic elongation yet.
+
+        Links start at their rest lengths' free length: shorter ones are slack,
+        longer ones are stretched from the first step on.
+        """
         n = self._n
         x0 = np.asarray(x0, dtype=float).reshape(n, 2)
-        l = self.link_lengths(x0)
         return SheetState(
             t=t0, x=x0.copy(), v=np.zeros((n, 2)),
-            e1=np.zeros(n + 1), p=l - self.c.rest_length,   # free length = initial length
+            e1=np.zeros(n + 1), p=np.zeros(n + 1),
             tension=np.zeros(n + 1), contact=np.zeros((len(self.obstacles), n, 2)),
             tool=np.asarray(tool, dtype=float).copy())
 
@@ -133,8 +136,14 @@ class SheetModel:
 
     # ------------------------------------------------------------------ step
     def step(self, state: SheetState, dt: float, tool=(np.nan, np.nan),
-             dynamic: bool = False) -> SheetState:
-        """Advance by ``dt`` [s] with the tool reference point at ``tool`` [m] at the end."""
+             dynamic: bool = True) -> SheetState:
+        """Advance by ``dt`` [s] with the tool reference point at ``tool`` [m] at the end.
+
+        ``dynamic=True`` (default) is backward Euler: the inertia term is
+        m (v_new - v)/dt, physical, and negligible against the links at the
+        process's time steps.  ``dynamic=False`` predicts rest (x_pred = x), a
+        proximal term that acts like a drag m v/dt.
+        """
         c = self.c
         tool = np.asarray(tool, dtype=float)
         free_length = c.rest_length + state.e1 + state.p

@@ -4,8 +4,10 @@
 :class:`~rheo_shaping.params.CellParams`.  On :meth:`Simulation.reset` the
 undeformed drape sags under gravity with inertia for ``solver.settle_time``
 (the paper's test case 1; steps of ``solver.dt_settle``); the process clock
-then starts at t = 0 with that settled sheet.  The process itself is
-quasi-static (tool speeds of mm/s against sheet vibration periods of ms):
+then starts at t = 0 with that settled sheet.  The process takes the same
+backward-Euler steps, but long ones, which makes it quasi-static (tool speeds
+of mm/s against sheet vibration periods of ms; the inertia term m/dt^2 is
+~1e-5 of the link stiffness):
 steps of at most ``solver.dt`` while the tool moves (``solver.dt_still``
 while it stands still) and at most ``solver.max_tool_step`` of tool travel.
 ``advance_to(t, tool_xz)`` is the stepping API of the ROS simulator node (the
@@ -139,7 +141,7 @@ class Simulation:
                 pose = tool_at(t + dt)
             if t_end - (t + dt) < 1e-9:
                 dt, pose = t_end - t, tool_at(t_end)
-            self.state = self.model.step(self.state, dt, pose, dynamic=False)
+            self.state = self.model.step(self.state, dt, pose)
             self.steps += 1
             if on_step is not None:
                 on_step(self.state)
@@ -189,7 +191,7 @@ def settled_state(params: CellParams, model: SheetModel, x0: np.ndarray, tool) -
         if len(_SETTLED) > 64:
             _SETTLED.clear()
         st = settle(model, x0, sp.settle_time, sp.dt_settle)
-        _SETTLED[key] = replace(st, t=0.0, v=np.zeros_like(st.v))
+        _SETTLED[key] = replace(st, t=0.0)
     st = _SETTLED[key].copy()
     return replace(st, tool=np.asarray(tool, dtype=float).copy())
 
