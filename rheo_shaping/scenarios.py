@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .params import CellParams, MovementParams
+from .planning import MotionLimits, Plan, Waypoint, plan_waypoints
 from .simulation import PolylinePath
 from .tools import tool_shape
 
@@ -90,3 +91,34 @@ def scenario_polyline(scenario: Scenario) -> PolylinePath:
             t.append(t[-1] + mv.dwell)
             pts.append(target)
     return PolylinePath(np.array(t), np.array(pts))
+
+
+def movement_limits(params: CellParams, speed: float) -> MotionLimits:
+    """Path limits of a move at ``speed`` [m/s] with the cell's acceleration and jerk limits."""
+    return MotionLimits(speed, params.movement.accel, params.movement.jerk)
+
+
+def scenario_plan(params: CellParams, scenario: Scenario) -> "ScenarioPlan":
+    """The scenario as one jerk-limited ruckig plan (rest at every waypoint)."""
+    waypoints = [Waypoint(float(m.target[0]), float(m.target[1]), m.dwell, m.label,
+                          movement_limits(params, m.speed)) for m in scenario.moves]
+    plan = plan_waypoints(scenario.start, waypoints, movement_limits(params, params.movement.speed),
+                          label_phases=False)
+    return ScenarioPlan(plan)
+
+
+@dataclass(frozen=True)
+class ScenarioPlan:
+    """A ruckig :class:`~rheo_shaping.planning.Plan` seen as a simulator tool path."""
+
+    plan: Plan
+
+    @property
+    def duration(self) -> float:
+        return float(self.plan.duration)
+
+    def position(self, t: float) -> np.ndarray:
+        return self.plan.sample(float(t))[0]
+
+    def knots(self) -> np.ndarray:
+        return np.asarray(self.plan.knots(), dtype=float)

@@ -1,0 +1,410 @@
+"""Reference solutions that verify the sheet simulator (independent of it).
+
+* :func:`elastic_chain_equilibrium`: exact static equilibrium of N point
+  masses joined by N + 1 linear elastic, tension-only links between two fixed
+  anchors under gravity (-z), by shooting on the anchor reaction.
+* :func:`irvine_catenary`: Irvine's elastic catenary (H. M. Irvine, *Cable
+  Structures*, MIT Press 1981, Sec. 2.2), the continuous cable the chain
+  converges to.
+* :func:`discretise_cable`: the lumped-mass chain that approximates a given
+  elastic cable (what the simulator does with the sheet).
+
+Conventions (frame ``cake``): z up, gravity ``-g ez``.  Anchor A is the start
+of the chain / cable (Lagrangian coordinate s = 0).  ``H`` [N] is the
+horizontal component of the tension (constant along the chain, positive when
+B lies at larger x than A) and ``V`` [N] the *upward* force the support A
+exerts on the chain.  The tension vector of link i, pointing from A's side to
+B's side, is then
+
+    T_i = (H, g * sum_{j < i} m_j - V),
+
+i.e. the brief's ``(H, V - g * sum m)`` with the vertical sign flipped so that
+``V`` is the support's upward reaction (the chain descends from A while
+``V > g * sum m``).  Link i is ``L_i + |T_i| / k_i`` long and lies along
+``T_i / |T_i|``.
+
+Convergence of the lumped chain to Irvine's cable (``discretise_cable``,
+``benchmarks/catenary_convergence.py``): the largest node error decreases as
+1/N^2 (ratios ~4.0 per halving of the link length, ~6.25 from N = 20 to 50).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from scipy.optimize import brentq, root
+
+__all__ = [
+    "ChainEquilibrium",
+    "solve_elastic_chain",
+    "elastic_chain_equilibrium",
+    "IrvineCable",
+    "solve_irvine",
+    "irvine_catenary",
+    "inextensible_catenary",
+    "LumpedCable",
+    "discretise_cable",
+]
+
+
+# --------------------------------------------------------------------- helpers
+
+
+def _finite(name: str, value: float, *, positive: bool = False) -> float:
+    v = float(value)
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: {value!r}, expected a finite number")
+    if positive and not v > 0.0:
+        raise ValueError(f"{name}: {value!r}, expected > 0")
+    return v
+
+
+def _initial_reactions(dx: float, dz: float, total_rest_length: float, total_weight: float,
+                       series_stiffness: float) -> tuple[float, float]:
+    """Guess (H, V) [N]: parabolic sag for a slack chain, straight stretch for a taut one."""
+    chord = math.hypot(dx, dz)
+    span = abs(dx)
+    h_sag = 0.0
+    if total_rest_length > chord:
+        sag = math.sqrt(3.0 * chord * (total_rest_length - chord) / 8.0)
+        h_sag = total_weight * max(span, 1e-3 * chord) / (8.0 * sag)
+    h_str = series_stiffness * max(chord - total_rest_length, 0.0) * span / chord
+    h = max(h_sag, h_str, 1e-3 * total_weight, 1e-12)
+    h = math.copysign(h, dx if dx != 0.0 else 1.0)
+    v = 0.5 * total_weight - (h * dz / dx if dx != 0.0 else 0.0)
+    return h, v
+
+
+# ----------------------------------------------------------------- lumped chain
+
+
+@dataclass(frozen=True)
+class ChainEquilibrium:
+    """Static equilibrium of a lumped elastic chain.
+
+    ``positions`` (N, 2) [m]; ``tensions`` (N+1,) [N] and ``lengths`` (N+1,)
+    [m] per link; ``H`` [N] horizontal tension, ``V`` [N] upward reaction at A;
+    ``mismatch`` [m] the end-point error of the shooting; ``iterations``.
+    """
+
+    positions: np.ndarray
+    tensions: np.ndarray
+    lengths: np.ndarray
+    H: float
+    V: float
+    mismatch: float
+    iterations: int
+
+
+def _chain_walk(hv: np.ndarray, a: np.ndarray, rest: np.ndarray, inv_k: np.ndarray,
+                w_before: np.ndarray, jac: bool) -> tuple:
+    """Walk from A link by link for reactions ``hv = (H, V)``: segment vectors
+    (N+1, 2), tensions (N+1,), end point (2,) and d(end)/d(H, V) (2, 2)."""
+    tx = np.full_like(rest, hv[0])
+    tz = w_before - hv[1]
+    t = np.hypot(tx, tz)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = rest / t + inv_k                   # (L + T/k) / T
+    seg = np.column_stack((scale * tx, scale * tz))
+    end = a + seg.sum(axis=0)
+    if not jac:
+        return seg, t, end, None
+    # d seg / dT = (L/T) (I - u u^T) + I/k;   dT/dH = (1, 0), dT/dV = (0, -1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ux, uz = tx / t, tz / t
+        lt = rest / t
+    j = np.empty((2, 2))
+    j[0, 0] = np.sum(lt * (1.0 - ux * ux) + inv_k)
+    j[1, 0] = np.sum(-lt * uz * ux)
+    j[0, 1] = -np.sum(-lt * ux * uz)
+    j[1, 1] = -np.sum(lt * (1.0 - uz * uz) + inv_k)
+    return seg, t, end, j
+
+
+def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float], rest_lengths: Sequence[float],
+                        stiffness: Sequence[float], masses: Sequence[float], g: float = 9.81,
+                        tol: float = 1e-15, max_iter: int = 200) -> ChainEquilibrium:
+    """Exact equilibrium of N masses ``masses`` (N,) [kg] joined by N + 1 links
+    of rest length ``rest_lengths`` (N+1,) [m] and stiffness ``stiffness``
+    (N+1,) [N/m] (force k (l - L), all taut) between anchors A and B [m].
+
+    Shooting on (H, V) with a damped Newton iteration (analytic Jacobian)
+    until the chain's far end is within ``tol`` [m] of B (must reach 1e-12 m).
+    Raises ValueError for bad input or a link that would be slack (zero
+    tension), RuntimeError when the iteration fails.
+    """
+    a = np.asarray(anchor_a, dtype=float).reshape(-1)
+    b = np.asarray(anchor_b, dtype=float).reshape(-1)
+    rest = np.asarray(rest_lengths, dtype=float).reshape(-1)
+    k = np.asarray(stiffness, dtype=float).reshape(-1)
+    m = np.asarray(masses, dtype=float).reshape(-1)
+    if a.shape != (2,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"anchor_a: {anchor_a!r}, expected finite (x, z) [m]")
+    if b.shape != (2,) or not np.all(np.isfinite(b)):
+        raise ValueError(f"anchor_b: {anchor_b!r}, expected finite (x, z) [m]")
+    n = m.size
+    if rest.size != n + 1:
+        raise ValueError(f"rest_lengths: {rest.size} values, expected N + 1 = {n + 1} (N = {n} masses)")
+    if k.size != n + 1:
+        raise ValueError(f"stiffness: {k.size} values, expected N + 1 = {n + 1} (N = {n} masses)")
+    if not np.all(np.isfinite(rest)) or np.any(rest <= 0.0):
+        raise ValueError(f"rest_lengths [m]: min {rest.min()!r}, expected finite values > 0")
+    if not np.all(np.isfinite(k)) or np.any(k <= 0.0):
+        raise ValueError(f"stiffness [N/m]: min {k.min()!r}, expected finite values > 0")
+    if n and (not np.all(np.isfinite(m)) or np.any(m < 0.0)):
+        raise ValueError(f"masses [kg]: min {m.min()!r}, expected finite values >= 0")
+    g = _finite("g [m/s^2]", g)
+    if g < 0.0:
+        raise ValueError(f"g [m/s^2]: {g!r}, expected >= 0")
+
+    inv_k = 1.0 / k
+    chord = float(np.hypot(*(b - a)))
+    if g * float(m.sum()) == 0.0 and float(rest.sum()) >= chord:
+        raise ValueError(f"weightless chain of rest length {float(rest.sum())!r} m between anchors {chord!r} m "
+                         "apart: every link would be slack (tension-only links need rest length < chord)")
+    w_before = g * np.concatenate(([0.0], np.cumsum(m)))       # weight hung before link i [N]
+    total_w = float(w_before[-1])
+    dx, dz = (b - a).tolist()
+    hv = np.array(_initial_reactions(dx, dz, float(rest.sum()), total_w, 1.0 / float(inv_k.sum())))
+
+    scale_len = max(float(rest.sum()), math.hypot(dx, dz))
+    seg, t, end, j = _chain_walk(hv, a, rest, inv_k, w_before, True)
+    res = end - b
+    err = float(np.hypot(*res))
+    it = 0
+    stalled = 0
+    while it < max_iter and err > tol:
+        it += 1
+        try:
+            step = -np.linalg.solve(j, res)
+        except np.linalg.LinAlgError as exc:
+            raise RuntimeError(f"elastic chain: singular Jacobian at H = {hv[0]!r} N, V = {hv[1]!r} N") from exc
+        alpha = 1.0
+        while True:
+            trial = hv + alpha * step
+            seg_t, t_t, end_t, j_t = _chain_walk(trial, a, rest, inv_k, w_before, True)
+            err_t = float(np.hypot(*(end_t - b)))
+            if np.isfinite(err_t) and (err_t < err * (1.0 - 1e-4 * alpha) or err_t <= tol):
+                break
+            alpha *= 0.5
+            if alpha < 1e-12:
+                break
+        if not (np.isfinite(err_t) and err_t < err):
+            stalled += 1                          # round-off floor: no further progress possible
+            if stalled >= 2 or alpha < 1e-12:
+                break
+            continue
+        hv, seg, t, end, j, err = trial, seg_t, t_t, end_t, j_t, err_t
+        res = end - b
+    if not err <= max(1e-12, 1e-14 * scale_len):
+        raise RuntimeError(f"elastic chain: end-point mismatch {err:.3e} m after {it} iterations, "
+                           f"expected <= 1e-12 m (H = {hv[0]:.6g} N, V = {hv[1]:.6g} N)")
+    t_min = float(t.min())
+    if not t_min > 1e-9 * max(total_w, abs(float(hv[0])), 1e-300):
+        i = int(np.argmin(t))
+        raise ValueError(f"link {i} would be slack (tension {t_min:.3e} N): a tension-only link cannot "
+                         "carry this configuration")
+    pos = a + np.cumsum(seg, axis=0)[:n]
+    return ChainEquilibrium(positions=pos, tensions=t, lengths=rest + t * inv_k, H=float(hv[0]),
+                            V=float(hv[1]), mismatch=err, iterations=it)
+
+
+def elastic_chain_equilibrium(anchor_a: Sequence[float], anchor_b: Sequence[float],
+                              rest_lengths: Sequence[float], stiffness: Sequence[float],
+                              masses: Sequence[float], g: float = 9.81) -> np.ndarray:
+    """Positions (N, 2) [m] of the masses at static equilibrium; see
+    :func:`solve_elastic_chain` for the arguments and the tensions."""
+    return solve_elastic_chain(anchor_a, anchor_b, rest_lengths, stiffness, masses, g).positions
+
+
+# ------------------------------------------------------------ Irvine's catenary
+
+
+@dataclass(frozen=True)
+class IrvineCable:
+    """An elastic catenary solved for its support reactions.
+
+    Supports (0, 0) and (``span``, ``height_difference``) [m]; unstretched
+    length ``L0`` [m]; axial stiffness ``EA`` [N]; weight per unstretched
+    length ``w`` [N/m]; ``H`` [N] horizontal tension, ``V`` [N] upward
+    reaction at (0, 0).
+    """
+
+    span: float
+    height_difference: float
+    L0: float
+    EA: float
+    w: float
+    H: float
+    V: float
+
+    def position(self, s: Sequence[float] | float) -> tuple[np.ndarray, np.ndarray]:
+        """(x, z) [m] of the material point at Lagrangian coordinate s [m]."""
+        return _irvine_xz(np.asarray(s, dtype=float), self.H, self.V, self.EA, self.w)
+
+    def tension(self, s: Sequence[float] | float) -> np.ndarray:
+        """Tension [N] at Lagrangian coordinate s [m]."""
+        return np.hypot(self.H, self.w * np.asarray(s, dtype=float) - self.V)
+
+
+def _asinh_sum(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """asinh(a) + asinh(b) without cancellation when a ~ -b."""
+    a, b = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
+    same = a * b >= 0.0
+    ra, rb = np.sqrt(1.0 + a * a), np.sqrt(1.0 + b * b)
+    den = a * rb - b * ra                               # no cancellation where a, b differ in sign
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mixed = np.arcsinh((a + b) * (a - b) / den)
+    return np.where(same, np.arcsinh(a) + np.arcsinh(b), np.where(den != 0.0, mixed, 0.0))
+
+
+def _irvine_xz(s: np.ndarray, h: float, v: float, ea: float, w: float) -> tuple[np.ndarray, np.ndarray]:
+    """Irvine's closed form with z up, s from support A (H > 0)."""
+    ta = math.hypot(h, v)
+    ts = np.hypot(h, w * s - v)
+    x = h * s / ea + (h / w) * _asinh_sum((w * s - v) / h, v / h)
+    # (1/w)(T(s) - T(0)) = s (w s - 2 V) / (T(s) + T(0)), free of cancellation
+    z = (0.5 * w * s * s - v * s) / ea + s * (w * s - 2.0 * v) / (ts + ta)
+    return x, z
+
+
+def _irvine_residual(hv: np.ndarray, span: float, hd: float, l0: float, ea: float, w: float) -> tuple:
+    h, v = float(hv[0]), float(hv[1])
+    if not h > 0.0:
+        return np.array([np.nan, np.nan]), np.full((2, 2), np.nan)
+    x, z = _irvine_xz(np.array(l0), h, v, ea, w)
+    ta, tb = math.hypot(h, v), math.hypot(h, w * l0 - v)
+    j = np.empty((2, 2))
+    j[0, 0] = l0 / ea + float(_asinh_sum((w * l0 - v) / h, v / h)) / w - ((w * l0 - v) / tb + v / ta) / w
+    j[0, 1] = (h / w) * (1.0 / ta - 1.0 / tb)
+    j[1, 0] = (h / w) * (1.0 / tb - 1.0 / ta)
+    j[1, 1] = -l0 / ea - ((w * l0 - v) / tb + v / ta) / w
+    return np.array([float(x) - span, float(z) - hd]), j
+
+
+def solve_irvine(span: float, height_difference: float, unstretched_length: float, EA: float,
+                 weight_per_length: float) -> IrvineCable:
+    """Solve Irvine's two compatibility equations x(L0) = span, z(L0) =
+    height_difference for the support reactions (scipy ``root``, then Newton
+    polishing to round-off).  ``span`` > 0 [m] (the vertical cable is excluded)."""
+    span = _finite("span [m]", span, positive=True)
+    hd = _finite("height_difference [m]", height_difference)
+    l0 = _finite("unstretched_length [m]", unstretched_length, positive=True)
+    ea = _finite("EA [N]", EA, positive=True)
+    w = _finite("weight_per_length [N/m]", weight_per_length, positive=True)
+
+    h0, v0 = _initial_reactions(span, hd, l0, w * l0, ea / l0)
+    # Work in (log H, V / (w L0)) so that H stays positive and both unknowns are O(1).
+    wl = w * l0
+
+    def fun(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        h = math.exp(y[0])
+        r, j = _irvine_residual(np.array([h, y[1] * wl]), span, hd, l0, ea, w)
+        return r, j @ np.diag([h, wl])
+
+    sol = root(fun, np.array([math.log(h0), v0 / wl]), jac=True, method="hybr",
+               options={"xtol": 1e-15, "maxfev": 2000})
+    y = sol.x
+    r, j = fun(y)
+    for _ in range(8):                       # Newton polish to round-off
+        if not np.all(np.isfinite(r)):
+            break
+        y_new = y - np.linalg.solve(j, r)
+        r_new, j_new = fun(y_new)
+        if not np.all(np.isfinite(r_new)) or np.abs(r_new).max() >= np.abs(r).max():
+            break
+        y, r, j = y_new, r_new, j_new
+    err = float(np.abs(r).max()) if np.all(np.isfinite(r)) else math.inf
+    if not err <= 1e-12:
+        raise RuntimeError(f"Irvine catenary: support mismatch {err:.3e} m, expected <= 1e-12 m "
+                           f"({sol.message})")
+    return IrvineCable(span=span, height_difference=hd, L0=l0, EA=ea, w=w, H=math.exp(y[0]), V=y[1] * wl)
+
+
+def irvine_catenary(span: float, height_difference: float, unstretched_length: float, EA: float,
+                    weight_per_length: float, s: Sequence[float] | float) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (x, z) [m] at Lagrangian coordinates ``s`` in [0, L0] [m] of
+    Irvine's elastic catenary between (0, 0) and (span, height_difference).
+
+    ``EA`` [N] axial stiffness, ``weight_per_length`` [N/m] per unstretched
+    length.  With z up, V the upward reaction at (0, 0), T(s) = sqrt(H^2 + (w s - V)^2):
+
+        x(s) = H s / EA + (H / w) [asinh((w s - V) / H) + asinh(V / H)]
+        z(s) = (w s^2 / 2 - V s) / EA + (T(s) - T(0)) / w
+    """
+    s_arr = np.asarray(s, dtype=float)
+    l0 = _finite("unstretched_length [m]", unstretched_length, positive=True)
+    if np.any(~np.isfinite(s_arr)) or np.any(s_arr < 0.0) or np.any(s_arr > l0 * (1.0 + 1e-12)):
+        raise ValueError(f"s [m]: range [{s_arr.min()!r}, {s_arr.max()!r}], expected within [0, L0 = {l0!r}]")
+    return solve_irvine(span, height_difference, l0, EA, weight_per_length).position(s_arr)
+
+
+def inextensible_catenary(span: float, height_difference: float, length: float,
+                          x: Sequence[float] | float) -> np.ndarray:
+    """z [m] at ``x`` [m] of the inextensible catenary of length ``length`` [m]
+    between (0, 0) and (span, height_difference) (needs length > chord)."""
+    l, h, big_l = float(span), float(height_difference), float(length)
+    if not big_l > math.hypot(l, h):
+        raise ValueError(f"length [m]: {length!r}, expected > chord = {math.hypot(l, h)!r}")
+    target = math.sqrt(big_l * big_l - h * h)
+    # 2 a sinh(l / 2a) = target; the left side decreases from inf to l as a grows
+    f = lambda a: 2.0 * a * math.sinh(l / (2.0 * a)) - target
+    a_lo = l / (2.0 * math.asinh(target / l) + 2.0)
+    while f(a_lo) < 0.0:
+        a_lo *= 0.5
+    a_hi = l
+    while f(a_hi) > 0.0:
+        a_hi *= 2.0
+    a = brentq(f, a_lo, a_hi, xtol=1e-16, rtol=4 * np.finfo(float).eps, maxiter=500)
+    x0 = 0.5 * l - a * math.asinh(h / (2.0 * a * math.sinh(l / (2.0 * a))))
+    return a * (np.cosh((np.asarray(x, dtype=float) - x0) / a) - math.cosh(x0 / a))
+
+
+# -------------------------------------------------------------- discretisation
+
+
+@dataclass(frozen=True)
+class LumpedCable:
+    """A lumped-mass chain standing for an elastic cable (arguments of
+    :func:`elastic_chain_equilibrium`) and the Lagrangian coordinates
+    ``s_nodes`` (N,) [m] of its masses on the cable."""
+
+    anchor_a: np.ndarray
+    anchor_b: np.ndarray
+    rest_lengths: np.ndarray
+    stiffness: np.ndarray
+    masses: np.ndarray
+    s_nodes: np.ndarray
+    g: float
+
+    def solve(self) -> ChainEquilibrium:
+        """Equilibrium of this chain."""
+        return solve_elastic_chain(self.anchor_a, self.anchor_b, self.rest_lengths, self.stiffness,
+                                   self.masses, self.g)
+
+
+def discretise_cable(span: float, height_difference: float, unstretched_length: float, EA: float,
+                     weight_per_length: float, n_masses: int, g: float = 9.81) -> LumpedCable:
+    """N = ``n_masses`` masses, N + 1 equal links of rest length L0 / (N + 1)
+    [m] and stiffness EA / L_i [N/m]; each mass w L0 / ((N + 1) g) [kg] (the
+    halves of the end links' weight go to the supports).  Supports (0, 0) and
+    (span, height_difference) [m]."""
+    n = int(n_masses)
+    if n != n_masses or n < 1:
+        raise ValueError(f"n_masses: {n_masses!r}, expected an integer >= 1")
+    l0 = _finite("unstretched_length [m]", unstretched_length, positive=True)
+    ea = _finite("EA [N]", EA, positive=True)
+    w = _finite("weight_per_length [N/m]", weight_per_length)
+    g = _finite("g [m/s^2]", g, positive=True)
+    seg = l0 / (n + 1)
+    return LumpedCable(
+        anchor_a=np.zeros(2),
+        anchor_b=np.array([float(span), float(height_difference)]),
+        rest_lengths=np.full(n + 1, seg),
+        stiffness=np.full(n + 1, ea / seg),
+        masses=np.full(n, w * seg / g),
+        s_nodes=seg * np.arange(1, n + 1),
+        g=g,
+    )
