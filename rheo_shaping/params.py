@@ -93,11 +93,11 @@ class SolverParams:
     gravity: float = param(9.81, "gravitational acceleration (-z)", "m/s^2", 0.0, 100.0)
     settle_time: float = param(1.0, "sagging under gravity with inertia before the process starts (test case 1)", "s", 0.0, 3600.0)
     dt_settle: float = param(2e-3, "time step of the inertial settling", "s", 0.0, 1.0, lo_open=True)
-    dt: float = param(0.25, "largest quasi-static time step while the tool moves", "s", 0.0, 100.0, lo_open=True)
-    dt_still: float = param(1.0, "largest quasi-static time step while the tool stands still", "s", 0.0, 100.0, lo_open=True)
-    max_tool_step: float = param(2.5e-4, "largest tool travel in one step", "m", 0.0, 0.01, lo_open=True)
+    dt: float = param(0.5, "largest quasi-static time step while the tool moves", "s", 0.0, 100.0, lo_open=True)
+    dt_still: float = param(2.0, "largest quasi-static time step while the tool stands still", "s", 0.0, 100.0, lo_open=True)
+    max_tool_step: float = param(5e-4, "largest tool travel in one step", "m", 0.0, 0.01, lo_open=True)
     contact_stiffness: float = param(1e7, "penalty stiffness of the unilateral contacts", "N/m", 1e3, 1e12)
-    force_tol: float = param(1e-9, "Newton tolerance on the force residual", "N", 0.0, 1e-2, lo_open=True)
+    force_tol: float = param(1e-8, "Newton tolerance on the force residual", "N", 0.0, 1e-2, lo_open=True)
     max_newton: int = param(50, "Newton iterations allowed per step", "", 1, 1000)
 
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 from typing import Protocol, Sequence
 
 import numpy as np
-from scipy.linalg import solveh_banded, LinAlgError
+from scipy.linalg.lapack import dpbsv
 
 from .material import elongation_step, step_coefficients
 
@@ -110,6 +110,11 @@ class SheetModel:
         self._n = n
         self._weight = np.zeros((n, 2))
         self._weight[:, 1] = constants.mass * constants.gravity
+        self._nodes = np.empty((n + 2, 2))
+        self._nodes[0] = constants.anchor_top
+        self._nodes[-1] = constants.anchor_bottom
+        # how far a moving obstacle reaches from its reference point (skip it when farther)
+        self._reach = [_reach(ob.shape) if ob.moving else np.inf for ob in self.obstacles]
 
     # ------------------------------------------------------------------ state
     def initial_state(self, x0: np.ndarray, tool=(np.nan, np.nan), t0: float = 0.0) -> SheetState:
@@ -127,7 +132,7 @@ class SheetModel:
             tool=np.asarray(tool, dtype=float).copy())
 
     def nodes(self, x: np.ndarray) -> np.ndarray:
-        """Bond, mass and bond positions (N+2, 2) [m]."""
+        """Bond, mass and bond positions (N+2, 2) [m] (a new array)."""
         return np.vstack((self.c.anchor_top, x, self.c.anchor_bottom))
 
     def link_lengths(self, x: np.ndarray) -> np.ndarray:
@@ -154,11 +159,11 @@ class SheetModel:
         offsets = [tool if ob.moving else None for ob in self.obstacles]
 
         guess = state.x + dt * state.v      # warm start: continue the last motion
-        x, iters = self._minimise(guess, x_pred, inertia, S, L_star, offsets)
+        x, iters, geo = self._minimise(guess, x_pred, inertia, S, L_star, offsets)
 
         l = self.link_lengths(x)
         F, e1, p = elongation_step(c.k1, c.c1, c.c2, state.e1, state.p, l - free_length, dt)
-        contact = self._contact_forces(x, offsets)
+        contact = self._contact_forces(geo)
         v = (x - state.x) / dt   # quasi-static: only the warm start of the next step uses it
         return SheetState(t=state.t + dt, x=x, v=v, e1=e1, p=p, tension=F,
                           contact=contact, tool=tool.copy(), newton_iterations=iters)
@@ -168,22 +173,30 @@ class SheetModel:
         """Per present obstacle: (index, signed distance of the centres d [m], normals n)."""
         out = []
         for i, (ob, off) in enumerate(zip(self.obstacles, offsets)):
-            if ob.moving and (off is None or not np.all(np.isfinite(off))):
-                continue
+            if ob.moving:
+                if off is None or not np.all(np.isfinite(off)):
+                    continue
+                # no sphere within reach: no contact, nothing to predict (the exact
+                # energy is unchanged; a Newton trial point that comes near is evaluated fully)
+                rel = x - off
+                if np.min(rel[:, 0] ** 2 + rel[:, 1] ** 2) > (self._reach[i] + self.c.radius + 2e-3) ** 2:
+                    continue
             d, nrm = ob.shape.signed_distance(x, off if ob.moving else (0.0, 0.0))
             out.append((i, d, nrm))
         return out
 
-    def _contact_forces(self, x, offsets) -> np.ndarray:
+    def _contact_forces(self, geo) -> np.ndarray:
+        """Force [N] of each obstacle on each sphere, from the final Newton geometry."""
         forces = np.zeros((len(self.obstacles), self._n, 2))
-        for i, d, nrm in self._geometry(x, offsets):
+        for i, d, nrm in geo:
             forces[i] = (self.kc * np.maximum(self.c.radius - d, 0.0))[:, None] * nrm
         return forces
 
     def _evaluate(self, x, x_pred, inertia, S, L_star, offsets):
         """Energy, gradient (N, 2) and banded Hessian of the step's potential at ``x``."""
         n = self._n
-        nodes = self.nodes(x)
+        nodes = self._nodes
+        nodes[1:-1] = x
         d = nodes[1:] - nodes[:-1]                      # (N+1, 2)
         l = np.hypot(d[:, 0], d[:, 1])
         u = d / l[:, None]
@@ -254,10 +267,7 @@ class SheetModel:
                     band[3, 0::2] += kf * nrm[:, 0] ** 2
                     band[3, 1::2] += kf * nrm[:, 1] ** 2
                     band[2, 1::2] += kf * nrm[:, 0] * nrm[:, 1]
-            try:
-                step = solveh_banded(band, -g.reshape(-1), check_finite=False).reshape(-1, 2)
-            except (LinAlgError, ValueError) as exc:  # pragma: no cover - SPD by construction
-                raise ConvergenceError(f"singular Newton system: {exc}") from None
+            step = _solve(band, g)
             changed = False
             for (_, dist, nrm), f in zip(geo, forced):
                 pen_new = r - dist - np.einsum("ij,ij->i", nrm, step)
@@ -276,11 +286,11 @@ class SheetModel:
         energy, grad, ab, geo = self._evaluate(x, *args)
         for it in range(1, self.max_newton + 1):
             if np.max(np.abs(grad)) < self.force_tol:
-                return x, it - 1
+                return x, it - 1, geo
             step, g_model = self._newton_step(grad, ab, geo)
             slope = float(np.dot(grad.reshape(-1), step.reshape(-1)))
             if slope >= 0.0:   # the contact prediction spoilt descent: plain Newton step
-                step = solveh_banded(ab, -grad.reshape(-1), check_finite=False).reshape(-1, 2)
+                step = _solve(ab, grad)
                 slope = float(np.dot(grad.reshape(-1), step.reshape(-1)))
             alpha = 1.0
             while True:
@@ -293,9 +303,23 @@ class SheetModel:
                 alpha *= 0.5
             x, energy, grad, ab, geo = trial, e_trial, g_trial, ab_trial, geo_trial
             if np.max(np.abs(alpha * step)) < 1e-14:
-                return x, it
+                return x, it, geo
         if np.max(np.abs(grad)) < 1e3 * self.force_tol:
-            return x, self.max_newton
+            return x, self.max_newton, geo
         raise ConvergenceError(
             f"Newton did not converge in {self.max_newton} iterations "
             f"(force residual {np.max(np.abs(grad)):.3g} N)")
+
+
+def _reach(shape) -> float:
+    """Largest distance [m] of a shape's outline from its reference point."""
+    outline = shape.outline(256)
+    return float(np.max(np.hypot(outline[:, 0], outline[:, 1])))
+
+
+def _solve(band: np.ndarray, grad: np.ndarray) -> np.ndarray:
+    """Newton step (N, 2) from the banded SPD Hessian (LAPACK dpbsv, upper band storage)."""
+    _, step, info = dpbsv(band, -grad.reshape(-1))
+    if info != 0:  # pragma: no cover - the Hessian is SPD by construction
+        raise ConvergenceError(f"Newton system not positive definite (LAPACK dpbsv info {info})")
+    return step.reshape(-1, 2)
