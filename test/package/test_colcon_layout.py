@@ -1,0 +1,190 @@
+"""A real ``colcon build`` of the package, and what ``ros2 run`` would need from it.
+
+Builds the repository with the venv's colcon into a temporary workspace
+(isolated install, colcon's default: the package's prefix is
+``<install>/rheo_shaping``), then checks the ament index, the installed
+executables and data files, and that each node executable starts, shows up in
+the ROS graph, and exits with code 0 on SIGINT.
+"""
+from __future__ import annotations
+
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("colcon_core", reason="colcon is not installed: run in the full venv (.venv)")
+
+REPO = Path(__file__).resolve().parents[2]
+PACKAGE = "rheo_shaping"
+NODES = ("simulator", "planner", "monitor")
+EXECUTABLES = (*NODES, "rheo-shaping")
+BUILD_TIMEOUT_S = 300
+START_TIMEOUT_S = 30
+STOP_TIMEOUT_S = 10
+
+
+def _clean_env(**extra: str) -> dict[str, str]:
+    """The test's environment without any sourced ROS workspace."""
+    env = dict(os.environ)
+    for var in ("AMENT_PREFIX_PATH", "COLCON_PREFIX_PATH", "CMAKE_PREFIX_PATH"):
+        env.pop(var, None)
+    env.update(extra)
+    return env
+
+
+def _colcon_cmd() -> list[str]:
+    script = Path(sys.executable).with_name("colcon")
+    if script.exists():
+        return [sys.executable, str(script)]
+    return [sys.executable, "-c", "import sys; from colcon_core.command import main; sys.exit(main())"]
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory) -> Path:
+    """Run ``colcon build`` once for the module; return the workspace dir."""
+    ws = tmp_path_factory.mktemp("colcon_ws")
+    cmd = [
+        *_colcon_cmd(), "--log-base", str(ws / "log"),
+        "build", "--base-paths", str(REPO),
+        "--build-base", str(ws / "build"), "--install-base", str(ws / "install"),
+        "--event-handlers", "console_direct-",
+    ]
+    proc = subprocess.run(cmd, cwd=ws, env=_clean_env(COLCON_HOME=str(ws / "colcon_home")),
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          timeout=BUILD_TIMEOUT_S)
+    assert proc.returncode == 0, f"colcon build failed:\n$ {shlex.join(cmd)}\n{proc.stdout}"
+    assert "1 package finished" in proc.stdout, proc.stdout
+    return ws
+
+
+@pytest.fixture(scope="module")
+def install(workspace) -> Path:
+    return workspace / "install"
+
+
+@pytest.fixture(scope="module")
+def prefix(install) -> Path:
+    """The package's prefix as ament_index finds it (what ``ros2 run`` uses)."""
+    code = ("from ament_index_python.packages import get_package_prefix; "
+            f"print(get_package_prefix({PACKAGE!r}))")
+    out = subprocess.run([sys.executable, "-c", code], check=True, stdout=subprocess.PIPE,
+                         text=True, env=_clean_env(AMENT_PREFIX_PATH=str(install / PACKAGE)))
+    return Path(out.stdout.strip())
+
+
+def test_ament_index_finds_the_isolated_prefix(install, prefix):
+    assert prefix == install / PACKAGE
+    marker = prefix / "share" / "ament_index" / "resource_index" / "packages" / PACKAGE
+    assert marker.is_file()
+
+
+@pytest.mark.parametrize("exe", EXECUTABLES)
+def test_executable_installed_where_ros2_run_looks(prefix, exe):
+    path = prefix / "lib" / PACKAGE / exe
+    assert path.is_file(), f"missing {path}"
+    assert os.access(path, os.X_OK), f"not executable: {path}"
+
+
+def test_package_xml_and_config_installed(prefix):
+    share = prefix / "share" / PACKAGE
+    assert (share / "package.xml").read_bytes() == (REPO / "package.xml").read_bytes()
+    wanted = sorted(p.name for p in (REPO / "config").glob("*.yaml"))
+    installed = sorted(p.name for p in (share / "config").glob("*.yaml"))
+    assert installed == wanted
+    for name in wanted:
+        assert (share / "config" / name).read_bytes() == (REPO / "config" / name).read_bytes()
+
+
+def test_packaged_data_installed(prefix):
+    data_src = REPO / PACKAGE / "data"
+    wanted = sorted(p.name for p in data_src.glob("*") if p.is_file()) if data_src.is_dir() else []
+    site = next(prefix.glob(f"lib/python3*/site-packages/{PACKAGE}"))
+    installed = sorted(p.name for p in (site / "data").glob("*") if p.is_file())
+    assert installed == wanted
+
+
+def _sourced(install: Path, command: str) -> list[str]:
+    """``command`` run as after ``source <install>/setup.bash``."""
+    return ["bash", "-c", f"source {shlex.quote(str(install / 'setup.bash'))} && exec {command}"]
+
+
+def test_cli_help_from_lib(install, prefix):
+    exe = prefix / "lib" / PACKAGE / "rheo-shaping"
+    proc = subprocess.run(_sourced(install, f"{shlex.quote(str(exe))} --help"),
+                          env=_clean_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                          text=True, timeout=60)
+    assert proc.returncode == 0, proc.stdout
+    assert "usage: rheo-shaping" in proc.stdout
+
+
+def test_sourced_workspace_imports_the_installed_package(install, prefix):
+    """After sourcing, Python imports rheo_shaping from the install, not the source tree."""
+    code = "import rheo_shaping; print(rheo_shaping.__file__)"
+    proc = subprocess.run(_sourced(install, f"{shlex.quote(sys.executable)} -c {shlex.quote(code)}"),
+                          env=_clean_env(), stdout=subprocess.PIPE, text=True, timeout=60,
+                          cwd=install)
+    assert proc.returncode == 0
+    assert Path(proc.stdout.strip()).is_relative_to(prefix), proc.stdout
+
+
+@pytest.fixture(scope="module")
+def observer():
+    """An rclpy node in its own context that watches the ROS graph."""
+    import rclpy
+    from rclpy.context import Context
+
+    context = Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("colcon_layout_test_observer", context=context)
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def _wait_for_node(observer, name: str, proc: subprocess.Popen, timeout: float) -> bool:
+    """Poll the graph until ``name`` appears (True), the process dies or time runs out."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if name in observer.get_node_names():
+            return True
+        if proc.poll() is not None:
+            return False
+        time.sleep(0.1)
+    return False
+
+
+@pytest.mark.parametrize("node_name", NODES)
+def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_name, tmp_path):
+    exe = prefix / "lib" / PACKAGE / node_name
+    log = tmp_path / f"{node_name}.log"
+    with open(log, "w") as out:
+        proc = subprocess.Popen(
+            _sourced(install, shlex.quote(str(exe))), env=_clean_env(),
+            stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+            start_new_session=True,  # a Ctrl-C on the test run does not hit it
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        )
+        try:
+            seen = _wait_for_node(observer, node_name, proc, START_TIMEOUT_S)
+            assert seen, (f"node {node_name!r} not in the ROS graph within {START_TIMEOUT_S} s "
+                          f"(exit code {proc.poll()}); its output:\n{log.read_text()}")
+            proc.send_signal(signal.SIGINT)  # bash exec'd the node: this pid is the node
+            try:
+                rc = proc.wait(timeout=STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                pytest.fail(f"{node_name} did not exit within {STOP_TIMEOUT_S} s of SIGINT; "
+                            f"its output:\n{log.read_text()}")
+            assert rc == 0, f"{node_name} exited with {rc} on SIGINT; its output:\n{log.read_text()}"
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+    assert f"[{node_name}]" in log.read_text()  # its logger spoke
