@@ -341,7 +341,8 @@ def cmd_test(args: list[str], verbose: bool) -> int:
     # (b) ROS nodes and the package layout, in the full venv (one pytest call, so
     #     an empty test/ros does not make the stage fail).
     if not explicit or ros_paths:
-        pytest_stage("ros+package", FULL, ros_paths or ["test/ros", "test/package"])
+        pytest_stage("ros+package", FULL,
+                     ros_paths or [d for d in ("test/ros", "test/package") if (ROOT / d).is_dir()])
 
     print()
     for stage, ok, text in results:
