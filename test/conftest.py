@@ -12,31 +12,18 @@ Harmless where ROS is not installed (test/core runs in .venv-core).
 """
 from __future__ import annotations
 
-import fcntl
+import importlib.util
 import os
-import random
-import tempfile
 from pathlib import Path
-
-_domain_lock = None
 
 
 def _claim_domain_id() -> int:
-    global _domain_lock
-    lock_dir = Path(tempfile.gettempdir()) / "rheo_shaping-ros-domains"
-    lock_dir.mkdir(exist_ok=True)
-    ids = list(range(1, 101))
-    start = random.randrange(len(ids))
-    for i in ids[start:] + ids[:start]:
-        fh = open(lock_dir / f"{i}.lock", "w")
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            fh.close()
-            continue
-        _domain_lock = fh
-        return i
-    return random.choice(ids)
+    """dev.py's lock-file claim of a free ROS_DOMAIN_ID (one implementation for both)."""
+    spec = importlib.util.spec_from_file_location("rheo_dev", Path(__file__).resolve().parents[1] / "dev.py")
+    dev = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(dev)
+    _claim_domain_id.dev = dev   # keep the module (and its held lock file) alive for the session
+    return dev.claim_domain_id()
 
 
 def pytest_configure(config):
