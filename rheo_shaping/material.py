@@ -20,7 +20,10 @@ exact solution of the unit's linear ODE (paper Eq. 2):
 
     (c1 + c2) de1/dt = c2 dl/dt - k1 e1,          F = c2 dp/dt = k1 e1 + c1 de1/dt
 
-so a constant-rate pull reproduces Eq. 5 to round-off for any ``dt``.  The
+so a constant-rate pull reproduces Eq. 5 to round-off for any ``dt``
+(:mod:`rheo_shaping.closed_forms` holds Eq. 3-13, :mod:`rheo_shaping.response`
+drives a unit with whole elongation or force histories, and
+:mod:`rheo_shaping.burgers` adds the four-element Burgers model).  The
 force at the end of the step is affine in the elongation ``delta`` taken during
 the step, ``F = F0 + S delta`` (taut units), which is what the sheet solver
 needs to build its implicit step.
@@ -71,17 +74,66 @@ class ThreeElement:
         return ThreeElement(self.k1 * s, self.c1 * s, self.c2 * s, length)
 
 
-def _check_positive(name: str, value: float, allow_inf: bool = False) -> None:
-    v = float(value)
+def maxwell(k: float, c: float, length: float = SPECIMEN_LENGTH_M) -> ThreeElement:
+    """Maxwell model: spring ``k`` [N/m] in series with dashpot ``c`` [N s/m].
+
+    It is the ``c1 = 0`` case of the three-element unit (paper Sec. 3.4.2,
+    the model the paper identifies for fondant icing), so it is returned as
+    ``ThreeElement(k1=k, c1=0, c2=c, length=length)``.
+    """
+    return ThreeElement(k, 0.0, c, length)
+
+
+def _show(value) -> str:
+    """``repr`` of a value, numpy scalars shown as plain numbers."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    return repr(value)
+
+
+def check_positive(name: str, value: float, allow_inf: bool = False) -> float:
+    """``float(value)`` if it is a positive number (or ``inf`` when allowed).
+
+    Raises :class:`ValueError` naming the quantity, the value and what was
+    expected: NaN, zero, negative numbers and non-numbers are refused.
+    """
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} = {_show(value)}: expected a positive number") from None
     if np.isnan(v) or v <= 0.0 or (np.isinf(v) and not allow_inf):
-        expected = "a positive number" + (" or inf" if allow_inf else "")
-        raise ValueError(f"{name} = {value!r}: expected {expected}")
+        expected = "a positive number or inf" if allow_inf else "a positive finite number"
+        raise ValueError(f"{name} = {_show(value)}: expected {expected}")
+    return v
 
 
-def _check_non_negative(name: str, value: float) -> None:
-    v = float(value)
+def check_non_negative(name: str, value: float) -> float:
+    """``float(value)`` if it is a finite number >= 0, else :class:`ValueError`."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} = {_show(value)}: expected a finite number >= 0") from None
     if not np.isfinite(v) or v < 0.0:
-        raise ValueError(f"{name} = {value!r}: expected a finite number >= 0")
+        raise ValueError(f"{name} = {_show(value)}: expected a finite number >= 0")
+    return v
+
+
+# The former private names, kept for callers inside the package.
+_check_positive = check_positive
+_check_non_negative = check_non_negative
+
+
+def check_time_step(dt) -> None:
+    """Refuse time steps ``dt`` [s] that are not positive and finite (scalar or array)."""
+    if np.ndim(dt) == 0:
+        if not 0.0 < dt < np.inf:   # also False for NaN
+            raise ValueError(f"time step dt [s] = {_show(dt)}: expected a positive finite number")
+        return
+    d = np.asarray(dt, dtype=float)
+    bad = ~((d > 0.0) & np.isfinite(d))
+    if bad.any():
+        raise ValueError(
+            f"time step dt [s] = {_show(d[bad].flat[0])}: expected positive finite numbers")
 
 
 def step_factors(k1, c1, c2, dt):
@@ -89,8 +141,11 @@ def step_factors(k1, c1, c2, dt):
 
     Returns ``(r, eps, g)`` with ``r = c2/(c1+c2)``, ``x = k1 dt/(c1+c2)``,
     ``eps = exp(-x)`` and ``g = (1 - eps)/x`` (``g -> 1`` as ``x -> 0``).
-    ``c2 = inf`` gives ``r = 1, eps = 1, g = 1``.
+    ``c2 = inf`` gives ``r = 1, eps = 1, g = 1``.  ``exp(-x)`` is the decay
+    ``exp(-k1 t/(c1+c2))`` of paper Eq. 3-5 over one step.  A ``dt`` that is
+    not positive and finite raises :class:`ValueError`.
     """
+    check_time_step(dt)
     k1 = np.asarray(k1, dtype=float)
     c1 = np.asarray(c1, dtype=float)
     c2 = np.asarray(c2, dtype=float)
