@@ -72,7 +72,8 @@ class Drape:
         dx, dz = chord
         # catenary z = a cosh((x - x0)/a) + z0 through p0, p1 with arc length L
         target = np.sqrt(L * L - dz * dz)
-        a = brentq(lambda a: 2 * a * np.sinh(dx / (2 * a)) - target, dx * 1e-4, dx * 1e6, xtol=1e-15)
+        # sinh overflows past 710: the bracket starts at dx/(2a) = 700
+        a = brentq(lambda a: 2 * a * np.sinh(dx / (2 * a)) - target, dx / 1400.0, dx * 1e6, xtol=1e-15)
         # x0 from the height difference: dz = a (cosh(u1) - cosh(u0)), u = (x - x0)/a
         m = np.arctanh(dz / L)          # (u0 + u1)/2
         u0 = m - dx / (2 * a)

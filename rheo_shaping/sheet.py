@@ -95,6 +95,7 @@ class ConvergenceError(RuntimeError):
     """Newton's method did not converge in a step."""
 
 
+
 class SheetModel:
     """Implicit stepping of a chain of masses with tension-only links and contact."""
 
@@ -141,14 +142,30 @@ class SheetModel:
 
     # ------------------------------------------------------------------ step
     def step(self, state: SheetState, dt: float, tool=(np.nan, np.nan),
-             dynamic: bool = True) -> SheetState:
+             dynamic: bool = True, _min_dt: float | None = None) -> SheetState:
         """Advance by ``dt`` [s] with the tool reference point at ``tool`` [m] at the end.
 
         ``dynamic=True`` (default) is backward Euler: the inertia term is
         m (v_new - v)/dt, physical, and negligible against the links at the
         process's time steps.  ``dynamic=False`` predicts rest (x_pred = x), a
         proximal term that acts like a drag m v/dt.
+
+        A step whose Newton iteration does not converge (a sphere caught on a
+        sharp tool corner, a sudden contact) is retried as two half steps, the
+        tool moving linearly between its poses, down to 1/256 of ``dt``.
         """
+        min_dt = dt / 256.0 if _min_dt is None else _min_dt
+        try:
+            return self._step(state, dt, tool, dynamic)
+        except ConvergenceError:
+            if 0.5 * dt < min_dt:
+                raise
+        tool = np.asarray(tool, dtype=float)
+        mid = 0.5 * (state.tool + tool) if np.all(np.isfinite(state.tool)) else tool
+        half = self.step(state, 0.5 * dt, mid, dynamic, min_dt)
+        return self.step(half, 0.5 * dt, tool, dynamic, min_dt)
+
+    def _step(self, state: SheetState, dt: float, tool, dynamic: bool) -> SheetState:
         c = self.c
         tool = np.asarray(tool, dtype=float)
         free_length = c.rest_length + state.e1 + state.p
@@ -219,17 +236,31 @@ class SheetModel:
         dzz = inertia + hzz[:-1] + hzz[1:]
         dxz = hxz[:-1] + hxz[1:]
         geo = self._geometry(x, offsets)
-        for _, dist, nrm in geo:
+        curv = None          # the contacts' curvature part of the Hessian diagonal blocks
+        for i, dist, nrm in geo:
             pen = self.c.radius - dist
-            if not np.any(pen > 0.0):
+            active = pen > 0.0
+            if not np.any(active):
                 continue
-            kp = np.where(pen > 0.0, self.kc, 0.0)
+            kp = np.where(active, self.kc, 0.0)
             fp = kp * pen
             energy += 0.5 * np.dot(fp, pen)
             grad -= fp[:, None] * nrm
             dxx = dxx + kp * nrm[:, 0] ** 2
             dzz = dzz + kp * nrm[:, 1] ** 2
             dxz = dxz + kp * nrm[:, 0] * nrm[:, 1]
+            # exact Hessian of 1/2 K_c (r - d)^2 adds -K_c pen kappa (I - n n^T): kappa is the
+            # curvature of the distance's level set (1/(d + R) round a corner of radius R, 0
+            # along a flat face).  Without it Newton crawls round sharp corners.
+            kappa = self._curvature(i, x, nrm, active, offsets)
+            if kappa is not None:
+                b = np.zeros(n)
+                b[active] = -self.kc * pen[active] * kappa
+                cxx, czz, cxz = b * (1.0 - nrm[:, 0] ** 2), b * (1.0 - nrm[:, 1] ** 2), -b * nrm[:, 0] * nrm[:, 1]
+                dxx, dzz, dxz = dxx + cxx, dzz + czz, dxz + cxz
+                if curv is None:
+                    curv = np.zeros((3, n))
+                curv += (cxx, czz, cxz)
 
         # upper band storage, half bandwidth 3: ab[3 + i - j, j] = H[i, j]
         ab = np.zeros((4, 2 * n))
@@ -241,7 +272,21 @@ class SheetModel:
         ab[1, 2::2] = -hxx[1:-1]      # H[x_j, x_j+1]
         ab[1, 3::2] = -hzz[1:-1]      # H[z_j, z_j+1]
         ab[0, 3::2] = off_xz          # H[x_j, z_j+1]
+        if curv is not None:
+            geo = _Geo(geo, curv)
         return float(energy), grad, ab, geo
+
+    def _curvature(self, i, x, nrm, active, offsets, h=1e-7):
+        """Curvature [1/m] of obstacle i's distance at the active spheres (finite difference
+        of the normal along the tangent), or None where it is zero everywhere."""
+        ob = self.obstacles[i]
+        if isinstance(ob.shape, _FLAT_SHAPES):
+            return None
+        n_a = nrm[active]
+        t = np.c_[-n_a[:, 1], n_a[:, 0]]
+        _, n2 = ob.shape.signed_distance(x[active] + h * t, offsets[i] if ob.moving else (0.0, 0.0))
+        kappa = np.einsum("ij,ij->i", n2 - n_a, t) / h
+        return np.maximum(kappa, 0.0)   # convex obstacles: level sets curve outward
 
     def _newton_step(self, grad, ab, geo):
         """Newton step with the contact set predicted on the quadratic model.
@@ -254,6 +299,8 @@ class SheetModel:
         """
         r, kc = self.c.radius, self.kc
         forced = [np.zeros(self._n, dtype=bool) for _ in geo]
+        if isinstance(geo, _Geo) and not _positive_definite(ab):
+            ab = _without_curvature(ab, geo.curv)   # Gauss-Newton where the exact one is not SPD
         for _ in range(8):
             g = grad.copy()
             band = ab
@@ -289,8 +336,8 @@ class SheetModel:
                 return x, it - 1, geo
             step, g_model = self._newton_step(grad, ab, geo)
             slope = float(np.dot(grad.reshape(-1), step.reshape(-1)))
-            if slope >= 0.0:   # the contact prediction spoilt descent: plain Newton step
-                step = _solve(ab, grad)
+            if slope >= 0.0:   # the contact prediction spoilt descent: Gauss-Newton step
+                step = _solve(_without_curvature(ab, geo.curv) if isinstance(geo, _Geo) else ab, grad)
                 slope = float(np.dot(grad.reshape(-1), step.reshape(-1)))
             alpha = 1.0
             while True:
@@ -323,3 +370,33 @@ def _solve(band: np.ndarray, grad: np.ndarray) -> np.ndarray:
     if info != 0:  # pragma: no cover - the Hessian is SPD by construction
         raise ConvergenceError(f"Newton system not positive definite (LAPACK dpbsv info {info})")
     return step.reshape(-1, 2)
+
+
+class _Geo(list):
+    """Per-obstacle geometry of an iterate, with the contacts' curvature Hessian part."""
+
+    def __init__(self, items, curv):
+        super().__init__(items)
+        self.curv = curv
+
+
+def _without_curvature(ab: np.ndarray, curv: np.ndarray) -> np.ndarray:
+    band = ab.copy()
+    band[3, 0::2] -= curv[0]
+    band[3, 1::2] -= curv[1]
+    band[2, 1::2] -= curv[2]
+    return band
+
+
+def _positive_definite(ab: np.ndarray) -> bool:
+    from scipy.linalg.lapack import dpbtrf
+    _, info = dpbtrf(ab)
+    return info == 0
+
+
+def _flat_shapes():
+    from .geometry import Workplane
+    return (Workplane,)
+
+
+_FLAT_SHAPES = _flat_shapes()
