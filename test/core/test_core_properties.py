@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from rheo_shaping.params import CellParams
@@ -100,6 +100,7 @@ def test_invalid_cell_values_are_refused_with_the_parameter_named(name, value):
                  st.text(max_size=3), st.booleans()))
 def test_random_invalid_values_always_give_a_clear_error(name, value):
     from rheo_shaping.schema import from_flat
+    assume(not (name == "material.c2" and value == float("inf")))   # c2 = inf: no plastic flow, valid
     with pytest.raises(ParameterError) as err:
         from_flat(CellParams, {name: value})
     assert f"'{name}'" in str(err.value)
