@@ -35,8 +35,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent
 
 #: The project's main job: the arguments of `rheo-shaping` that `dev.py run`
-#: uses when it is given none. (Later this becomes ``["cell"]``.)
-MAIN_JOB = ["identify", "--creep", str(ROOT / "rheo_shaping" / "data" / "table1_creep.csv")]
+#: uses when it is given none: the ROS 2 shaping cell (simulator, planner,
+#: monitor in one process) on the default cell, movement 4; it prints F_max,
+#: SF and Delta at the end.
+MAIN_JOB = ["cell"]
 
 PYTHON_MIN = (3, 10)   # to run dev.py itself
 VENV_PYTHON = (3, 11)  # the venvs' interpreter

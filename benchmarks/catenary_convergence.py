@@ -14,6 +14,22 @@ convergence gives ((N + 1) / (N_prev + 1))^2: 3.64, 5.90, 3.92, 3.96.
 
 Defaults are the paper's fondant strip: EA = k1 * 0.1 m = 9.5 N, w = 0.3 kg/m * 9.81,
 L0 = 0.15 m, span 0.10 m, height difference -0.08 m.
+
+A second table runs the simulator itself on the same chains: a
+``SheetModel`` with purely elastic links (c1 = 0, c2 = inf, k_i = EA/L_i), no
+obstacles, started from the straight chord at rest (links slack) and stepped
+quasi-statically (``dynamic=False``, steps of ``--sim-dt`` = 1e3 s, until a
+step moves no mass by more than 1e-10 m; force tolerance 1e-11 N,
+``max_newton`` 500 because the Newton iteration from the slack start needs
+more than the default 50 iterations at N >= 100).  It prints
+
+* ``err_exact`` [m]: largest distance of a settled mass from the exact discrete
+  equilibrium (``analytic.solve_elastic_chain``) -- the simulator solves the
+  discrete problem (round-off level);
+* ``err_irvine`` [m]: largest distance from Irvine's cable point with the same
+  s, and its ratio to the previous row -- the simulator converges to Irvine's
+  elastic catenary at second order as N grows;
+* ``dT_exact`` [N]: largest link tension error against the exact chain.
 """
 from __future__ import annotations
 
@@ -75,6 +91,45 @@ def run(span: float, height_difference: float, length: float, ea: float, w: floa
             "rows": rows}
 
 
+def simulate(span: float, height_difference: float, length: float, ea: float, w: float,
+             ns: list[int], dt: float = 1e3, force_tol: float = 1e-11, max_newton: int = 500,
+             max_steps: int = 6) -> dict:
+    """The simulator's settled elastic chains against the exact chain and Irvine (SI units)."""
+    from rheo_shaping.sheet import ChainConstants, SheetModel
+
+    cab = solve_irvine(span, height_difference, length, ea, w)
+    rows = []
+    prev = None
+    for n in ns:
+        lumped = discretise_cable(span, height_difference, length, ea, w, n, G)
+        exact = lumped.solve()
+        c = ChainConstants(anchor_top=lumped.anchor_a, anchor_bottom=lumped.anchor_b,
+                           rest_length=lumped.rest_lengths, k1=lumped.stiffness, c1=np.zeros(n + 1),
+                           c2=np.full(n + 1, np.inf), mass=lumped.masses, radius=1e-3, gravity=G)
+        model = SheetModel(c, [], force_tol=force_tol, max_newton=max_newton)
+        s = np.linspace(0.0, 1.0, n + 2)[1:-1, None]
+        state = model.initial_state(c.anchor_top + s * (c.anchor_bottom - c.anchor_top))
+        t0 = time.perf_counter()
+        iterations, steps = 0, 0
+        for steps in range(1, max_steps + 1):
+            before = state.x
+            state = model.step(state, dt, dynamic=False)
+            iterations += state.newton_iterations
+            if np.max(np.abs(state.x - before)) < 1e-10:
+                break
+        wall = time.perf_counter() - t0
+        x, z = cab.position(lumped.s_nodes)
+        err_exact = float(np.hypot(*(state.x - exact.positions).T).max())
+        err_irvine = float(np.hypot(state.x[:, 0] - x, state.x[:, 1] - z).max())
+        row = {"N": n, "err_exact_m": err_exact, "err_irvine_m": err_irvine,
+               "ratio_irvine": (prev["err_irvine_m"] / err_irvine) if prev else None,
+               "dT_exact_N": float(np.abs(state.tension - exact.tensions).max()),
+               "steps": steps, "newton_iterations": iterations, "wall_s": wall}
+        rows.append(row)
+        prev = row
+    return {"dt_s": dt, "force_tol_N": force_tol, "max_newton": max_newton, "rows": rows}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -87,11 +142,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mass-per-length", type=float, default=0.3, help="[kg/m] (default 0.3)")
     ap.add_argument("--n", type=int, nargs="+", default=[10, 20, 50, 100, 200], help="numbers of masses")
     ap.add_argument("--no-curve", action="store_true", help="skip the nearest-point distance to the curve")
+    ap.add_argument("--no-simulator", action="store_true",
+                    help="skip the second table (the simulator's settled chain)")
+    ap.add_argument("--sim-dt", type=float, default=1e3, help="quasi-static step of the simulator [s] (default 1e3)")
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     args = ap.parse_args(argv)
     try:
         out = run(args.span, args.height_difference, args.length, args.EA, args.mass_per_length * G,
                   args.n, curve=not args.no_curve)
+        if not args.no_simulator:
+            out["simulator"] = simulate(args.span, args.height_difference, args.length, args.EA,
+                                        args.mass_per_length * G, args.n, dt=args.sim_dt)
     except (ValueError, RuntimeError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -111,6 +172,15 @@ def main(argv: list[str] | None = None) -> int:
         if not args.no_curve:
             line += f" {r['err_curve_m']:14.4e} {fmt(r['ratio_curve'])}"
         print(line + f" {r['mismatch_m']:13.1e} {r['iterations']:>5}")
+    if "simulator" in out:
+        sim = out["simulator"]
+        print(f"\nsimulator (SheetModel, c2 = inf, no obstacles; straight start, quasi-static steps of "
+              f"{sim['dt_s']:g} s, force tol {sim['force_tol_N']:g} N):")
+        print(f"{'N':>5} {'err_exact [m]':>13} {'dT_exact [N]':>12} {'err_irvine [m]':>14} {'ratio':>6} "
+              f"{'steps':>5} {'newton':>6} {'wall [s]':>8}")
+        for r in sim["rows"]:
+            print(f"{r['N']:>5} {r['err_exact_m']:13.2e} {r['dT_exact_N']:12.2e} {r['err_irvine_m']:14.4e} "
+                  f"{fmt(r['ratio_irvine'])} {r['steps']:>5} {r['newton_iterations']:>6} {r['wall_s']:8.3f}")
     return 0
 
 

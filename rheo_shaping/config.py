@@ -107,8 +107,15 @@ def load_cell(path: str | Path | None = None, node: str | None = "simulator") ->
     return cell_from_flat(flat, str(path))
 
 
-#: Top-level names of node parameters that may sit beside the cell's.
-KNOWN_NODE_KEYS: set[str] = set()
+#: Top-level names of node parameters that may sit beside the cell's (the
+#: nodes' settings of rheo_shaping.node_params and rclpy's own); load_cell
+#: ignores them, and the node sections (simulator, planner, monitor).
+def _node_keys() -> set[str]:
+    from .node_params import NODE_PARAMETER_NAMES, NODE_PARAMS, ROS_BUILTIN_PARAMETERS
+    return set(NODE_PARAMETER_NAMES) | set(ROS_BUILTIN_PARAMETERS) | set(NODE_PARAMS)
+
+
+KNOWN_NODE_KEYS: set[str] = _node_keys()
 
 
 def dump_cell(params: CellParams) -> str:

@@ -1,33 +1,374 @@
-"""The ``monitor`` node: watches the cell and publishes diagnostics.
+"""The ``monitor`` node: aborts the shaping before the sheet tears, and on any doubt.
 
-SCAFFOLD, to be filled by the ROS-cell work: for now it is only a real rclpy
-node named ``monitor`` that spins until SIGINT (or an external shutdown) and
-then exits with code 0, in the style of ros2/demos demo_nodes_py.
+Inputs: ``/sheet/tensions`` and ``/sheet/contact_tension`` (the tensions),
+``/sheet/profile`` and ``/tool/wrench`` (their header stamps are checked).
+It aborts (``/shaping/abort``, std_msgs/String, reliable + transient local,
+the reason in ``data``) when
+
+* a tension reaches ``abort_ratio x material.F_break`` (``abort_ratio`` 0, the
+  default: the largest ratio SAFETY-NOTES lesson 4 allows at the cell's
+  configured speed, from tension rates the core computes at start);
+* the trend of the largest tension (least squares over ``trend_window``)
+  predicts that threshold within ``detect_time + stop_time`` (the tool's
+  reaction and jerk-limited stopping time);
+* a tension is NaN or infinite (SAFETY-NOTES lesson 2);
+* a header stamp is zero or lies in the future (lesson 2);
+* the tension data go stale: no sample for ``max_data_age`` on the steady
+  clock (a watchdog timer that does not depend on /clock, lesson 1), a QoS
+  deadline missed, or stamps older than ``max_stamp_age`` on the node clock;
+  no data within ``startup_timeout`` of the start is a fault too.
+
+The abort latches (lesson 3) until ``~/reset`` (std_srvs/Trigger), which also
+clears the transient-local abort (the publisher is re-created).  The monitor
+publishes a heartbeat ``/shaping/ready`` (std_msgs/Bool) every ``period``:
+true while it has fresh, valid data and has not aborted; the planner moves only
+then (the interlock, lesson 6).  ``/diagnostics``: OK / WARN / ERROR (STALE
+while waiting for data) with tension, safety factor and data age.
 """
-import rclpy
-from rclpy.executors import ExternalShutdownException
+from __future__ import annotations
+
+import math
+import sys
+from collections import deque
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseArray, WrenchStamped
+from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+from std_srvs.srv import Trigger
+
+from ..node_params import MonitorNodeParams
+from ..params import CellParams
+from ..planning import MotionLimits
+from ..abort_budget import tension_rates
+from ..schema import ParameterError
+from ..stopping import stopping_time
+from . import messages as m
+from .ros_params import SchemaParameters
+from .spin import run_node
+
+NS = 1_000_000_000
+ABORT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
+HEARTBEAT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+TENSION_TOPICS = ("/sheet/tensions", "/sheet/contact_tension")
+STAMPED_TOPICS = ("/sheet/profile", "/tool/wrench")
+
+
+def auto_stop_time(cell: CellParams) -> float:
+    """Jerk-limited stopping time [s] from the faster of the cell's tool speeds."""
+    mv = cell.movement
+    v = max(mv.speed, mv.retract_speed)
+    return stopping_time(v, MotionLimits(v, mv.accel, mv.jerk))
 
 
 class MonitorNode(Node):
-    """Scaffold of the monitor node (no publishers, subscriptions or timers yet)."""
+    """Watches the sheet's tensions; aborts, latches, reports."""
 
-    def __init__(self):
-        super().__init__('monitor')
-        self.get_logger().info('monitor scaffold up')
+    def __init__(self, **node_kwargs):
+        super().__init__('monitor', **node_kwargs)
+        self.get_logger().info('starting')
+        self.params = SchemaParameters(self, {"cell": CellParams, "settings": MonitorNodeParams},
+                                       on_change=self._on_parameters)
+        self._set_ratio()
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        s = self.settings
+        self.pub_abort = self.create_publisher(String, '/shaping/abort', ABORT_QOS)
+        self.pub_ready = self.create_publisher(Bool, '/shaping/ready', HEARTBEAT_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._subs = []
+        self._subscribe(s.max_data_age)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self._clear()
+        self._watchdog = self.create_timer(s.period, self._on_watchdog, clock=self._steady)
+        self._diag_timer = self.create_timer(s.diagnostics_period, self._publish_diagnostics,
+                                             clock=self._steady)
+        self.get_logger().info(
+            f"monitor up: abort at {self.threshold:.4f} N = {self.ratio:.3f} x F_break "
+            f"{self.cell.material.F_break:g} N; trend horizon {self.horizon:.3f} s; "
+            f"data older than {s.max_data_age:g} s is a fault")
+
+    # -- parameters -------------------------------------------------------------------
+    @property
+    def cell(self) -> CellParams:
+        return self.params["cell"]
+
+    @property
+    def settings(self) -> MonitorNodeParams:
+        return self.params["settings"]
+
+    @property
+    def threshold(self) -> float:
+        """F_abort [N]."""
+        return self.ratio * self.cell.material.F_break
+
+    @property
+    def horizon(self) -> float:
+        """detect_time + stop_time [s]: how far ahead the trend must stay below the threshold."""
+        s = self.settings
+        return s.detect_time + (s.stop_time if s.stop_time > 0 else auto_stop_time(self.cell))
+
+    def _set_ratio(self) -> None:
+        """``abort_ratio``, or with 0 the lesson-4 bound at the configured speed (core runs)."""
+        s = self.settings
+        if s.abort_ratio > 0:
+            self.ratio, self.budget = s.abort_ratio, None
+            return
+        cell = self.cell
+        try:
+            rows = tension_rates(cell, speed_factors=(1.0,))
+        except (RuntimeError, ValueError) as exc:
+            raise ParameterError(f"abort_ratio 0: the core could not compute the tension rates "
+                                 f"({exc}); set abort_ratio") from None
+        r = max(row.r for row in rows)
+        Fb = cell.material.F_break
+        F_abort = Fb - r * self.horizon - 3.0 * s.noise_sigma
+        if F_abort <= 0:
+            raise ParameterError(
+                f"abort_ratio 0: no threshold meets SAFETY-NOTES lesson 4 at movement.speed "
+                f"{cell.movement.speed:g} m/s (r = {r:.3f} N/s, detect_time + stop_time = "
+                f"{self.horizon:.3f} s): lower the speed or set abort_ratio")
+        self.ratio = F_abort / Fb
+        self.budget = {"r": r, "horizon": self.horizon, "sigma": s.noise_sigma,
+                       "rows": [(row.movement, row.F_max, row.r) for row in rows]}
+        self.get_logger().info(
+            f"abort_ratio 0: lesson 4 at {cell.movement.speed * 1e3:g} mm/s: r = {r:.3f} N/s "
+            f"(movements 1-4, core), F_abort = {Fb:g} - {r:.3f} x {self.horizon:.3f} - "
+            f"3 x {s.noise_sigma:g} = {F_abort:.4f} N, ratio {self.ratio:.3f}")
+
+    def _on_parameters(self, names: set[str]) -> None:
+        if "max_data_age" in names:
+            for sub in self._subs:
+                self.destroy_subscription(sub)
+            self._subscribe(self.settings.max_data_age)
+        if "period" in names:
+            self._watchdog.cancel()
+            self.destroy_timer(self._watchdog)
+            self._watchdog = self.create_timer(self.settings.period, self._on_watchdog,
+                                               clock=self._steady)
+        if "diagnostics_period" in names:
+            self._diag_timer.cancel()
+            self.destroy_timer(self._diag_timer)
+            self._diag_timer = self.create_timer(self.settings.diagnostics_period,
+                                                 self._publish_diagnostics, clock=self._steady)
+        relevant = {"abort_ratio", "detect_time", "stop_time", "noise_sigma",
+                    *self.params.names("cell")}
+        try:
+            if names & relevant:
+                self._set_ratio()
+        except ParameterError as exc:
+            self._abort(f"no abort threshold after the parameter change: {exc}")   # fail safe
+            return
+        self.get_logger().info(f"parameters {sorted(names)} changed: abort at {self.threshold:.4f} N, "
+                               f"trend horizon {self.horizon:.3f} s")
+
+    def _subscribe(self, max_age: float) -> None:
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST,
+                         deadline=Duration(seconds=max_age))
+        self._subs = [
+            self.create_subscription(
+                Float64MultiArray, '/sheet/tensions', self._on_tensions, qos,
+                event_callbacks=SubscriptionEventCallbacks(
+                    deadline=lambda e: self._on_deadline('/sheet/tensions', e))),
+            self.create_subscription(
+                Float64, '/sheet/contact_tension', self._on_contact, qos,
+                event_callbacks=SubscriptionEventCallbacks(
+                    deadline=lambda e: self._on_deadline('/sheet/contact_tension', e))),
+            self.create_subscription(PoseArray, '/sheet/profile',
+                                     lambda msg: self._on_stamped('/sheet/profile', msg), 10),
+            self.create_subscription(WrenchStamped, '/tool/wrench',
+                                     lambda msg: self._on_stamped('/tool/wrench', msg), 10),
+        ]
+
+    # -- state ------------------------------------------------------------------------
+    def _clear(self) -> None:
+        self.state = "waiting"                 # waiting -> ready -> aborted
+        self.abort_reason = ""
+        self._start = self._steady.now().nanoseconds
+        self._rx: dict[str, int | None] = {t: None for t in TENSION_TOPICS + STAMPED_TOPICS}
+        self._stamp_age: dict[str, float] = {}
+        self._stamp_fault = ""
+        self.tension = math.nan                # latest largest link tension [N]
+        self.link = 0
+        self.contact = math.nan
+        self.F_seen = 0.0                      # largest tension since (re)start [N]
+        self.trend_rate = math.nan             # N/s
+        self._trend: deque[tuple[float, float]] = deque()
+
+    @property
+    def ready(self) -> bool:
+        return self.state == "ready"
+
+    def _age(self, topic: str, now: int) -> float:
+        rx = self._rx[topic]
+        return math.inf if rx is None else (now - rx) / NS
+
+    def _abort(self, reason: str) -> None:
+        if self.state == "aborted":
+            return
+        self.state, self.abort_reason = "aborted", reason
+        self.pub_abort.publish(String(data=reason))
+        self.pub_ready.publish(Bool(data=False))
+        self.get_logger().error(f"ABORT: {reason}")
+        self._publish_diagnostics()
+
+    def _on_reset(self, request, response):
+        self.destroy_publisher(self.pub_abort)      # drops the transient-local abort sample
+        self.pub_abort = self.create_publisher(String, '/shaping/abort', ABORT_QOS)
+        was = self.abort_reason
+        self._clear()
+        response.success = True
+        response.message = "re-armed" + (f" (was aborted: {was})" if was else "")
+        self.get_logger().info(f"reset: {response.message}")
+        return response
+
+    # -- data -------------------------------------------------------------------------
+    def _on_tensions(self, msg: Float64MultiArray) -> None:
+        self._rx['/sheet/tensions'] = self._steady.now().nanoseconds
+        values = np.asarray(msg.data, dtype=float)
+        if values.size == 0:
+            self._abort("empty /sheet/tensions message")
+            return
+        bad = ~np.isfinite(values)
+        if bad.any():
+            i = int(np.argmax(bad))
+            self._abort(f"non-finite tension ({values[i]}) in link {i + 1} on /sheet/tensions")
+            return
+        i = int(np.argmax(values))
+        self.tension, self.link = float(values[i]), i + 1
+        self.F_seen = max(self.F_seen, self.tension)
+        self._check(self.tension, f"link {self.link}")
+        self._check_trend(self.tension)
+
+    def _on_contact(self, msg: Float64) -> None:
+        self._rx['/sheet/contact_tension'] = self._steady.now().nanoseconds
+        value = float(msg.data)
+        if not math.isfinite(value):
+            self._abort(f"non-finite contact tension ({value}) on /sheet/contact_tension")
+            return
+        self.contact = value
+        self._check(value, "contact tension")
+
+    def _check(self, value: float, where: str) -> None:
+        if self.state != "aborted" and value >= self.threshold:
+            s = self.settings
+            self._abort(f"tension {value:.4f} N ({where}) reached the abort threshold "
+                        f"{self.threshold:.4f} N = {self.ratio:.3f} x F_break "
+                        f"{self.cell.material.F_break:g} N")
+
+    def _check_trend(self, value: float) -> None:
+        s = self.settings
+        now = self.get_clock().now().nanoseconds / NS
+        if now <= 0.0:
+            return
+        tr = self._trend
+        if tr and now < tr[-1][0]:
+            tr.clear()                                  # the clock went back: start again
+        tr.append((now, value))
+        while tr and tr[0][0] < now - s.trend_window:
+            tr.popleft()
+        if len(tr) < s.trend_min_samples:
+            self.trend_rate = math.nan
+            return
+        t = np.array([p[0] for p in tr])
+        f = np.array([p[1] for p in tr])
+        span = t[-1] - t[0]
+        if span < 0.5 * s.trend_window:
+            self.trend_rate = math.nan
+            return
+        tc = t - t.mean()
+        self.trend_rate = float(np.dot(tc, f - f.mean()) / np.dot(tc, tc))
+        if (s.trend_abort and self.state != "aborted" and self.trend_rate > 0.0
+                and value + self.trend_rate * self.horizon >= self.threshold):
+            self._abort(f"tension trend {self.trend_rate:.4f} N/s from {value:.4f} N predicts the "
+                        f"abort threshold {self.threshold:.4f} N within {self.horizon:.3f} s "
+                        f"(detect_time + stop_time)")
+
+    def _on_stamped(self, topic: str, msg) -> None:
+        self._rx[topic] = self._steady.now().nanoseconds
+        stamp = m.stamp_ns(msg.header.stamp)
+        if stamp == 0:
+            self._abort(f"zero header stamp on {topic}")
+            return
+        now = self.get_clock().now().nanoseconds
+        if now <= 0:
+            return                                        # no clock yet (use_sim_time, no /clock)
+        age = (now - stamp) / NS
+        self._stamp_age[topic] = age
+        if -age > self.settings.stamp_tolerance:
+            self._abort(f"header stamp on {topic} lies {-age:.3f} s in the future of the node "
+                        f"clock (stamp_tolerance {self.settings.stamp_tolerance:g} s)")
+        elif age > self.settings.max_stamp_age:
+            self._stamp_fault = (f"header stamp on {topic} is {age:.3f} s old "
+                                 f"(max_stamp_age {self.settings.max_stamp_age:g} s)")
+            if self.state == "ready":
+                self._abort(f"stale data: {self._stamp_fault}")
+        else:
+            self._stamp_fault = ""
+
+    def _on_deadline(self, topic: str, event) -> None:
+        if self.state == "ready":
+            self._abort(f"stale data: QoS deadline of {self.settings.max_data_age:g} s missed on {topic}")
+
+    # -- watchdog (steady clock) ------------------------------------------------------
+    def _on_watchdog(self) -> None:
+        s = self.settings
+        now = self._steady.now().nanoseconds
+        ages = {t: self._age(t, now) for t in TENSION_TOPICS}
+        stale = [t for t, a in ages.items() if a > s.max_data_age]
+        if self.state == "ready" and stale:
+            t = stale[0]
+            self._abort(f"stale data: no {t} for "
+                        + (f"{ages[t]:.3f} s" if math.isfinite(ages[t]) else "ever")
+                        + f" (max_data_age {s.max_data_age:g} s)")
+        elif self.state == "waiting":
+            clock_ok = self.get_clock().now().nanoseconds > 0
+            if not stale and not self._stamp_fault and clock_ok:
+                self.state = "ready"
+                self.get_logger().info("ready: fresh tension data")
+            elif (now - self._start) / NS > s.startup_timeout:
+                why = ("no " + ", ".join(stale) if stale else self._stamp_fault or "no clock")
+                self._abort(f"not ready within startup_timeout {s.startup_timeout:g} s: {why}")
+        self.pub_ready.publish(Bool(data=self.ready))
+
+    def _publish_diagnostics(self) -> None:
+        s = self.settings
+        now = self._steady.now().nanoseconds
+        ages = {t: self._age(t, now) for t in TENSION_TOPICS}
+        F = self.tension
+        if self.state == "aborted":
+            level, message = "ERROR", f"aborted: {self.abort_reason}"
+        elif self.state == "waiting":
+            level, message = "STALE", "waiting for fresh tension data"
+        elif math.isfinite(F) and F >= s.warn_ratio * self.threshold:
+            level, message = "WARN", f"tension {F:.4f} N near the abort threshold {self.threshold:.4f} N"
+        else:
+            level, message = "OK", "tension below the abort threshold"
+        F_break = self.cell.material.F_break
+        values = {
+            "state": self.state, "tension_max": F, "tension_link": self.link,
+            "contact_tension": self.contact, "F_break": F_break, "abort_threshold": self.threshold,
+            "safety_factor": F_break / F if math.isfinite(F) and F > 0 else math.inf,
+            "largest_tension_seen": self.F_seen, "trend_rate": self.trend_rate,
+            "data_age_tensions": ages['/sheet/tensions'],
+            "data_age_contact_tension": ages['/sheet/contact_tension'],
+            "stamp_age": max(self._stamp_age.values(), default=math.nan),
+            "abort_reason": self.abort_reason,
+        }
+        self.pub_diag.publish(m.diagnostics_msg(self.get_clock().now().nanoseconds,
+                                                "rheo_shaping/monitor", level, message, values))
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = MonitorNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return run_node(MonitorNode, 'monitor', args)
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -1,33 +1,384 @@
-"""The ``planner`` node: plans jerk-limited tool trajectories for the shaping cell.
+"""The ``planner`` node: jerk-limited tool plans, streamed as set-points, with a planned stop.
 
-SCAFFOLD, to be filled by the ROS-cell work: for now it is only a real rclpy
-node named ``planner`` that spins until SIGINT (or an external shutdown) and
-then exits with code 0, in the style of ros2/demos demo_nodes_py.
+The plan is the core's: ``scenarios.scenario_plan(params, movement_scenario(params))``
+(the paper's movements 1-4, or movement 0 = the params file's waypoints and
+dwells), a chain of ruckig state-to-state segments, at rest at every waypoint,
+straight lines by phase synchronisation, dwells between.  It is the same plan
+the offline run (``rheo-shaping simulate``) uses.  With ``optimise_d`` the node
+first picks movement 4's d with the core model (:func:`rheo_shaping.optimise.best_d`).
+
+Interlock (SAFETY-NOTES lesson 6).  With ``wait_for_monitor`` the planner
+starts only while the monitor's ``/shaping/ready`` heartbeat says ready and is
+younger than ``monitor_timeout`` (steady clock); a heartbeat that stops or
+turns false while the tool moves is treated as an abort.
+
+Streaming.  From the start time t0 (the node clock: simulated time with
+``use_sim_time``) a :class:`~rheo_shaping.stopping.TrajectoryStreamer` gives
+the set-point at t0 + k / ``control_rate``; they are published on
+``/tool/command``, each stamped with its time (on simulated time, when /clock
+jumps by more than one period, every set-point in between is published, plus
+one at the clock's time).  The whole plan is published once on
+``/tool/planned_trajectory`` (transient local; header stamp = t0).
+
+Abort (lessons 3 and 5).  ``/shaping/abort`` (transient local) makes the
+streamer stop at once from the exact current state with ruckig (target: rest,
+within the plan's acceleration and jerk limits), then retract slowly to
+``tool.home`` (``retract_*`` limits) and hold.  The abort latches: the old
+plan is never resumed; ``~/reset`` (std_srvs/Trigger, refused while the tool
+moves) re-arms the planner, which then runs the plan again from where the
+tool holds (an approach move at the retract limits first) when the interlock
+allows.  At the end of the process (``movement.process_time`` and the plan
+over) it holds and reports ``done`` on ``/shaping/planner_state``.
 """
-import rclpy
-from rclpy.executors import ExternalShutdownException
+from __future__ import annotations
+
+import sys
+from dataclasses import replace
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Bool, String
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
+
+from ..clearance import plan_clearance
+from ..node_params import PlannerNodeParams
+from ..optimise import best_d, d_values
+from ..params import CellParams
+from ..planning import MotionLimits, Plan, Waypoint, plan_waypoints
+from ..scenarios import movement_limits, movement_scenario, scenario_plan
+from ..schema import ParameterError
+from ..stopping import TrajectoryStreamer
+from . import messages as m
+from .ros_params import SchemaParameters
+from .spin import run_node
+
+NS = 1_000_000_000
+#: Most set-points published in one timer call (a huge clock jump skips ahead).
+MAX_BATCH = 5000
+
+COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
+HEARTBEAT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+MOVING = ("running", "stopping", "retracting")
 
 
 class PlannerNode(Node):
-    """Scaffold of the planner node (no publishers, subscriptions or timers yet)."""
+    """Plans the shaping movement and streams it, behind the monitor's interlock."""
 
-    def __init__(self):
-        super().__init__('planner')
-        self.get_logger().info('planner scaffold up')
+    def __init__(self, **node_kwargs):
+        super().__init__('planner', **node_kwargs)
+        self.get_logger().info('starting: parameters, then the plan')
+        self.params = SchemaParameters(self, {"cell": CellParams, "settings": PlannerNodeParams},
+                                       on_change=self._on_parameters)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.pub_command = self.create_publisher(PoseStamped, '/tool/command', COMMAND_QOS)
+        self.pub_trajectory = self.create_publisher(JointTrajectory, '/tool/planned_trajectory',
+                                                    LATCHED_QOS)
+        self.pub_state = self.create_publisher(String, '/shaping/planner_state', LATCHED_QOS)
+        self.create_subscription(String, '/shaping/abort', self._on_abort, LATCHED_QOS)
+        self.create_subscription(Bool, '/shaping/ready', self._on_ready, HEARTBEAT_QOS)
+        self.create_service(Trigger, '~/start', self._on_start)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+
+        self.cell_used, self.plan = self._make_plan()
+        self.plan_error = ""          # the configured plan is refused (parameters changed)
+        self._start_failed = ""       # the run could not start (e.g. its approach); ~/reset
+        self.streamer: TrajectoryStreamer | None = None
+        self.aborted = False
+        self.abort_reason = ""
+        self._hold: np.ndarray | None = None        # where the tool holds after a run (known)
+        self._start_requested = False
+        self._t0_ns: int | None = None
+        self._k = 0                                   # next grid index
+        self._last_cmd_ns: int | None = None
+        self._ready = False
+        self._ready_rx: int | None = None
+        self._state = ""
+        self._command_timer = self.create_timer(1.0 / self.settings.control_rate, self._stream)
+        self.create_timer(0.05, self._supervise, clock=self._steady)
+        mv = self.cell_used.movement
+        self.get_logger().info(
+            f"planner up: movement {mv.number}, plan {self.plan.duration:.1f} s "
+            f"(process {mv.process_time:g} s), {len(self.plan.segments)} segments, "
+            f"{self.settings.control_rate:g} Hz set-points"
+            + (", waiting for the monitor" if self.settings.wait_for_monitor else ""))
+        if self.plan.duration > mv.process_time:
+            self.get_logger().warning(
+                f"the plan lasts {self.plan.duration:.1f} s, longer than movement.process_time = "
+                f"{mv.process_time:g} s: the process figures are taken at {mv.process_time:g} s "
+                f"and the plan is finished after it")
+        self._set_state("idle" if not self.settings.autostart else "waiting")
+
+    # -- parameters and plan --------------------------------------------------------
+    @property
+    def cell(self) -> CellParams:
+        return self.params["cell"]
+
+    @property
+    def settings(self) -> PlannerNodeParams:
+        return self.params["settings"]
+
+    def _on_parameters(self, names: set[str]) -> None:
+        if "control_rate" in names:
+            self._command_timer.cancel()
+            self.destroy_timer(self._command_timer)
+            self._command_timer = self.create_timer(1.0 / self.settings.control_rate, self._stream)
+            if self._t0_ns is not None:       # keep the grid aligned with now
+                self._t0_ns = self._last_cmd_ns or self._t0_ns
+                self._k = 1
+        if names & set(self.params.names("cell")) or names & {"optimise_d", "d_min", "d_max",
+                                                              "d_step", "delta_limit",
+                                                              "clearance_factor"}:
+            if self.streamer is None:
+                try:
+                    self.cell_used, self.plan = self._make_plan()
+                except ParameterError as exc:
+                    self.plan_error = str(exc)
+                    self.get_logger().error(f"no plan: {exc}")
+                else:
+                    self.plan_error = ""
+                    self.get_logger().info(f"plan rebuilt: {self.plan.duration:.1f} s")
+            else:
+                self.get_logger().info("plan parameters changed: they take effect at the next "
+                                       "run (~/reset)")
+
+    def _make_plan(self) -> tuple[CellParams, Plan]:
+        cell, s = self.cell, self.settings
+        if s.optimise_d and cell.movement.number == 4:
+            ds = d_values(s.d_min, s.d_max, s.d_step)
+            self.get_logger().info(f"optimise_d: running the core for {len(ds)} values of d "
+                                   f"in [{s.d_min * 1e3:g}, {s.d_max * 1e3:g}] mm ...")
+            try:
+                choice = best_d(cell, ds, s.delta_limit, workers=s.optimise_workers)
+            except ValueError as exc:
+                raise ParameterError(f"optimise_d: {exc}") from None
+            self.get_logger().info(
+                f"optimise_d: d = {choice.d * 1e3:.2f} mm, predicted F_max = {choice.F_max:.4f} N, "
+                f"Delta = {choice.delta * 1e3:.3f} mm (limit {s.delta_limit * 1e3:g} mm)")
+            cell = replace(cell, movement=replace(cell.movement, d=choice.d))
+        try:
+            plan = scenario_plan(cell, movement_scenario(cell)).plan
+        except (ValueError, RuntimeError) as exc:
+            raise ParameterError(f"the movement cannot be planned: {exc}") from None
+        self._check_clearance(cell, plan)
+        return cell, plan
+
+    def _check_clearance(self, cell: CellParams, plan: Plan) -> None:
+        """Refuse a plan that leaves less room than the sheet between tool and mould."""
+        factor = self.settings.clearance_factor
+        if factor <= 0:
+            return
+        need = factor * cell.sheet.thickness
+        cl = plan_clearance(cell, plan)
+        if cl.gap < need - 1e-6:
+            raise ParameterError(
+                f"the plan brings the tool within {cl.gap * 1e3:.2f} mm of the {cl.obstacle} at "
+                f"({cl.at[0] * 1e3:.2f}, {cl.at[1] * 1e3:.2f}) mm, t = {cl.time:.1f} s: less than "
+                f"clearance_factor {factor:g} x sheet.thickness {cell.sheet.thickness * 1e3:g} mm "
+                f"pinches the sheet (parameter 'clearance_factor' = 0 disables the check)")
+
+    def _plan_from(self, start_xz) -> Plan:
+        """The plan, preceded by an approach from ``start_xz`` when the tool is elsewhere."""
+        if start_xz is None or np.hypot(*(np.asarray(start_xz) - self.plan.start)) <= 1e-6:
+            return self.plan
+        cell = self.cell_used
+        scenario = movement_scenario(cell)
+        waypoints = [Waypoint(float(scenario.start[0]), float(scenario.start[1]), 0.0, "approach",
+                              self._retract_limits())]
+        waypoints += [Waypoint(float(mv.target[0]), float(mv.target[1]), mv.dwell, mv.label,
+                               movement_limits(cell, mv.speed)) for mv in scenario.moves]
+        plan = plan_waypoints(start_xz, waypoints, movement_limits(cell, cell.movement.speed),
+                              label_phases=False)
+        self._check_clearance(cell, plan)
+        return plan
+
+    def _retract_limits(self) -> MotionLimits:
+        s = self.settings
+        return MotionLimits(s.retract_speed, s.retract_accel, s.retract_jerk)
+
+    # -- state ----------------------------------------------------------------------
+    @property
+    def state(self) -> str:
+        return self._state
+
+    def _set_state(self, state: str) -> None:
+        if state != self._state:
+            self._state = state
+            self.pub_state.publish(String(data=state))
+            self.get_logger().info(f"state: {state}")
+
+    def _now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    def _monitor_ok(self) -> tuple[bool, str]:
+        if not self.settings.wait_for_monitor:
+            return True, ""
+        if self._ready_rx is None:
+            return False, "no ready heartbeat from the monitor yet"
+        age = (self._steady.now().nanoseconds - self._ready_rx) / NS
+        if age > self.settings.monitor_timeout:
+            return False, f"no ready heartbeat from the monitor for {age:.2f} s"
+        if not self._ready:
+            return False, "the monitor reports not ready"
+        return True, ""
+
+    # -- callbacks ------------------------------------------------------------------
+    def _on_ready(self, msg: Bool) -> None:
+        self._ready = bool(msg.data)
+        self._ready_rx = self._steady.now().nanoseconds
+
+    def _on_abort(self, msg: String) -> None:
+        self._abort(f"monitor: {msg.data}")
+
+    def _abort(self, reason: str) -> None:
+        if self.aborted:
+            return
+        self.aborted, self.abort_reason = True, reason
+        now = self._now_ns()
+        if self.streamer is not None and self.streamer.state in ("running", "done", "retracting"):
+            was = self.streamer.state
+            # The stop starts from the last published set-point (the state the tool was
+            # commanded to): every set-point after it comes from the stop, so the stream
+            # stays continuous in position, velocity and acceleration.
+            t = self._last_cmd_ns if self._last_cmd_ns is not None else now
+            self.streamer.abort(t / NS, reason)
+            stop = self.streamer.stop_plan
+            self.get_logger().error(
+                f"ABORT ({reason}): stopping from {was} at {t / NS:.6f} s, at rest in "
+                f"{stop.duration if stop else 0.0:.6f} s"
+                + (", then retracting to home" if was != "retracting" else ", then holding"))
+            self._stream()
+        else:
+            self.get_logger().error(f"ABORT ({reason}) before the start: the plan will not run "
+                                    f"(~/reset to re-arm)")
+        self._update_state()
+
+    def _on_start(self, request, response):
+        if self.streamer is not None:
+            response.success, response.message = False, f"already started ({self._state}); ~/reset first"
+        elif self.aborted:
+            response.success, response.message = False, f"aborted ({self.abort_reason}); ~/reset first"
+        else:
+            self._start_requested = True
+            response.success, response.message = True, "start requested: waiting for the interlock"
+        return response
+
+    def _on_reset(self, request, response):
+        if self.streamer is not None and self.streamer.state in MOVING:
+            response.success = False
+            response.message = f"refused: the tool is moving ({self.streamer.state})"
+            return response
+        if self.streamer is not None and self.streamer.plan is not None:
+            t = (self._last_cmd_ns or self._now_ns()) / NS
+            self._hold = self.streamer.setpoint(t)[0]      # at rest: done or holding
+        self.streamer = None
+        self.aborted, self.abort_reason = False, ""
+        self._t0_ns, self._k, self._last_cmd_ns = None, 0, None
+        self._start_requested = False
+        self._start_failed = ""
+        self._set_state("idle" if not self.settings.autostart else "waiting")
+        response.success = True
+        response.message = "re-armed" + (f"; the tool holds at ({self._hold[0]:.4f}, {self._hold[1]:.4f}) m"
+                                          if self._hold is not None else "")
+        self.get_logger().info(f"reset: {response.message}")
+        return response
+
+    # -- supervision (steady clock) -------------------------------------------------
+    def _supervise(self) -> None:
+        ok, why = self._monitor_ok()
+        if self.streamer is None:
+            if self.aborted or not (self.settings.autostart or self._start_requested):
+                self._update_state()
+                return
+            now = self._now_ns()
+            if not ok:
+                self._set_state("waiting_for_monitor")
+            elif now <= 0:
+                self._set_state("waiting_for_clock")
+            else:
+                self._start(now)
+        elif self.streamer.state == "running" and not ok:
+            self._abort(f"planner: monitor lost ({why})")
+        self._update_state()
+
+    def _start(self, now_ns: int) -> None:
+        if self.plan_error or self._start_failed:
+            self._set_state("error")
+            return
+        try:
+            plan = self._plan_from(self._hold)
+        except (ParameterError, ValueError, RuntimeError) as exc:
+            self._start_failed = str(exc)              # until ~/reset
+            self.get_logger().error(f"cannot start: {exc}")
+            self._set_state("error")
+            return
+        streamer = TrajectoryStreamer(home_xz=self.cell_used.tool.home,
+                                      retract_limits=self._retract_limits())
+        streamer.start(plan, now_ns / NS)
+        self.streamer, self._t0_ns, self._k, self._last_cmd_ns = streamer, now_ns, 0, None
+        self.pub_trajectory.publish(m.trajectory_msg(plan, now_ns, self.settings.trajectory_period))
+        self.get_logger().info(f"starting the plan at t = {now_ns / NS:.3f} s "
+                               f"({plan.duration:.1f} s, {len(plan.segments)} segments)")
+        self._stream()
+
+    def _update_state(self) -> None:
+        st = self.streamer
+        if st is None:
+            if self.aborted:
+                self._set_state("holding")
+            return
+        if st.state == "done":
+            pt = self.cell_used.movement.process_time
+            now = self._now_ns()
+            self._set_state("done" if now >= self._t0_ns + pt * NS - 1 else "running")
+        elif st.state == "idle":
+            self._set_state("waiting")
+        else:
+            self._set_state(st.state)
+
+    # -- streaming (node clock) -----------------------------------------------------
+    def _stream(self) -> None:
+        st = self.streamer
+        if st is None or self._t0_ns is None:
+            return
+        now = self._now_ns()
+        period = int(round(NS / self.settings.control_rate))
+        n_due = (now - self._t0_ns) // period - self._k + 1
+        if n_due > MAX_BATCH:
+            self.get_logger().warning(f"the clock jumped {n_due} control periods: skipping ahead",
+                                      throttle_duration_sec=5.0)
+            self._k += n_due - MAX_BATCH
+        while True:
+            t = self._t0_ns + self._k * period
+            if t > now:
+                break
+            self._publish_setpoint(t)
+            self._k += 1
+        if self.get_clock().ros_time_is_active and (self._last_cmd_ns is None
+                                                    or self._last_cmd_ns < now):
+            # On simulated time /clock jumps: the set-point at the clock's time too, so the
+            # simulator (lockstep) has the set-point for the end of its step.
+            self._publish_setpoint(now)
+        self._update_state()
+
+    def _publish_setpoint(self, t_ns: int) -> None:
+        if self._last_cmd_ns is not None and t_ns <= self._last_cmd_ns:
+            return
+        pos, _, _ = self.streamer.setpoint(t_ns / NS)
+        self.pub_command.publish(m.pose_msg(pos, t_ns))
+        self._last_cmd_ns = t_ns
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = PlannerNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return run_node(PlannerNode, 'planner', args)
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -1,33 +1,409 @@
-"""The ``simulator`` node: simulates the shaping cell (sheet, mould, tool) and publishes its state.
+"""The ``simulator`` node: the sheet model of the cell under the streamed tool set-point.
 
-SCAFFOLD, to be filled by the ROS-cell work: for now it is only a real rclpy
-node named ``simulator`` that spins until SIGINT (or an external shutdown) and
-then exits with code 0, in the style of ros2/demos demo_nodes_py.
+It runs the core (:class:`rheo_shaping.simulation.Simulation`) and publishes
+the cell's state (INTERFACES.md): ``/sheet/profile``, ``/sheet/tensions``,
+``/sheet/contact_tension``, ``/tool/pose``, ``/tool/wrench``, and
+``/sheet/markers`` for RViz; its own status on ``/diagnostics``.
+
+Time.  A step timer on the steady clock fires every ``step_period``; each
+step advances simulated time by ``real_time_factor x step_period``.  When
+``real_time_factor`` is not 1 (or ``publish_clock`` is set) the simulator is
+the clock of the cell: it publishes ``/clock`` and the other nodes run with
+``use_sim_time:=true``.  ``/clock`` is published one step ahead of the
+physics, so the planner streams the set-points of a step before the step is
+computed; with ``lockstep`` the simulator waits (at most ``command_timeout``)
+for the set-point of the step's end instead of guessing the motion, so the
+streamed motion is simulated exactly.  A step that computes slowly slows the
+run down (it never skips physics); the achieved factor is logged and on
+``/diagnostics``.  On wall time (factor 1, no /clock) each step advances to
+the node clock's now, holding the newest set-point for the last few ms.
+
+Process.  With ``start_on_command`` (default) the settled sheet waits at
+process time 0 until the first ``/tool/command``; the process starts then,
+with the tool at that set-point, exactly as the offline run starts with the
+tool at its plan's start.  The tool follows the set-points linearly
+interpolated by their stamps; after the newest one it holds.  At
+``movement.process_time`` the node logs F_max, SF and Delta.  ``~/reset``
+(std_srvs/Trigger) restarts the run (settled sheet, process time 0); cell
+parameters changed at runtime take effect then.
 """
-import rclpy
-from rclpy.executors import ExternalShutdownException
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+from geometry_msgs.msg import PoseArray, PoseStamped, WrenchStamped
+from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_msgs.msg import Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
+from diagnostic_msgs.msg import DiagnosticArray
+
+from ..geometry import Cake
+from ..metrics import safety_factor
+from ..node_params import SimulatorNodeParams
+from ..params import CellParams
+from ..scenarios import movement_scenario
+from ..sheet import ConvergenceError
+from ..simulation import Simulation
+from ..tools import tool_shape
+from . import messages as m
+from .ros_params import SchemaParameters
+from .spin import run_node
+
+NS = 1_000_000_000
+
+#: QoS of the state topics: reliable, volatile, a short queue.
+STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+#: /tool/command: reliable with room for a whole batch of set-points.
+COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+#: /clock: the latest value only (rclpy subscribes best effort, depth 1).
+CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
 
 
 class SimulatorNode(Node):
-    """Scaffold of the simulator node (no publishers, subscriptions or timers yet)."""
+    """Steps the sheet under /tool/command and publishes the cell's state."""
 
-    def __init__(self):
-        super().__init__('simulator')
-        self.get_logger().info('simulator scaffold up')
+    def __init__(self, **node_kwargs):
+        super().__init__('simulator', **node_kwargs)
+        self.get_logger().info('starting: parameters, then the settled sheet')
+        self.params = SchemaParameters(self, {"cell": CellParams, "settings": SimulatorNodeParams},
+                                       on_change=self._on_parameters)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.pub_profile = self.create_publisher(PoseArray, '/sheet/profile', STATE_QOS)
+        tension_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                                 durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST,
+                                 deadline=Duration(seconds=self.settings.offered_deadline))
+        self.pub_tensions = self.create_publisher(Float64MultiArray, '/sheet/tensions', tension_qos)
+        self.pub_contact = self.create_publisher(Float64, '/sheet/contact_tension', tension_qos)
+        self.pub_pose = self.create_publisher(PoseStamped, '/tool/pose', STATE_QOS)
+        self.pub_wrench = self.create_publisher(WrenchStamped, '/tool/wrench', STATE_QOS)
+        self.pub_markers = self.create_publisher(MarkerArray, '/sheet/markers', 1)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.pub_clock = None                  # only while this node is the clock (_configure_time)
+        self.create_subscription(PoseStamped, '/tool/command', self._on_command, COMMAND_QOS)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+
+        self._t_ns = 0                 # time of the latest computed state (node or simulated clock)
+        self._pending = False          # a step is due (lockstep may hold it back)
+        self._waits = 0                # lockstep waits so far
+        self._late_steps = 0           # steps taken without their set-point (stream lost/late)
+        self._last_pub_ns = None
+        self._force_publish = False
+        self._last_marker = None
+        self._last_diag = None
+        self._rate_ref = None          # (steady ns, sim ns) to measure the achieved factor
+        self.achieved_factor = math.nan
+        self._configure_time()
+        self._new_run()
+        self._timer = self.create_timer(self.settings.step_period, self._on_timer, clock=self._steady)
+        mode = (f"simulated time x{self.settings.real_time_factor:g}, publishing /clock"
+                if self._sim_clock else "wall-clock time")
+        self.get_logger().info(
+            f"simulator up: {self.cell.sheet.n_masses} masses, movement {self.cell.movement.number}, "
+            f"{mode}, step {self._dt_ns / NS:g} s every {self.settings.step_period:g} s")
+
+    # -- parameters -------------------------------------------------------------------
+    @property
+    def cell(self) -> CellParams:
+        return self.params["cell"]
+
+    @property
+    def settings(self) -> SimulatorNodeParams:
+        return self.params["settings"]
+
+    def _configure_time(self) -> None:
+        s = self.settings
+        self._sim_clock = s.real_time_factor != 1.0 or s.publish_clock
+        self._dt_ns = max(int(round(s.real_time_factor * s.step_period * NS)), 1)
+        if self._sim_clock and self.pub_clock is None:
+            self.pub_clock = self.create_publisher(ClockMsg, '/clock', CLOCK_QOS)
+        elif not self._sim_clock and self.pub_clock is not None:
+            self.destroy_publisher(self.pub_clock)
+            self.pub_clock = None
+
+    def _on_parameters(self, names: set[str]) -> None:
+        settings = {n for n in names if n in self.params.names("settings")}
+        if settings:
+            was = self._sim_clock
+            self._configure_time()
+            if "step_period" in settings:
+                self._timer.cancel()
+                self.destroy_timer(self._timer)
+                self._timer = self.create_timer(self.settings.step_period, self._on_timer,
+                                                clock=self._steady)
+            if was != self._sim_clock:
+                self.get_logger().warning("the clock source changed at runtime: the other nodes' "
+                                          "use_sim_time must follow")
+            self._rate_ref = None
+        if names - settings:
+            self.get_logger().info(f"cell parameters {sorted(names - settings)} changed: "
+                                   "they take effect at ~/reset")
+
+    # -- the run ----------------------------------------------------------------------
+    def _new_run(self) -> None:
+        """Settled sheet at process time 0, tool at the movement's start."""
+        cell = self.cell
+        start = movement_scenario(cell).start
+        self.sim = Simulation(cell, tool_start=start)
+        self._run_cell = cell
+        self._tool_outline = tool_shape(cell.tool).outline(48)
+        self._cake_outline = Cake(cell.cake.height, cell.cake.fillet_radius,
+                                  cell.cake.radius).outline(48)
+        self._cmds: list[tuple[int, float, float]] = []
+        self._last_cmd_rx = None
+        self._offset_ns = None     # process time 0 on the node/simulated clock, once started
+        self._broken = ""
+        self.peak = (-math.inf, 0, 0.0)          # F_max [N], link, process time [s]
+        #: (process time [s], largest link tension [N]) of every step (for the cell runner)
+        self.history: list[tuple[float, float]] = []
+        self.summary: dict | None = None
+        self._next_progress = self.settings.progress_period
+
+    @property
+    def started(self) -> bool:
+        return self._offset_ns is not None
+
+    @property
+    def process_time(self) -> float:
+        return float(self.sim.state.t)
+
+    def _on_reset(self, request, response):
+        self._new_run()
+        response.success = True
+        response.message = "run restarted: settled sheet at process time 0"
+        self.get_logger().info(response.message)
+        return response
+
+    # -- set-points -------------------------------------------------------------------
+    def _on_command(self, msg: PoseStamped) -> None:
+        t = m.stamp_ns(msg.header.stamp)
+        x, z = m.pose_xz(msg)
+        if t <= 0 or not (math.isfinite(x) and math.isfinite(z)):
+            self.get_logger().warning(f"ignored /tool/command with stamp {t} ns at ({x}, {z})",
+                                      throttle_duration_sec=5.0)
+            return
+        if msg.header.frame_id not in (m.FRAME, ""):
+            self.get_logger().warning(f"ignored /tool/command in frame '{msg.header.frame_id}': "
+                                      f"expected '{m.FRAME}'", throttle_duration_sec=5.0)
+            return
+        if self._cmds and t <= self._cmds[-1][0]:
+            # A set-point for a time already commanded replaces what followed (newest wins).
+            self._cmds = [c for c in self._cmds if c[0] < t]
+        self._cmds.append((t, x, z))
+        self._last_cmd_rx = self._steady.now().nanoseconds
+        if not self.started:
+            # Process time 0 is the first set-point's time, even when the planner's clock was
+            # a little behind this node's physics: the settled sheet waited at t = 0, and the
+            # next step catches up through the buffered set-points, as offline.
+            self._offset_ns = t
+            self.sim.tool_start = np.array([x, z])
+            self.sim.reset()                           # the process starts with the tool here
+            self._track(self.sim.state)                # t = 0 counts, as offline
+            self.get_logger().info(f"process starts at {self._offset_ns / NS:.3f} s (set-point stamp "
+                                   f"{t / NS:.3f} s): first set-point ({x * 1e3:.2f}, {z * 1e3:.2f}) mm")
+        if self._pending:
+            self._try_step()
+
+    def _stream_live(self) -> bool:
+        if self._last_cmd_rx is None:
+            return False
+        age = (self._steady.now().nanoseconds - self._last_cmd_rx) / NS
+        return age < self.settings.command_timeout
+
+    def _tool_at_sim(self, t_ns: float) -> np.ndarray:
+        """Set-point at simulated/node time ``t_ns``: linear between stamps, then hold."""
+        cmds = self._cmds
+        if not cmds:
+            return self.sim.state.tool.copy()
+        if t_ns >= cmds[-1][0]:
+            return np.array(cmds[-1][1:])
+        if t_ns <= cmds[0][0]:
+            return np.array(cmds[0][1:])
+        ts = np.fromiter((c[0] for c in cmds), dtype=np.int64, count=len(cmds))
+        k = int(np.searchsorted(ts, t_ns, side="right"))
+        (t0, x0, z0), (t1, x1, z1) = cmds[k - 1], cmds[k]
+        s = (t_ns - t0) / (t1 - t0)
+        return np.array([x0 + s * (x1 - x0), z0 + s * (z1 - z0)])
+
+    def _prune(self) -> None:
+        keep_from = self._t_ns
+        ts = [c[0] for c in self._cmds]
+        k = max(int(np.searchsorted(ts, keep_from, side="right")) - 1, 0)
+        if k > 0:
+            del self._cmds[:k]
+
+    # -- stepping ---------------------------------------------------------------------
+    def _on_timer(self) -> None:
+        self._pending = True
+        self._try_step()
+
+    def _try_step(self) -> None:
+        if not self._pending:
+            return
+        s = self.settings
+        if self._sim_clock:
+            target = self._t_ns + self._dt_ns
+            if self.started and self._cmds and self._cmds[-1][0] < target:
+                if s.lockstep and self._stream_live():
+                    self._waits += 1
+                    return                              # wait for the step's set-point
+                self._late_steps += 1                   # the tool holds its last set-point
+                self.get_logger().warning(
+                    f"step to {target / NS:.3f} s without its set-point (newest "
+                    f"{self._cmds[-1][0] / NS:.3f} s): the tool holds; late steps so far "
+                    f"{self._late_steps}", throttle_duration_sec=5.0)
+            self.pub_clock.publish(m.clock_msg(target + self._dt_ns))   # one step ahead
+        else:
+            target = self.get_clock().now().nanoseconds
+            if target <= self._t_ns:
+                return
+        self._pending = False
+        self._step_to(target)
+
+    def _step_to(self, target: int) -> None:
+        cell = self._run_cell
+        if self._offset_ns is None and not self.settings.start_on_command:
+            self._offset_ns = target                    # the process starts with this step
+            self._track(self.sim.state)
+        if self.started and not self._broken:
+            offset = self._offset_ns
+            tool_at = lambda p: self._tool_at_sim(offset + p * NS)   # noqa: E731
+            p_end = (target - offset) / NS
+            pt = cell.movement.process_time
+            try:
+                if self.summary is None and self.sim.state.t < pt <= p_end + 1e-9:
+                    self.sim.advance_to(pt, tool_at(pt), on_step=self._track, tool_at=tool_at)
+                    self._finish(pt)
+                    if pt < p_end - 1e-9:          # the state at the process end is published
+                        self._publish_state(offset + int(round(pt * NS)))
+                    else:
+                        self._force_publish = True
+                if p_end > self.sim.state.t:
+                    self.sim.advance_to(p_end, tool_at(p_end), on_step=self._track, tool_at=tool_at)
+            except (ConvergenceError, FloatingPointError, ValueError) as exc:
+                self._broken = f"{type(exc).__name__}: {exc}"
+                self.get_logger().error(f"the sheet solver failed at process time "
+                                        f"{self.sim.state.t:.2f} s: {self._broken}; tensions are "
+                                        f"published as NaN until ~/reset")
+        self._t_ns = target
+        self._prune()
+        self._publish(target)
+
+    def _track(self, state) -> None:
+        i = int(np.argmax(state.tension))
+        value = float(state.tension[i])
+        if len(self.history) < 1_000_000:
+            self.history.append((float(state.t), value))
+        if state.t <= self._run_cell.movement.process_time + 1e-9:
+            if value > self.peak[0]:
+                self.peak = (value, i + 1, float(state.t))
+
+    def _finish(self, pt: float) -> None:
+        cell = self._run_cell
+        F, link, when = self.peak
+        self.summary = {"F_max": F, "F_max_link": link, "F_max_time": when,
+                        "SF": safety_factor(cell.material.F_break, F), "delta": self.sim.delta(),
+                        "process_time": pt, "steps": self.sim.steps, "lockstep_waits": self._waits,
+                        "late_steps": self._late_steps}
+        self.get_logger().info(
+            f"process time {pt:g} s reached: F_max = {F:.4f} N (link {link}, t = {when:.1f} s), "
+            f"SF = {self.summary['SF']:.3f}, Delta = {self.summary['delta'] * 1e3:.3f} mm "
+            f"({self._late_steps} steps without their set-point)")
+
+    # -- publishing -------------------------------------------------------------------
+    def _publish(self, t_ns: int) -> None:
+        s = self.settings
+        if (self._last_pub_ns is None or s.publish_period == 0.0 or self._force_publish
+                or t_ns - self._last_pub_ns >= s.publish_period * NS - 1):
+            self._force_publish = False
+            self._publish_state(t_ns)
+        now = self._steady.now().nanoseconds
+        if s.publish_markers and (self._last_marker is None
+                                  or now - self._last_marker >= s.marker_period * NS):
+            self._last_marker = now
+            self.pub_markers.publish(m.markers_msg(
+                t_ns, self.sim.nodes(), self._tensions(), self._run_cell.material.F_break,
+                self._run_cell.sheet.thickness, self._tool_outline + self.sim.state.tool,
+                self._cake_outline))
+        if self._last_diag is None or now - self._last_diag >= s.diagnostics_period * NS:
+            self._measure_rate(now)
+            self._last_diag = now
+            self.pub_diag.publish(self._diagnostics(t_ns))
+        self._progress()
+
+    def _tensions(self) -> np.ndarray:
+        st = self.sim.state
+        return np.full_like(st.tension, np.nan) if self._broken else st.tension
+
+    def _publish_state(self, t_ns: int) -> None:
+        self._last_pub_ns = t_ns
+        st = self.sim.state
+        contact = math.nan if self._broken else self.sim.contact_tension()
+        self.pub_profile.publish(m.profile_msg(st.x, t_ns))
+        self.pub_tensions.publish(m.tensions_msg(self._tensions()))
+        self.pub_contact.publish(m.float_msg(contact))
+        self.pub_pose.publish(m.pose_msg(st.tool, t_ns))
+        self.pub_wrench.publish(m.wrench_msg(self.sim.tool_force(), t_ns))
+
+    def _measure_rate(self, now: int) -> None:
+        if self._rate_ref is not None and now > self._rate_ref[0]:
+            self.achieved_factor = (self._t_ns - self._rate_ref[1]) / (now - self._rate_ref[0])
+            wanted = self.settings.real_time_factor
+            if (self._sim_clock and self.started and self.summary is None
+                    and self.achieved_factor < 0.5 * wanted):
+                self.get_logger().warning(
+                    f"running at {self.achieved_factor:.1f}x instead of {wanted:g}x (computation "
+                    f"or set-points lag; lockstep waits so far: {self._waits})",
+                    throttle_duration_sec=10.0)
+        self._rate_ref = (now, self._t_ns)
+
+    def _progress(self) -> None:
+        period = self.settings.progress_period
+        if period <= 0 or not self.started or self.sim.state.t < self._next_progress:
+            return
+        while self._next_progress <= self.sim.state.t:
+            self._next_progress += period
+        st = self.sim.state
+        self.get_logger().info(
+            f"t = {st.t:6.1f} s: tool ({st.tool[0] * 1e3:.2f}, {st.tool[1] * 1e3:.2f}) mm, "
+            f"largest tension {float(np.max(st.tension)):.4f} N, contact "
+            f"{self.sim.contact_tension():.4f} N, F_max so far {self.peak[0]:.4f} N, "
+            f"x{self.achieved_factor:.1f} real time")
+
+    def _diagnostics(self, t_ns: int):
+        st = self.sim.state
+        if self._broken:
+            level, message = "ERROR", f"sheet solver failed: {self._broken}"
+        elif not self.started:
+            level, message = "OK", "waiting for the first /tool/command"
+        elif self.summary is None:
+            level, message = "OK", f"process time {st.t:.1f} s"
+        else:
+            level, message = "OK", f"process done at {self.summary['process_time']:g} s"
+        values = {"process_time": float(st.t), "tool_x": float(st.tool[0]), "tool_z": float(st.tool[1]),
+                  "tension_max": float(np.max(self._tensions())),
+                  "F_max": float(self.peak[0]) if self.started else 0.0,
+                  "real_time_factor": self.settings.real_time_factor,
+                  "achieved_factor": float(self.achieved_factor), "lockstep_waits": self._waits,
+                  "late_steps": self._late_steps}
+        if self.summary is not None:
+            values.update({"final_F_max": self.summary["F_max"], "final_SF": self.summary["SF"],
+                           "final_delta": self.summary["delta"]})
+        return m.diagnostics_msg(t_ns, "rheo_shaping/simulator", level, message, values)
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = SimulatorNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return run_node(SimulatorNode, 'simulator', args)
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

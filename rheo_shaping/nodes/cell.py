@@ -1,0 +1,157 @@
+"""The shaping cell in one process: simulator, planner and monitor on one executor.
+
+For users without ``ros2 launch`` (``rheo-shaping cell``): the three nodes are
+the same classes the executables run, created in one rclpy context that reads
+the params file (``--ros-args --params-file``); they talk over DDS exactly as
+separate processes do.  The simulator is the clock (``real_time_factor``,
+default 50x), planner and monitor run on ``use_sim_time``.  The run ends when
+the planner has finished (``done``) or, after an abort, holds, and the
+simulator has reached ``movement.process_time``; :func:`run_cell` returns the
+process figures (F_max, SF, Delta) the simulator measured.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+
+from .monitor import MonitorNode
+from .planner import PlannerNode
+from .simulator import SimulatorNode
+
+#: Simulated seconds per step of the runner's simulator (its step period is
+#: this divided by the real-time factor).
+SIM_STEP = 0.2
+
+
+@dataclass
+class CellResult:
+    """What one run of the cell gave (SI units)."""
+
+    movement: int
+    F_max: float
+    F_max_link: int
+    F_max_time: float
+    SF: float
+    delta: float
+    F_break: float
+    process_time: float
+    aborted: bool
+    abort_reason: str
+    planner_state: str
+    wall_time_s: float
+    achieved_factor: float
+    finished: bool
+    d: float = math.nan
+    extra: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k != "extra"}
+
+
+def run_cell(params_file: str | Path | None = None, *, movement: int | None = None,
+             real_time_factor: float = 50.0, timeout: float = 300.0,
+             progress: Callable[[str], None] | None = print, progress_period: float = 10.0,
+             overrides: dict[str, Sequence[Parameter]] | None = None,
+             log_level: str = "warn") -> CellResult:
+    """Run the cell once; returns its figures (raises ParameterError for bad parameters).
+
+    ``overrides`` maps a node name to extra parameters for it; ``log_level``
+    (debug, info, warn, error) is the nodes' logging threshold.
+    """
+    args = ["rheo_shaping_cell"]
+    if params_file is not None:
+        args += ["--ros-args", "--params-file", str(params_file)]
+    common = [] if movement is None else [Parameter("movement.number", value=int(movement))]
+    extra = overrides or {}
+    sim_params = [Parameter("real_time_factor", value=float(real_time_factor)),
+                  Parameter("step_period", value=SIM_STEP / float(real_time_factor)),
+                  Parameter("progress_period", value=0.0), *common, *extra.get("simulator", ())]
+    sim_time = [Parameter("use_sim_time", value=True)]
+    context = Context()
+    rclpy.init(args=args, context=context)
+    level = getattr(rclpy.logging.LoggingSeverity, log_level.upper())
+    for name in ("simulator", "planner", "monitor"):
+        rclpy.logging.set_logger_level(name, level)
+    nodes = []
+    executor = None
+    t_wall = time.monotonic()
+    try:
+        sim = SimulatorNode(context=context, parameter_overrides=sim_params)
+        nodes.append(sim)
+        monitor = MonitorNode(context=context,
+                              parameter_overrides=[*sim_time, *common, *extra.get("monitor", ())])
+        nodes.append(monitor)
+        planner = PlannerNode(context=context,
+                              parameter_overrides=[*sim_time, *common, *extra.get("planner", ())])
+        nodes.append(planner)
+        executor = SingleThreadedExecutor(context=context)
+        for node in nodes:
+            executor.add_node(node)
+        cell = planner.cell_used
+        pt = cell.movement.process_time
+        next_report = 0.0
+        say = progress or (lambda _msg: None)
+        say(f"cell: movement {cell.movement.number}, process {pt:g} s, simulated time "
+            f"x{real_time_factor:g}; abort at {monitor.threshold:.3f} N "
+            f"({monitor.ratio:.3f} x F_break)")
+        deadline = t_wall + timeout
+        finished = False
+        t_started = None
+        while time.monotonic() < deadline and context.ok():
+            executor.spin_once(timeout_sec=0.05)
+            if t_started is None and sim.started:
+                t_started = time.monotonic()
+            t = sim.process_time if sim.started else 0.0
+            if progress is not None and progress_period > 0 and sim.started and t >= next_report:
+                st = sim.sim.state
+                say(f"  t = {t:6.1f} s  tool ({st.tool[0] * 1e3:6.2f}, {st.tool[1] * 1e3:6.2f}) mm  "
+                    f"largest tension {max(st.tension):.4f} N  planner {planner.state}, "
+                    f"monitor {monitor.state}")
+                while next_report <= t:
+                    next_report += progress_period
+            if sim.summary is not None and planner.state in ("done", "holding"):
+                finished = True
+                break
+        wall = time.monotonic() - t_wall
+        run_wall = time.monotonic() - (t_started if t_started is not None else t_wall)
+        s = sim.summary
+        if s is None:      # timed out (or aborted before the end): the figures so far
+            F, link, when = sim.peak
+            s = {"F_max": F, "F_max_link": link, "F_max_time": when,
+                 "SF": cell.material.F_break / F if F > 0 else math.inf,
+                 "delta": sim.sim.delta(), "process_time": sim.process_time}
+        return CellResult(
+            movement=cell.movement.number, F_max=s["F_max"], F_max_link=s["F_max_link"],
+            F_max_time=s["F_max_time"], SF=s["SF"], delta=s["delta"],
+            F_break=cell.material.F_break, process_time=s["process_time"],
+            aborted=planner.aborted or monitor.state == "aborted",
+            abort_reason=planner.abort_reason or monitor.abort_reason,
+            planner_state=planner.state, wall_time_s=wall,
+            achieved_factor=sim.process_time / run_wall if run_wall > 0 else math.nan,
+            finished=finished, d=cell.movement.d if cell.movement.number == 4 else math.nan,
+            extra={"run_time": sim.process_time, "lockstep_waits": sim._waits,
+                   "abort_threshold": monitor.threshold,
+                   "history": list(sim.history), **_stop_times(planner, sim)})
+    finally:
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)
+        for node in reversed(nodes):
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def _stop_times(planner: PlannerNode, sim: SimulatorNode) -> dict:
+    """When the abort's stop started and reached rest, in process time [s] (None without)."""
+    st = planner.streamer
+    if st is None or st.abort_time is None or sim._offset_ns is None:
+        return {"abort_time": None, "rest_time": None}
+    offset = sim._offset_ns / 1e9
+    return {"abort_time": st.abort_time - offset, "rest_time": st.rest_time - offset}

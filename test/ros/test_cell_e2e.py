@@ -1,0 +1,338 @@
+"""End to end over DDS: simulator, planner and monitor as separate processes, started
+from their installed executables with ``--ros-args --params-file``, faster than real time.
+
+* The 2-step shaping (movement 4): F_max and Delta from /sheet/tensions and
+  /sheet/profile equal the core's offline result for the same plan (2 %, 0.2 mm).
+* An aggressive plan that the core predicts would tear the sheet is aborted by
+  the monitor: the largest tension stays below F_break and the tool comes to
+  rest within its jerk limits; the time from the threshold crossing to rest is
+  measured.
+
+Figures are printed (run with ``-s`` to see them).  The cell is
+config/cell.yaml's when it exists, else the default cell; every reference
+figure is computed by the core at test time.
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("rclpy")
+
+from geometry_msgs.msg import PoseArray, PoseStamped  # noqa: E402
+from std_msgs.msg import Float64MultiArray, String  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory  # noqa: E402
+
+from rheo_shaping.abort_budget import DEFAULT_T_DETECT, abort_budget  # noqa: E402
+from rheo_shaping.config import dump_cell, load_cell  # noqa: E402
+from rheo_shaping.metrics import residual_gap  # noqa: E402
+from rheo_shaping.node_params import MonitorNodeParams  # noqa: E402
+from rheo_shaping.nodes import messages as m  # noqa: E402
+from rheo_shaping.params import CellParams  # noqa: E402
+from rheo_shaping.scenarios import movement_scenario, scenario_plan  # noqa: E402
+from rheo_shaping.planning import MotionLimits  # noqa: E402
+from rheo_shaping.simulation import build_chain, run_scenario  # noqa: E402
+from rheo_shaping.stopping import stopping_time  # noqa: E402
+
+from rosutil import REPO, Recorder, motion_bounds, wait_for_publishers  # noqa: E402
+
+NS = 1_000_000_000
+#: The measured figures of the last run, for reports (outside the source tree).
+RESULTS = Path(tempfile.gettempdir()) / "rheo_shaping_e2e_results.json"
+
+
+def base_cell() -> CellParams:
+    path = REPO / "config" / "cell.yaml"
+    return load_cell(path) if path.exists() else CellParams()
+
+
+def write_params(path: Path, cell: CellParams, simulator=None, planner=None, monitor=None) -> Path:
+    data = yaml.safe_load(dump_cell(cell))
+    for name, section in (("simulator", simulator), ("planner", planner), ("monitor", monitor)):
+        if section:
+            data[name] = {"ros__parameters": section}
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+class Cell:
+    """The three processes and a recording test node."""
+
+    def __init__(self, ros, procs, params, sim_time: bool = True):
+        self.ros, self.procs = ros, procs
+        files = [a for p in (params if isinstance(params, list) else [params])
+                 for a in ("--params-file", str(p))]
+        follow = ["-p", "use_sim_time:=true"] if sim_time else []
+        self.sim = procs("simulator", "--ros-args", *files)
+        self.planner = procs("planner", "--ros-args", *files, *follow)
+        self.monitor = procs("monitor", "--ros-args", *files, *follow)
+        self.node = ros.node("e2e_observer")
+        self.rec = Recorder(self.node, {
+            "/sheet/profile": PoseArray, "/sheet/tensions": Float64MultiArray,
+            "/tool/command": PoseStamped, "/tool/pose": PoseStamped,
+            "/tool/planned_trajectory": (JointTrajectory, True),
+            "/shaping/planner_state": (String, True), "/shaping/abort": (String, True)})
+
+    def logs(self) -> str:
+        return "\n".join(f"--- {p.exe} ---\n{p.text()[-4000:]}" for p in self.procs.all)
+
+    def wait(self, predicate, timeout, what):
+        t0 = time.monotonic()
+        while not predicate():
+            for p in self.procs.all:
+                if p.proc.poll() is not None:
+                    pytest.fail(f"{p.exe} exited with {p.proc.returncode} while waiting for {what}\n"
+                                + self.logs())
+            if time.monotonic() - t0 > timeout:
+                pytest.fail(f"timed out after {timeout:g} s waiting for {what}\n" + self.logs())
+            self.ros.executor.spin_once(timeout_sec=0.01)
+        return time.monotonic() - t0
+
+    def start(self):
+        """Matched endpoints and the interlock first, then ~/start."""
+        wait_for_publishers(self.ros, self.node, ["/sheet/profile", "/sheet/tensions", "/tool/pose",
+                                                  "/shaping/planner_state"], timeout=60.0)
+        self.wait(lambda: len(self.rec["/sheet/tensions"]) >= 3 and len(self.rec["/sheet/profile"]) >= 3,
+                  60.0, "sheet data reaching the test")
+        self.wait(lambda: self.state() == "idle", 60.0, "the planner (autostart off) to be idle")
+        client = self.node.create_client(Trigger, "/planner/start")
+        self.wait(client.service_is_ready, 30.0, "/planner/start")
+        future = client.call_async(Trigger.Request())
+        self.wait(future.done, 10.0, "/planner/start response")
+        assert future.result().success, future.result().message
+
+    def state(self) -> str:
+        s = self.rec.last("/shaping/planner_state")
+        return s.data if s else ""
+
+    def stop_all(self):
+        codes = {p.exe: p.stop() for p in self.procs.all}
+        assert all(c == 0 for c in codes.values()), f"exit codes {codes}\n" + self.logs()
+
+    # -- what the topics say ---------------------------------------------------------
+    def t0(self) -> int:
+        return m.stamp_ns(self.rec["/tool/planned_trajectory"][0].header.stamp)
+
+    def tension_samples(self):
+        """(stamp of the profile published with it, largest tension) per /sheet/tensions message.
+
+        /sheet/tensions has no header: the simulator publishes /sheet/profile and then
+        /sheet/tensions in the same step, so each tension message is paired with the
+        profile that arrived before it."""
+        out, stamp = [], None
+        for topic, i in self.rec.order:
+            if topic == "/sheet/profile":
+                stamp = m.stamp_ns(self.rec[topic][i].header.stamp)
+            elif topic == "/sheet/tensions" and stamp is not None:
+                out.append((stamp, float(np.max(self.rec[topic][i].data))))
+        return np.array(out, dtype=float).reshape(-1, 2)
+
+    def commands(self):
+        cmds = self.rec["/tool/command"]
+        return (np.array([m.stamp_ns(c.header.stamp) for c in cmds], dtype=np.int64),
+                np.array([m.pose_xz(c) for c in cmds]).reshape(-1, 2))
+
+
+def _save(key: str, value: dict) -> None:
+    data = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    data[key] = value
+    RESULTS.write_text(json.dumps(data, indent=1))
+
+
+# -- nominal: agreement with the offline core ------------------------------------------------
+def test_two_step_shaping_matches_the_offline_core(ros, procs, tmp_path):
+    cell = base_cell()
+    cell = replace(cell, movement=replace(cell.movement, number=4))
+    offline = run_scenario(cell, scenario_plan(cell, movement_scenario(cell)))
+    params = write_params(tmp_path / "cell.yaml", cell,
+                          simulator={"real_time_factor": 20.0, "step_period": 0.01},
+                          planner={"autostart": False})
+    c = Cell(ros, procs, params)
+    t_start = time.monotonic()
+    c.start()
+    pt = cell.movement.process_time
+    c.wait(lambda: c.rec["/tool/planned_trajectory"], 30.0, "the planned trajectory")
+    t0 = c.t0()
+    end = t0 + int(round(pt * NS))
+    c.wait(lambda: any(m.stamp_ns(p.header.stamp) >= end for p in c.rec["/sheet/profile"]),
+           pt / 5 + 60.0, f"{pt:g} s of process")
+    wall = time.monotonic() - t_start
+    c.wait(lambda: c.state() == "done", 120.0, "planner done")
+    assert c.rec["/shaping/abort"] == [], c.rec["/shaping/abort"][0].data
+
+    samples = c.tension_samples()
+    window = samples[(samples[:, 0] >= t0) & (samples[:, 0] <= end)]
+    F_max = float(window[:, 1].max())
+    [final] = [p for p in c.rec["/sheet/profile"] if m.stamp_ns(p.header.stamp) == end]
+    constants, _ = build_chain(cell)
+    nodes = np.vstack([constants.anchor_top, m.profile_points(final), constants.anchor_bottom])
+    delta = residual_gap(nodes, cell.sheet.thickness)
+    # The streamed set-points are the offline plan, sample for sample.
+    t, p = c.commands()
+    plan = scenario_plan(cell, movement_scenario(cell)).plan
+    inside = t <= end
+    expected, _, _ = plan.sample_many((t[inside] - t0) / NS)
+    assert np.max(np.abs(p[inside] - expected)) < 1e-12
+    c.stop_all()
+    late = re.search(r"\((\d+) steps without their set-point\)", c.sim.text())
+    print(re.findall(r"process starts.*|process time.*reached.*", c.sim.text()))
+
+    figures = {"F_max_e2e": F_max, "F_max_offline": offline.F_max,
+               "F_max_rel": F_max / offline.F_max - 1, "delta_e2e": delta,
+               "delta_offline": offline.delta, "delta_diff": delta - offline.delta,
+               "SF_e2e": cell.material.F_break / F_max, "SF_offline": offline.SF,
+               "run_wall_s": wall, "process_time": pt,
+               "late_steps": int(late.group(1)) if late else None}
+    _save("nominal", figures)
+    print("E2E nominal:", json.dumps(figures))
+    assert F_max == pytest.approx(offline.F_max, rel=0.02)
+    assert delta == pytest.approx(offline.delta, abs=0.2e-3)
+
+
+# -- aggressive: the monitor saves the sheet --------------------------------------------------
+def auto_ratio(cell: CellParams) -> float:
+    """The monitor's default threshold ratio for ``cell`` (lesson 4 at its speed)."""
+    d = MonitorNodeParams()
+    return abort_budget(cell, speed_factors=(1.0,), t_detect=d.detect_time,
+                        sigma=d.noise_sigma).ratio_max
+
+
+def aggressive_cell(base: CellParams):
+    """A plan at 5x speed (end of travel as given, or deeper) that the core predicts tears
+    the sheet (F_max > 1.1 F_break), while its tension crosses the monitor's threshold at a
+    rate its budget covers.  Returns the cell, the offline run and the monitor's ratio."""
+    Fb = base.material.F_break
+    mv = base.movement
+    for number in (3, 2, 1):
+        for k in range(0, 21):
+            end = list(getattr(mv, f"end_{number}"))
+            if number == 1:
+                end[1] -= k * 1e-3
+            else:
+                end[0] -= k * 0.5e-3
+            p = replace(base, movement=replace(mv, number=number, speed=5 * mv.speed,
+                                               **{f"end_{number}": tuple(end)}))
+            try:
+                r = run_scenario(p, scenario_plan(p, movement_scenario(p)))
+            except (RuntimeError, ValueError):
+                break
+            if r.F_max > 1.1 * Fb:
+                # The rate at which the tension crosses the threshold, continued over the
+                # budget's reaction and stopping time, must stay below F_break (lesson 4).
+                ratio = auto_ratio(p)
+                F = r.tension.max(axis=1)
+                k_cross = int(np.argmax(F >= ratio * Fb))
+                j = int(np.argmax(r.t >= r.t[k_cross] - 0.5))
+                rate = (F[k_cross] - F[j]) / max(r.t[k_cross] - r.t[j], 1e-9)
+                if rate * (DEFAULT_T_DETECT + abort_budget_stop_time(p)) < (1 - ratio) * Fb:
+                    return p, r, ratio
+                break
+    pytest.fail("no aggressive plan found that tears the sheet at a rate the monitor can stop: "
+                "recheck the default cell")
+
+
+def abort_budget_stop_time(cell: CellParams) -> float:
+    mv = cell.movement
+    return stopping_time(mv.speed, MotionLimits(mv.speed, mv.accel, mv.jerk))
+
+
+@pytest.mark.parametrize("trend", [False, True], ids=["threshold_only", "threshold_and_trend"])
+def test_aggressive_plan_is_aborted_before_the_sheet_tears(ros, procs, tmp_path, trend):
+    cell, offline, ratio = aggressive_cell(base_cell())
+    Fb = cell.material.F_break
+    F_abort = ratio * Fb
+    params = write_params(tmp_path / "aggressive.yaml", cell,
+                          simulator={"real_time_factor": 10.0, "step_period": 0.005,
+                                     "publish_period": 0.0},
+                          # The planner's clearance check would refuse this plan (its end of
+                          # travel pinches the sheet): off, to test the monitor on its own.
+                          planner={"autostart": False, "retract_speed": 0.01,
+                                   "retract_accel": 0.01, "retract_jerk": 0.1,
+                                   "clearance_factor": 0.0},
+                          monitor={"trend_abort": trend})
+    c = Cell(ros, procs, params)
+    c.start()
+    c.wait(lambda: c.rec["/shaping/abort"], 120.0, "the monitor's abort")
+    reason = c.rec["/shaping/abort"][0].data
+    c.wait(lambda: c.state() == "holding", 120.0, "the planner holding after the retract")
+    c.wait(lambda: len(c.rec["/tool/command"]) and c.commands()[1][-1] @ [1, 0] > 0
+           and np.allclose(c.commands()[1][-1], cell.tool.home, atol=1e-9), 30.0,
+           "the set-points at home")
+    samples = c.tension_samples()
+    t0 = c.t0()
+    t, p = c.commands()
+    c.stop_all()
+
+    largest = float(samples[:, 1].max())
+    plan = scenario_plan(cell, movement_scenario(cell)).plan
+    expected, _, _ = plan.sample_many((t - t0) / NS)
+    dev = np.nonzero(np.linalg.norm(p - expected, axis=1) > 1e-9)[0]
+    assert dev.size, "the set-points never left the plan"
+    k_dev = int(dev[0])
+    # The planner logs when the stop starts and how long it lasts (ruckig's exact figures).
+    log = "".join(x.text() for x in procs.all if x.exe == "planner")
+    found = re.search(r"stopping from running at ([0-9.]+) s, at rest in ([0-9.]+) s", log)
+    assert found, log
+    t_abort = int(round(float(found.group(1)) * NS))
+    t_rest = t_abort + int(round(float(found.group(2)) * NS))
+    assert t[k_dev - 1] <= t_abort < t[k_dev] + 1
+    # The set-points come to rest there: the slowest one between stop and retract.
+    speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / (np.diff(t) / NS)
+    window = (t[1:] >= t_abort) & (t[1:] <= t_rest + NS)
+    k_slow = int(np.nonzero(window)[0][np.argmin(speed[window])]) + 1
+    assert abs(t[k_slow] - t_rest) <= 0.025 * NS
+    mv = cell.movement
+    stop = (t >= t_abort - 3 * NS // 50) & (t <= t_rest)
+    v, a, j = motion_bounds(t[stop], p[stop])
+    assert v <= mv.speed * (1 + 1e-6) and a <= mv.accel * (1 + 1e-6) + 1e-6
+    assert j <= mv.jerk * (1 + 1e-6) + 1e-4
+    # The simulated tool (/tool/pose) follows the set-points through the stop.
+    poses = [(m.stamp_ns(q.header.stamp), m.pose_xz(q)) for q in c.rec["/tool/pose"]]
+    poses = [(s, xz) for s, xz in poses if t_abort <= s <= t_rest + NS]
+    assert poses
+    for s_ns, xz in poses:
+        assert xz[0] == pytest.approx(np.interp(s_ns, t, p[:, 0]), abs=1e-12)
+        assert xz[1] == pytest.approx(np.interp(s_ns, t, p[:, 1]), abs=1e-12)
+    crossed = samples[samples[:, 1] >= F_abort]
+    t_cross = crossed[0, 0] if crossed.size else math.nan
+    figures = {"movement": mv.number, "speed": mv.speed, "end": list(getattr(mv, f"end_{mv.number}")),
+               "offline_F_max_without_monitor": offline.F_max, "F_break": Fb, "F_abort": F_abort,
+               "largest_tension": largest, "abort_reason": reason,
+               "t_threshold_crossing": (t_cross - t0) / NS if crossed.size else None,
+               "t_stop_start": (t_abort - t0) / NS, "t_rest": (t_rest - t0) / NS,
+               "crossing_to_rest_s": (t_rest - t_cross) / NS if crossed.size else None,
+               "stop_duration_s": (t_rest - t_abort) / NS,
+               "stop_v_max": v, "stop_a_max": a, "stop_j_max": j}
+    _save(f"abort_{'trend' if trend else 'threshold'}", figures)
+    print("E2E abort:", json.dumps(figures))
+    assert offline.F_max > Fb                       # without the monitor: torn
+    assert largest < Fb, figures                    # with it: below F_break
+    if not trend:
+        assert "abort threshold" in reason
+        assert crossed.size
+
+
+# -- the shipped params file, as `ros2 run` users start it -------------------------------------
+def test_shipped_params_files_start_the_cell(ros, procs):
+    """rcl parses the shipped files (config/*.yaml, as --params-file each), the nodes accept
+    them, and the cell runs on them as `ros2 run` users start it."""
+    files = sorted((REPO / "config").glob("*.yaml"))
+    assert files
+    c = Cell(ros, procs, files, sim_time=False)
+    wait_for_publishers(ros, c.node, ["/sheet/profile", "/tool/command", "/shaping/ready"],
+                        timeout=60.0)
+    c.wait(lambda: c.state() in ("running", "done"), 60.0, "the planner running")
+    c.wait(lambda: len(c.rec["/tool/command"]) >= 20 and len(c.rec["/sheet/tensions"]) >= 20,
+           60.0, "set-points and tensions")
+    assert c.rec["/shaping/abort"] == []
+    c.stop_all()

@@ -1,0 +1,218 @@
+"""The monitor node in-process, fed by a fake cell over DDS (SAFETY-NOTES lessons 1-3)."""
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from geometry_msgs.msg import PoseArray, WrenchStamped  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy.duration import Duration  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from rheo_shaping.nodes import messages as m  # noqa: E402
+from rheo_shaping.nodes.monitor import MonitorNode  # noqa: E402
+from rheo_shaping.params import CellParams  # noqa: E402
+
+from rosutil import Recorder, wait_for_subscribers  # noqa: E402
+
+F_BREAK = CellParams().material.F_break
+NS = 1_000_000_000
+
+
+class FakeCell:
+    """Publishes /clock (simulated time it controls) and the tension/stamped topics."""
+
+    def __init__(self, ros):
+        self.ros = ros
+        self.node = ros.node("fake_cell")
+        q = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                       deadline=Duration(seconds=0.05))
+        self.clock = self.node.create_publisher(Clock, "/clock", 1)
+        self.tensions = self.node.create_publisher(Float64MultiArray, "/sheet/tensions", q)
+        self.contact = self.node.create_publisher(Float64, "/sheet/contact_tension", q)
+        self.profile = self.node.create_publisher(PoseArray, "/sheet/profile", 10)
+        self.wrench = self.node.create_publisher(WrenchStamped, "/tool/wrench", 10)
+        self.t_ns = 10 * NS
+
+    def publish(self, tension=0.2, contact=0.1, stamp_ns=None, dt=0.05):
+        """One sample of the cell at simulated time t (advanced by dt)."""
+        self.t_ns += int(dt * NS)
+        self.clock.publish(m.clock_msg(self.t_ns))
+        stamp = self.t_ns if stamp_ns is None else stamp_ns
+        self.profile.publish(m.profile_msg([[0.01, 0.05]], stamp))
+        self.wrench.publish(m.wrench_msg([0.0, 0.0], stamp))
+        values = tension if isinstance(tension, list) else [0.1, tension, 0.05]
+        self.tensions.publish(m.tensions_msg(values))
+        self.contact.publish(m.float_msg(contact))
+
+    def stream(self, seconds, **kw):
+        """Publish samples every 20 ms of wall time for ``seconds``, spinning meanwhile."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.publish(**kw)
+            self.ros.spin_for(0.02)
+
+
+@pytest.fixture
+def cell(ros):
+    return FakeCell(ros)
+
+
+def make_monitor(ros, **settings):
+    settings.setdefault("abort_ratio", 0.6)      # fixed: no core runs for the budget (tested below)
+    overrides = [Parameter("use_sim_time", value=True)]
+    overrides += [Parameter(k, value=v) for k, v in settings.items()]
+    return ros.add(MonitorNode(context=ros.context, parameter_overrides=overrides))
+
+
+def listen(ros):
+    node = ros.node("monitor_listener")
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    rec = Recorder(node, {"/shaping/ready": Bool, "/diagnostics": DiagnosticArray})
+    rec.msgs["/shaping/abort"] = []
+    node.create_subscription(String, "/shaping/abort", rec._cb("/shaping/abort"), latched)
+    return node, rec
+
+
+def get_ready(ros, monitor, cell):
+    wait_for_subscribers(ros, cell.tensions)
+    wait_for_subscribers(ros, cell.profile)
+    ros.spin_until(lambda: monitor.ready, 10.0, "monitor ready",
+                   every=lambda: cell.publish())
+
+
+def test_ready_heartbeat_and_diagnostics(ros, cell):
+    monitor = make_monitor(ros)
+    node, rec = listen(ros)
+    assert not monitor.ready
+    get_ready(ros, monitor, cell)
+    ros.spin_until(lambda: rec["/shaping/ready"] and rec.last("/shaping/ready").data, 5.0,
+                   "ready heartbeat", every=lambda: cell.publish())
+    ros.spin_until(lambda: any(s.name == "rheo_shaping/monitor" and s.level == DiagnosticStatus.OK
+                               for d in rec["/diagnostics"] for s in d.status), 5.0,
+                   "OK diagnostics", every=lambda: cell.publish())
+    status = [s for d in rec["/diagnostics"] for s in d.status if s.level == DiagnosticStatus.OK][-1]
+    keys = {kv.key for kv in status.values}
+    assert {"tension_max", "safety_factor", "data_age_tensions", "abort_threshold"} <= keys
+    assert rec["/shaping/abort"] == []
+
+
+def test_threshold_abort_latches_and_is_transient_local(ros, cell):
+    monitor = make_monitor(ros, trend_abort=False)
+    node, rec = listen(ros)
+    get_ready(ros, monitor, cell)
+    cell.publish(tension=1.01 * monitor.threshold)
+    ros.spin_until(lambda: rec["/shaping/abort"], 5.0, "abort")
+    reason = rec["/shaping/abort"][0].data
+    assert "abort threshold" in reason and "link 2" in reason
+    cell.stream(0.3)                                   # good data again: still aborted
+    assert monitor.state == "aborted" and not monitor.ready
+    assert len(rec["/shaping/abort"]) == 1
+    late = Recorder(ros.node("late_joiner"), {"/shaping/abort": (String, True)})
+    ros.spin_until(lambda: late["/shaping/abort"], 10.0, "transient-local abort for a late joiner")
+    assert late["/shaping/abort"][0].data == reason
+    ros.spin_until(lambda: any(s.level == DiagnosticStatus.ERROR for d in rec["/diagnostics"]
+                               for s in d.status), 5.0, "ERROR diagnostics")
+
+
+def test_reset_rearms_and_clears_the_latched_abort(ros, cell):
+    monitor = make_monitor(ros, trend_abort=False)
+    node, rec = listen(ros)
+    get_ready(ros, monitor, cell)
+    cell.publish(tension=2 * F_BREAK)
+    ros.spin_until(lambda: monitor.state == "aborted", 5.0, "abort")
+    client = node.create_client(Trigger, "/monitor/reset")
+    ros.spin_until(lambda: client.service_is_ready(), 10.0, "reset service")
+    future = client.call_async(Trigger.Request())
+    ros.spin_until(future.done, 5.0, "reset response")
+    assert future.result().success
+    assert monitor.state == "waiting"
+    get_ready(ros, monitor, cell)
+    late = Recorder(ros.node("late_joiner2"), {"/shaping/abort": (String, True)})
+    ros.spin_until(lambda: late.node.count_publishers("/shaping/abort") >= 1, 10.0, "abort publisher")
+    cell.stream(0.5)
+    assert late["/shaping/abort"] == []               # the old abort is gone
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_non_finite_tension_aborts(ros, cell, bad):
+    monitor = make_monitor(ros)
+    node, rec = listen(ros)
+    get_ready(ros, monitor, cell)
+    cell.publish(tension=[0.1, bad, 0.1])
+    ros.spin_until(lambda: rec["/shaping/abort"], 5.0, "abort on non-finite tension")
+    assert "non-finite" in rec["/shaping/abort"][0].data
+
+
+def test_non_finite_contact_tension_aborts(ros, cell):
+    monitor = make_monitor(ros)
+    get_ready(ros, monitor, cell)
+    cell.publish(contact=math.nan)
+    ros.spin_until(lambda: monitor.state == "aborted", 5.0, "abort")
+    assert "contact" in monitor.abort_reason
+
+
+def test_stale_data_aborts_on_the_steady_clock_with_frozen_sim_time(ros, cell):
+    """Lesson 1: the simulator dies, /clock freezes; the watchdog still fires in time."""
+    monitor = make_monitor(ros, max_data_age=0.3, period=0.02)
+    get_ready(ros, monitor, cell)
+    t_last = time.monotonic()
+    took = ros.spin_until(lambda: monitor.state == "aborted", 5.0, "stale abort")
+    assert "stale" in monitor.abort_reason
+    assert 0.25 <= time.monotonic() - t_last <= 0.3 + 0.7, took
+
+
+def test_zero_stamp_aborts(ros, cell):
+    monitor = make_monitor(ros)
+    get_ready(ros, monitor, cell)
+    cell.publish(stamp_ns=0)
+    ros.spin_until(lambda: monitor.state == "aborted", 5.0, "abort")
+    assert "zero header stamp" in monitor.abort_reason
+
+
+def test_future_stamp_aborts(ros, cell):
+    monitor = make_monitor(ros)
+    get_ready(ros, monitor, cell)
+    cell.publish(stamp_ns=cell.t_ns + 5 * NS)
+    ros.spin_until(lambda: monitor.state == "aborted", 5.0, "abort")
+    assert "future" in monitor.abort_reason
+
+
+def test_rising_trend_aborts_before_the_threshold(ros, cell):
+    monitor = make_monitor(ros, trend_window=0.5, stop_time=1.0, detect_time=0.1)
+    get_ready(ros, monitor, cell)
+    F = 0.2
+    while monitor.state != "aborted":
+        F += 0.4 * 0.05                                # 0.4 N/s of simulated time
+        assert F < monitor.threshold, "the threshold was reached before the trend aborted"
+        cell.publish(tension=F, dt=0.05)
+        ros.spin_for(0.02)
+    assert "trend" in monitor.abort_reason
+    assert F + 0.4 * 1.1 >= monitor.threshold - 0.03   # it fired about one horizon ahead
+
+
+def test_no_data_is_not_ready_and_aborts_after_startup_timeout(ros, cell):
+    monitor = make_monitor(ros, startup_timeout=1.0)
+    node, rec = listen(ros)
+    ros.spin_until(lambda: rec["/shaping/ready"], 5.0, "heartbeat")
+    assert not any(msg.data for msg in rec["/shaping/ready"])
+    ros.spin_until(lambda: monitor.state == "aborted", 5.0, "startup timeout abort")
+    assert "not ready within startup_timeout" in monitor.abort_reason
+    assert not any(msg.data for msg in rec["/shaping/ready"])
+
+
+def test_old_stamps_abort_once_ready(ros, cell):
+    monitor = make_monitor(ros, max_stamp_age=1.0)
+    get_ready(ros, monitor, cell)
+    cell.publish(stamp_ns=cell.t_ns - 5 * NS)
+    ros.spin_until(lambda: monitor.state == "aborted", 5.0, "abort")
+    assert "old" in monitor.abort_reason and "max_stamp_age" in monitor.abort_reason

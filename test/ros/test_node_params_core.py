@@ -1,0 +1,83 @@
+"""The core behind the nodes' settings: the abort budget (SAFETY-NOTES lesson 4), the choice
+of d (paper Fig. 18), params files with node sections, and docs/ros.md's tables."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from rheo_shaping.abort_budget import abort_budget
+from rheo_shaping.config import load_cell
+from rheo_shaping.node_params import NODE_PARAMS, MonitorNodeParams, parameter_table
+from rheo_shaping.optimise import best_d, d_values
+from rheo_shaping.params import CellParams
+from rheo_shaping.schema import to_flat
+
+from rosutil import REPO
+from test_cell_e2e import base_cell
+
+
+def test_monitor_default_threshold_is_lesson_4_at_the_configured_speed(ros):
+    """abort_ratio 0 (the default): F_abort = F_break - r (t_detect + t_stop) - 3 sigma with r
+    the largest tension rate of movements 1-4 at the cell's speed, from the core, now."""
+    from rclpy.parameter import Parameter
+    from rheo_shaping.nodes.monitor import MonitorNode
+    assert MonitorNodeParams().abort_ratio == 0.0
+    cell = base_cell()
+    overrides = [Parameter(k, value=v) for k, v in to_flat(cell).items()]
+    monitor = ros.add(MonitorNode(context=ros.context, parameter_overrides=overrides))
+    budget = abort_budget(cell, speed_factors=(1.0,), t_detect=MonitorNodeParams().detect_time,
+                          sigma=MonitorNodeParams().noise_sigma)
+    assert monitor.threshold == pytest.approx(budget.F_abort_max, rel=1e-9)
+    assert monitor.threshold < cell.material.F_break
+    print(budget.table())
+
+
+def test_best_d_is_the_smallest_F_max_within_the_delta_limit():
+    cell = base_cell()
+    ds = d_values(0.012, 0.017, 0.0025)
+    assert ds.tolist() == pytest.approx([0.012, 0.0145, 0.017])
+    choice = best_d(cell, ds, delta_limit=1.0)
+    assert choice.F_max == min(r.F_max for r in choice.runs)
+    assert choice.d in ds
+    limit = sorted(r.delta for r in choice.runs)[1]        # admits the two smallest-Delta runs
+    strict = best_d(cell, ds, delta_limit=limit)
+    assert strict.delta <= limit
+    with pytest.raises(ValueError, match="keeps Delta"):
+        best_d(cell, ds, delta_limit=1e-9)
+
+
+def test_load_cell_ignores_node_sections(tmp_path):
+    ros = tmp_path / "ros.yaml"
+    ros.write_text("/**:\n  ros__parameters:\n    material: {k1: 90.0}\n"
+                   "simulator:\n  ros__parameters:\n    real_time_factor: 20.0\n"
+                   "planner:\n  ros__parameters:\n    control_rate: 100.0\n"
+                   "monitor:\n  ros__parameters:\n    abort_ratio: 0.5\n")
+    plain = tmp_path / "plain.yaml"
+    plain.write_text("material: {k1: 90.0}\nreal_time_factor: 20.0\nuse_sim_time: true\n")
+    want = replace(CellParams(), material=replace(CellParams().material, k1=90.0))
+    for node in ("simulator", "planner", "monitor"):
+        assert load_cell(ros, node) == want
+    assert load_cell(plain) == want
+
+
+def test_shipped_params_files_load_in_the_core_and_their_node_sections_are_valid():
+    from rheo_shaping.config import read_yaml, flatten
+    from rheo_shaping.node_params import ROS_BUILTIN_PARAMETERS
+    from rheo_shaping.schema import from_flat
+    for path in sorted((REPO / "config").glob("*.yaml")):
+        load_cell(path)
+        data = read_yaml(path)
+        for node, cls in NODE_PARAMS.items():
+            section = data.get(node, {}).get("ros__parameters", {})
+            flat = {k: v for k, v in flatten(section).items() if k not in ROS_BUILTIN_PARAMETERS
+                    and k.split(".", 1)[0] not in ("material", "sheet", "cake", "tool", "movement",
+                                                   "solver")}
+            from_flat(cls, flat, where=f"{path.name}: {node}")
+
+
+def test_docs_parameter_tables_are_current():
+    doc = (REPO / "docs" / "ros.md").read_text()
+    for name, cls in NODE_PARAMS.items():
+        assert parameter_table(cls) in doc, f"docs/ros.md: regenerate the `{name}` table " \
+                                           f"(python -m rheo_shaping.node_params)"
