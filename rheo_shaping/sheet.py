@@ -301,7 +301,12 @@ class SheetModel:
         forced = [np.zeros(self._n, dtype=bool) for _ in geo]
         if isinstance(geo, _Geo) and not _positive_definite(ab):
             ab = _without_curvature(ab, geo.curv)   # Gauss-Newton where the exact one is not SPD
-        for _ in range(8):
+        # rounds until the predicted set settles (it may need ~N/8 rounds as contact spreads
+        # along the sheet); a repeated set is a cycle, after which spheres may only enter,
+        # so the set grows and the loop ends
+        seen: set = set()
+        only_enter = False
+        while True:
             g = grad.copy()
             band = ab
             if any(f.any() for f in forced):
@@ -319,13 +324,17 @@ class SheetModel:
             for (_, dist, nrm), f in zip(geo, forced):
                 pen_new = r - dist - np.einsum("ij,ij->i", nrm, step)
                 enter = (~f) & (dist >= r) & (pen_new > 1e-12)
-                leave = f & (pen_new < 0.0)
+                leave = f & (pen_new < 0.0) & (not only_enter)
                 if enter.any() or leave.any():
                     f |= enter
                     f &= ~leave
                     changed = True
             if not changed:
                 break
+            key = b"".join(f.tobytes() for f in forced)
+            if key in seen:
+                only_enter = True
+            seen.add(key)
         return step, g
 
     def _minimise(self, x, x_pred, inertia, S, L_star, offsets):
