@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
+from .closed_forms import _times
+
 from .material import (
     SPECIMEN_LENGTH_M,
     ThreeElement,
@@ -77,14 +79,6 @@ def as_burgers(m: "ThreeElement | Burgers") -> Burgers:
     if math.isinf(m.c2):
         raise ValueError("c2 [N s/m] = inf: a Burgers unit needs a finite series dashpot")
     return Burgers(m.k1, m.c1, m.c2, math.inf, m.length)
-
-
-def _times(t) -> np.ndarray:
-    t = np.asarray(t, dtype=float)
-    if np.isnan(t).any() or (t < 0.0).any():
-        bad = t[np.isnan(t) | (t < 0.0)].flat[0]
-        raise ValueError(f"time t [s] = {float(bad)!r}: expected t >= 0 (from the start of the loading)")
-    return t
 
 
 def _kv_creep(b: Burgers, t: np.ndarray, force: float) -> np.ndarray:
