@@ -10,7 +10,7 @@ A file looks like::
       ros__parameters:
         real_time_factor: 20.0
 
-The cell (material, sheet, cake, tool, movement, solver) lives in the ``/**``
+The cell (material, sheet, cake, tool, movement, solver, effects) lives in the ``/**``
 section that every node reads; node sections hold node settings.  Nested
 keys flatten to dotted names exactly as rcl does.  A plain mapping of cell
 sections (no ``ros__parameters``) is accepted too.
@@ -83,7 +83,7 @@ def node_parameters(data: dict, node: str | None, path: str | Path = "") -> dict
     return flat
 
 
-CELL_SECTIONS = ("material", "sheet", "cake", "tool", "movement", "solver")
+CELL_SECTIONS = ("material", "sheet", "cake", "tool", "movement", "solver", "effects")
 
 
 def cell_from_flat(flat: dict[str, Any], where: str = "") -> CellParams:

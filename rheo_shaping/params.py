@@ -102,6 +102,25 @@ class SolverParams:
 
 
 @dataclass(frozen=True)
+class EffectsParams:
+    """Effects the nominal model leaves out (sim-to-real diagnosis, docs/diagnosis.md).
+
+    Every one is off at its default; the names are the effects' names in the
+    YAML and in every diagnosis report (:mod:`rheo_shaping.effects`).
+    """
+
+    friction_mould: float = param(0.0, "Coulomb friction coefficient between sheet and mould (cake and workplane); 0: off", "", 0.0, 2.0)
+    friction_tool: float = param(0.0, "Coulomb friction coefficient between sheet and tool; 0: off", "", 0.0, 2.0)
+    bending: float = param(0.0, "bending stiffness EI of the strip (its width); 0: off (pin joints)", "N m^2", 0.0, 1e-2)
+    kelvin_c1: float = param(0.0, "dashpot c1 added parallel to k1 on the specimen (Kelvin-Voigt retardation); 0: off", "N s/m", 0.0, 1e6)
+    power_law: float = param(1.0, "flow index n of a power-law (shear-thinning) dashpot c2: plastic rate ~ (F/F_ref)^(1/n) F/c2; 1: off (Newtonian)", "", 0.1, 1.0)
+    power_law_ref_tension: float = param(0.5, "tension F_ref at which the power-law dashpot equals c2", "N", 0.0, 100.0, lo_open=True)
+    thinning: float = param(0.0, "exponent b of the sheet's thinning under plastic stretch: a link's constants scale by (L/(L+p))^b; 0: off", "", 0.0, 3.0)
+    tool_offset: tuple = param([0.0, 0.0], "offset (x, z) of the real tool from its measured (commanded) pose; (0, 0): off", "m", -0.05, 0.05, length=2)
+    mass_error: float = param(0.0, "relative error of the mass per length: the real sheet weighs nominal x (1 + value); 0: off", "", -0.9, 10.0)
+
+
+@dataclass(frozen=True)
 class CellParams:
     """Everything that shapes a run of the cell."""
 
@@ -111,6 +130,7 @@ class CellParams:
     tool: ToolParams = field(default_factory=ToolParams)
     movement: MovementParams = field(default_factory=MovementParams)
     solver: SolverParams = field(default_factory=SolverParams)
+    effects: EffectsParams = field(default_factory=EffectsParams)
 
     def __post_init__(self) -> None:
         s, c = self.sheet, self.cake
