@@ -66,9 +66,50 @@ class ChainConstants:
     radius: float               # m, sphere radius (half the thickness)
     gravity: float = 9.81       # m/s^2
 
+    def __post_init__(self) -> None:
+        n = np.asarray(self.mass).shape[0] if np.ndim(self.mass) == 1 else -1
+        if n < 1:
+            raise ValueError(f"mass must be a 1-D array of the N >= 1 sphere masses [kg], got shape {np.shape(self.mass)}")
+        _check_array("mass", self.mass, n, "kg", positive=True)
+        _check_array("rest_length", self.rest_length, n + 1, "m", positive=True)
+        _check_array("k1", self.k1, n + 1, "N/m", positive=True)
+        _check_array("c1", self.c1, n + 1, "N s/m", positive=False)
+        _check_array("c2", self.c2, n + 1, "N s/m", positive=True, allow_inf=True)
+        for name in ("anchor_top", "anchor_bottom"):
+            a = np.asarray(getattr(self, name), dtype=float)
+            if a.shape != (2,) or not np.all(np.isfinite(a)):
+                raise ValueError(f"{name} must be a finite point (x, z) [m], got {getattr(self, name)!r}")
+        if not (np.isfinite(self.radius) and self.radius > 0.0):
+            raise ValueError(f"radius = {self.radius!r} m is invalid: expected a finite value > 0")
+        if not (np.isfinite(self.gravity) and self.gravity >= 0.0):
+            raise ValueError(f"gravity = {self.gravity!r} m/s^2 is invalid: expected a finite value >= 0")
+
     @property
     def n_masses(self) -> int:
         return int(self.mass.shape[0])
+
+
+@dataclass(frozen=True)
+class SheetEffects:
+    """Optional physics the nominal model leaves out (rheo_shaping.effects; all off by default).
+
+    ``friction`` maps obstacle names to Coulomb coefficients; ``bending`` is the
+    strip's EI [N m^2]; ``power_law_n`` the flow index of a power-law dashpot
+    c2 with reference tension ``power_law_ref`` [N]; ``thinning`` the exponent b
+    of the links' cross-section (L / (L + p))^b; ``tool_shift`` [m] where the
+    real tool sits relative to the commanded pose.
+    """
+
+    friction: tuple[tuple[str, float], ...] = ()
+    bending: float = 0.0
+    power_law_n: float = 1.0
+    power_law_ref: float = 0.5
+    thinning: float = 0.0
+    tool_shift: tuple[float, float] = (0.0, 0.0)
+    friction_slip: float = 1e-6      # m, slip within which friction acts as a stiff spring (stick)
+
+    def mu(self, name: str) -> float:
+        return dict(self.friction).get(name, 0.0)
 
 
 @dataclass(frozen=True)
@@ -91,6 +132,20 @@ class SheetState:
                        contact=self.contact.copy(), tool=self.tool.copy())
 
 
+def _check_array(name: str, values, size: int, unit: str, positive: bool, allow_inf: bool = False) -> None:
+    """ValueError naming ``name`` unless ``values`` has ``size`` entries, all valid."""
+    a = np.asarray(values, dtype=float)
+    if a.shape != (size,):
+        raise ValueError(f"{name} must have {size} values [{unit}], got shape {a.shape}")
+    bad = np.isnan(a) | (np.isinf(a) if not allow_inf else np.isneginf(a))
+    bad |= (a <= 0.0) if positive else (a < 0.0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        want = "> 0" if positive else ">= 0"
+        raise ValueError(f"{name}[{i}] = {float(a[i])!r} {unit} is invalid: expected a "
+                         f"{'finite ' if not allow_inf else ''}value {want}")
+
+
 class ConvergenceError(RuntimeError):
     """Newton's method did not converge in a step."""
 
@@ -101,8 +156,16 @@ class SheetModel:
 
     def __init__(self, constants: ChainConstants, obstacles: Sequence[Obstacle],
                  contact_stiffness: float = 1e7, force_tol: float = 1e-9,
-                 max_newton: int = 50):
+                 max_newton: int = 50, effects: SheetEffects = SheetEffects()):
         self.c = constants
+        self.effects = effects
+        self._friction_terms: list = []
+        self._shift = np.asarray(effects.tool_shift, dtype=float)
+        self._mu = [effects.mu(ob.name) for ob in obstacles]
+        self._bending = None
+        if effects.bending > 0.0:
+            h = 0.5 * (constants.rest_length[:-1] + constants.rest_length[1:])
+            self._bending = effects.bending / h ** 3        # N/m per mass, EI / h^3
         self.obstacles = tuple(obstacles)
         self.kc = float(contact_stiffness)
         self.force_tol = float(force_tol)
@@ -154,6 +217,8 @@ class SheetModel:
         sharp tool corner, a sudden contact) is retried as two half steps, the
         tool moving linearly between its poses, down to 1/256 of ``dt``.
         """
+        if _min_dt is None and not (np.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"time step dt = {dt!r} s is invalid: expected a finite value > 0")
         min_dt = dt / 256.0 if _min_dt is None else _min_dt
         try:
             return self._step(state, dt, tool, dynamic)
@@ -169,21 +234,92 @@ class SheetModel:
         c = self.c
         tool = np.asarray(tool, dtype=float)
         free_length = c.rest_length + state.e1 + state.p
-        F0, S = step_coefficients(c.k1, c.c1, c.c2, state.e1, dt)
+        k1, c1, c2 = self._link_constants(state)
+        F0, S = step_coefficients(k1, c1, c2, state.e1, dt)
         L_star = free_length - F0 / S
         inertia = c.mass / dt ** 2
         x_pred = state.x + dt * state.v if dynamic else state.x
-        offsets = [tool if ob.moving else None for ob in self.obstacles]
+        real_tool = tool + self._shift
+        offsets = [real_tool if ob.moving else None for ob in self.obstacles]
+        self._friction_terms = self._friction_setup(state, real_tool)
 
         guess = state.x + dt * state.v      # warm start: continue the last motion
         x, iters, geo = self._minimise(guess, x_pred, inertia, S, L_star, offsets)
 
         l = self.link_lengths(x)
-        F, e1, p = elongation_step(c.k1, c.c1, c.c2, state.e1, state.p, l - free_length, dt)
+        F, e1, p = elongation_step(k1, c1, c2, state.e1, state.p, l - free_length, dt)
         contact = self._contact_forces(geo)
+        for i, _, f_slip in self._friction_eval(x):
+            contact[i] -= f_slip
         v = (x - state.x) / dt   # quasi-static: only the warm start of the next step uses it
         return SheetState(t=state.t + dt, x=x, v=v, e1=e1, p=p, tension=F,
                           contact=contact, tool=tool.copy(), newton_iterations=iters)
+
+    # ---------------------------------------------------------------- effects
+    def _link_constants(self, state: SheetState):
+        """k1, c1, c2 of the links over this step (thinning, power law: lagged on the state)."""
+        c, eff = self.c, self.effects
+        k1, c1, c2 = c.k1, c.c1, c.c2
+        if eff.thinning > 0.0:
+            # the section shrinks as the link flows (volume kept): (L / (L + p))^b
+            scale = (c.rest_length / (c.rest_length + np.maximum(state.p, 0.0))) ** eff.thinning
+            k1, c1, c2 = k1 * scale, c1 * scale, c2 * scale
+        if eff.power_law_n != 1.0:
+            # dp/dt = (F / c2) (F / F_ref)^(1/n - 1): c2_eff = c2 (F / F_ref)^(1 - 1/n), F lagged
+            F = np.maximum(state.tension, 1e-3 * eff.power_law_ref)
+            c2 = c2 * (F / eff.power_law_ref) ** (1.0 - 1.0 / eff.power_law_n)
+        return k1, c1, c2
+
+    def _friction_setup(self, state: SheetState, real_tool):
+        """Per obstacle with friction: (index, tangents t, mu * normal force, start x, obstacle shift)."""
+        terms = []
+        if not any(self._mu):
+            return terms
+        prev_tool = state.tool + self._shift
+        for i, (ob, mu) in enumerate(zip(self.obstacles, self._mu)):
+            if mu <= 0.0:
+                continue
+            if ob.moving and not (np.all(np.isfinite(prev_tool)) and np.all(np.isfinite(real_tool))):
+                continue
+            off = prev_tool if ob.moving else (0.0, 0.0)
+            _, nrm = ob.shape.signed_distance(state.x, off)
+            lam = np.maximum(np.einsum("ij,ij->i", state.contact[i], nrm), 0.0)   # normal force [N]
+            if not np.any(lam > 0.0):
+                continue
+            tang = np.c_[-nrm[:, 1], nrm[:, 0]]
+            move = (real_tool - prev_tool) if ob.moving else np.zeros(2)
+            terms.append((i, tang, mu * lam, state.x.copy(), move))
+        return terms
+
+    def _friction_eval(self, x):
+        """(index, energy, friction force on the spheres (N, 2)) of each friction term at ``x``.
+
+        Smoothed Coulomb friction as a dissipation potential (lagged normal force
+        and tangent): D = mu N (sqrt(u^2 + eps^2) - eps), u the tangential slip of a
+        sphere relative to the obstacle over the step.
+        """
+        eps = self.effects.friction_slip
+        out = []
+        for i, tang, mun, x0, move in self._friction_terms:
+            u = np.einsum("ij,ij->i", x - x0 - move, tang)
+            root = np.sqrt(u * u + eps * eps)
+            energy = float(np.dot(mun, root - eps))
+            f = (mun * u / root)[:, None] * tang        # gradient of D = force resisting the slip
+            out.append((i, energy, f))
+        return out
+
+    def _bending_terms(self, x):
+        """Energy, gradient (N, 2) and banded Hessian rows of 1/2 EI/h^3 |x_i-1 - 2 x_i + x_i+1|^2."""
+        kb = self._bending
+        nodes = np.vstack((self.c.anchor_top, x, self.c.anchor_bottom))
+        D = nodes[:-2] - 2.0 * nodes[1:-1] + nodes[2:]                   # (N, 2), per mass
+        kD = kb[:, None] * D
+        energy = 0.5 * float(np.sum(kD * D))
+        g_nodes = np.zeros_like(nodes)
+        g_nodes[:-2] += kD
+        g_nodes[1:-1] -= 2.0 * kD
+        g_nodes[2:] += kD
+        return energy, g_nodes[1:-1], kb
 
     # --------------------------------------------------------------- newton
     def _geometry(self, x, offsets):
@@ -235,6 +371,17 @@ class SheetModel:
         dxx = inertia + hxx[:-1] + hxx[1:]
         dzz = inertia + hzz[:-1] + hzz[1:]
         dxz = hxz[:-1] + hxz[1:]
+        if self._friction_terms:
+            eps2 = self.effects.friction_slip ** 2
+            for _, tang, mun, x0, move in self._friction_terms:
+                u = np.einsum("ij,ij->i", x - x0 - move, tang)
+                root = np.sqrt(u * u + eps2)
+                energy += float(np.dot(mun, root - np.sqrt(eps2)))
+                grad = grad + (mun * u / root)[:, None] * tang
+                hf = mun * eps2 / root ** 3                              # >= 0: convex
+                dxx = dxx + hf * tang[:, 0] ** 2
+                dzz = dzz + hf * tang[:, 1] ** 2
+                dxz = dxz + hf * tang[:, 0] * tang[:, 1]
         geo = self._geometry(x, offsets)
         curv = None          # the contacts' curvature part of the Hessian diagonal blocks
         for i, dist, nrm in geo:
@@ -262,16 +409,33 @@ class SheetModel:
                     curv = np.zeros((3, n))
                 curv += (cxx, czz, cxz)
 
-        # upper band storage, half bandwidth 3: ab[3 + i - j, j] = H[i, j]
-        ab = np.zeros((4, 2 * n))
-        ab[3, 0::2] = dxx
-        ab[3, 1::2] = dzz
-        ab[2, 1::2] = dxz
+        # upper band storage, half bandwidth kd = 3 (4 with bending): ab[kd + i - j, j] = H[i, j]
+        kd = 3 if self._bending is None else 4
+        ab = np.zeros((kd + 1, 2 * n))
+        ab[kd, 0::2] = dxx
+        ab[kd, 1::2] = dzz
+        ab[kd - 1, 1::2] = dxz
         off_xz = -hxz[1:-1]
-        ab[2, 2::2] = off_xz          # H[z_j, x_j+1]
-        ab[1, 2::2] = -hxx[1:-1]      # H[x_j, x_j+1]
-        ab[1, 3::2] = -hzz[1:-1]      # H[z_j, z_j+1]
-        ab[0, 3::2] = off_xz          # H[x_j, z_j+1]
+        ab[kd - 1, 2::2] = off_xz          # H[z_j, x_j+1]
+        ab[kd - 2, 2::2] = -hxx[1:-1]      # H[x_j, x_j+1]
+        ab[kd - 2, 3::2] = -hzz[1:-1]      # H[z_j, z_j+1]
+        ab[kd - 3, 3::2] = off_xz          # H[x_j, z_j+1]
+        if self._bending is not None:
+            e_b, g_b, kb = self._bending_terms(x)
+            energy += e_b
+            grad = grad + g_b
+            # mass m is the centre of term m (coefficients 1, -2, 1 on m-1, m, m+1)
+            diag = 4.0 * kb
+            diag[1:] += kb[:-1]
+            diag[:-1] += kb[1:]
+            off1 = -2.0 * (kb[:-1] + kb[1:])              # H[m, m+1]
+            off2 = kb[1:-1]                               # H[m, m+2]
+            ab[kd, 0::2] += diag
+            ab[kd, 1::2] += diag
+            ab[kd - 2, 2::2] += off1
+            ab[kd - 2, 3::2] += off1
+            ab[kd - 4, 4::2] += off2
+            ab[kd - 4, 5::2] += off2
         if curv is not None:
             geo = _Geo(geo, curv)
         return float(energy), grad, ab, geo
@@ -316,9 +480,10 @@ class SheetModel:
                         continue
                     kf = np.where(f, kc, 0.0)
                     g -= (kf * (r - dist))[:, None] * nrm
-                    band[3, 0::2] += kf * nrm[:, 0] ** 2
-                    band[3, 1::2] += kf * nrm[:, 1] ** 2
-                    band[2, 1::2] += kf * nrm[:, 0] * nrm[:, 1]
+                    kd = band.shape[0] - 1
+                    band[kd, 0::2] += kf * nrm[:, 0] ** 2
+                    band[kd, 1::2] += kf * nrm[:, 1] ** 2
+                    band[kd - 1, 1::2] += kf * nrm[:, 0] * nrm[:, 1]
             step = _solve(band, g)
             changed = False
             for (_, dist, nrm), f in zip(geo, forced):
@@ -391,9 +556,10 @@ class _Geo(list):
 
 def _without_curvature(ab: np.ndarray, curv: np.ndarray) -> np.ndarray:
     band = ab.copy()
-    band[3, 0::2] -= curv[0]
-    band[3, 1::2] -= curv[1]
-    band[2, 1::2] -= curv[2]
+    kd = band.shape[0] - 1
+    band[kd, 0::2] -= curv[0]
+    band[kd, 1::2] -= curv[1]
+    band[kd - 1, 1::2] -= curv[2]
     return band
 
 

@@ -27,7 +27,7 @@ from .drape import make_drape
 from .geometry import Cake, Workplane
 from .metrics import PeakTension, contact_tension, peak_tension, residual_gap, safety_factor
 from .params import CellParams
-from .sheet import ChainConstants, Obstacle, SheetModel, SheetState
+from .sheet import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState
 from .tools import tool_shape
 
 #: Order of the obstacles in :attr:`SheetState.contact`.
@@ -65,8 +65,11 @@ class PolylinePath:
 
 
 def build_chain(params: CellParams) -> tuple[ChainConstants, np.ndarray]:
-    """Chain constants and the initial (unstretched, draped) mass positions."""
-    s, m, c = params.sheet, params.material, params.cake
+    """Chain constants and the initial (unstretched, draped) mass positions.
+
+    Effects (params.effects): ``kelvin_c1`` adds to c1; ``mass_error`` scales the masses.
+    """
+    s, m, c, eff = params.sheet, params.material, params.cake, params.effects
     r = 0.5 * s.thickness
     drape = make_drape(c.height, c.fillet_radius, r, s.top_bond_x, s.bottom_bond_x,
                        s.excess_length)
@@ -77,8 +80,8 @@ def build_chain(params: CellParams) -> tuple[ChainConstants, np.ndarray]:
     scale = m.specimen_length / link_rest              # k L0 / l (PAPER-FACTS, scaling)
     constants = ChainConstants(
         anchor_top=drape.top_bond, anchor_bottom=drape.bottom_bond,
-        rest_length=link_rest, k1=m.k1 * scale, c1=m.c1 * scale, c2=m.c2 * scale,
-        mass=s.mass_per_length * 0.5 * (link_rest[:-1] + link_rest[1:]), radius=r,
+        rest_length=link_rest, k1=m.k1 * scale, c1=(m.c1 + eff.kelvin_c1) * scale, c2=m.c2 * scale,
+        mass=s.mass_per_length * (1.0 + eff.mass_error) * 0.5 * (link_rest[:-1] + link_rest[1:]), radius=r,
         gravity=params.solver.gravity)
     return constants, x0
 
@@ -96,7 +99,7 @@ class Simulation:
         ]
         sp = params.solver
         self.model = SheetModel(self.constants, obstacles, sp.contact_stiffness,
-                                sp.force_tol, sp.max_newton)
+                                sp.force_tol, sp.max_newton, sheet_effects(params))
         self.tool_start = np.asarray(params.tool.home if tool_start is None else tool_start, float)
         self.reset()
 
@@ -164,6 +167,15 @@ class Simulation:
         return residual_gap(self.nodes(state), self.params.sheet.thickness)
 
 
+def sheet_effects(params: CellParams) -> SheetEffects:
+    """The sheet model's optional physics from ``params.effects`` (rheo_shaping.effects)."""
+    e = params.effects
+    return SheetEffects(
+        friction=(("cake", e.friction_mould), ("workplane", e.friction_mould), ("tool", e.friction_tool)),
+        bending=e.bending, power_law_n=e.power_law, power_law_ref=e.power_law_ref_tension,
+        thinning=e.thinning, tool_shift=tuple(e.tool_offset))
+
+
 def settle(model: SheetModel, x0: np.ndarray, duration: float, dt: float, tool=(np.nan, np.nan),
            on_step: Callable[[SheetState], None] | None = None) -> SheetState:
     """The undeformed drape ``x0`` sagging under gravity with inertia for ``duration`` [s].
@@ -186,7 +198,7 @@ _SETTLED: dict = {}
 def settled_state(params: CellParams, model: SheetModel, x0: np.ndarray, tool) -> SheetState:
     """The settled sheet at process time 0, cached per sheet, cake, material and solver."""
     sp = params.solver
-    key = (params.material, params.sheet, params.cake, sp)
+    key = (params.material, params.sheet, params.cake, sp, params.effects)
     if key not in _SETTLED:
         if len(_SETTLED) > 64:
             _SETTLED.clear()
