@@ -106,7 +106,7 @@ class SheetEffects:
     power_law_ref: float = 0.5
     thinning: float = 0.0
     tool_shift: tuple[float, float] = (0.0, 0.0)
-    friction_slip: float = 1e-6      # m, slip within which friction acts as a stiff spring (stick)
+    friction_slip: float = 1e-7      # m per step: slip within which friction acts as a stiff spring (stick)
 
     def mu(self, name: str) -> float:
         return dict(self.friction).get(name, 0.0)

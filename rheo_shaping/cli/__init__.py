@@ -13,7 +13,8 @@ import importlib
 import sys
 
 #: Subcommand modules, in the order ``--help`` lists them.
-SUBCOMMANDS = ("identify", "simulate", "reproduce", "cell", "record", "diagnose")
+SUBCOMMANDS = ("identify", "simulate", "reproduce", "cell", "record", "import-csv", "diagnose",
+               "diagnose-benchmark")
 
 
 class UserError(Exception):
@@ -29,9 +30,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name in SUBCOMMANDS:
         try:
-            module = importlib.import_module(f"rheo_shaping.cli.{name}")
+            module = importlib.import_module(f"rheo_shaping.cli.{name.replace('-', '_')}")
         except ModuleNotFoundError as exc:
-            if exc.name == f"rheo_shaping.cli.{name}":
+            if exc.name == f"rheo_shaping.cli.{name.replace('-', '_')}":
                 continue  # not built yet
             raise
         module.add_parser(sub)

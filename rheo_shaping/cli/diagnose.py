@@ -1,0 +1,88 @@
+"""``rheo-shaping diagnose``: where the model parts from recorded runs, which effect causes it, how far the gap shrinks."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from ..effects import EFFECT_NAMES
+from ..records import RecordError, read_record
+from . import UserError
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "diagnose", help="diagnose the sim-to-real gap of recorded runs",
+        description="Compare recorded runs (record directories: rosbag2 MCAP + scenario.yaml, "
+                    "docs/records.md) with their nominal model: where the gap is (place, phase, "
+                    "observable), which unmodelled effect explains it (every effect of the library "
+                    "fitted to RECORD..., checked on --holdout), and how far the gap shrinks. "
+                    "Method: docs/diagnosis.md.")
+    p.add_argument("records", nargs="+", metavar="RECORD", help="record directories to fit")
+    p.add_argument("--holdout", nargs="+", default=[], metavar="RECORD", help="record directories held out")
+    p.add_argument("--effects", metavar="NAMES", help="comma-separated candidate effects (default: all: "
+                   + ", ".join(EFFECT_NAMES) + ")")
+    p.add_argument("--out", metavar="DIR", help="write report.md and PNG figures to DIR")
+    p.add_argument("--force", action="store_true", help="write into an existing --out directory")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    library = EFFECT_NAMES
+    if args.effects:
+        library = tuple(x.strip() for x in args.effects.split(",") if x.strip())
+        bad = [x for x in library if x not in EFFECT_NAMES]
+        if bad or not library:
+            raise UserError(f"--effects: unknown effect '{bad[0] if bad else args.effects}': expected some of "
+                            + ", ".join(EFFECT_NAMES))
+    if args.jobs is not None and args.jobs < 1:
+        raise UserError(f"--jobs = {args.jobs} is invalid: expected at least 1")
+    out = Path(args.out) if args.out else None
+    if out is not None:
+        if out.exists() and any(out.iterdir()) and not args.force:
+            raise UserError(f"--out {out} exists and is not empty: not overwritten (use --force)")
+        if not out.parent.exists():
+            raise UserError(f"--out {out}: folder {out.parent} does not exist")
+    try:
+        fit = [read_record(p) for p in args.records]
+        hold = [read_record(p) for p in args.holdout]
+    except RecordError as exc:
+        raise UserError(str(exc)) from None
+    from tqdm import tqdm
+
+    from ..diagnosis.engine import diagnose
+    bar = tqdm(desc="diagnose", unit="sim", file=sys.stderr)
+    t0 = time.monotonic()
+    try:
+        diag = diagnose(fit, hold, library=library, jobs=args.jobs, progress=bar.update)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    finally:
+        bar.close()
+    result = diag.to_json()
+    result["wall_time_s"] = time.monotonic() - t0
+    if out is not None:
+        from ..diagnosis.report import write
+        result["report"] = [str(p) for p in write(diag, out)]
+    if args.json:
+        print(json.dumps(result, default=float))
+        return 0
+    print(f"verdict: {diag.verdict}")
+    if diag.verdict_fit:
+        for n, v in diag.verdict_fit.values.items():
+            iv = diag.verdict_fit.interval[n]
+            print(f"  {n} = " + ", ".join(f"{x:.4g} [{lo:.4g}, {hi:.4g}]" for x, (lo, hi) in zip(v, iv)))
+    print("where (nominal model; systematic RMS in units of the noise):")
+    for w in diag.where[:5]:
+        print(f"  {w['rank']}. {w['kind']} {w['name']}: {w['relative']:.2f}")
+    for grp in ("fit", "holdout"):
+        b, a = diag.gap_before.get(grp), diag.gap_after.get(grp)
+        if b:
+            print(f"gap on {grp} records: profile RMS {b['profile_rms_m'] * 1e3:.3f} -> {a['profile_rms_m'] * 1e3:.3f} mm, "
+                  f"gap beyond noise {b['gap']:.3f} -> {a['gap']:.3f}")
+    print(f"{diag.runs} simulations, {result['wall_time_s']:.0f} s" + (f"; report in {out}" if out else ""))
+    return 0
