@@ -75,11 +75,19 @@ class FitResult:
 
 
 def fit_effect(name: str, ev: Evaluator, misfit: Misfit, fixed: Candidate = ()) -> FitResult:
-    """Fit one effect's parameters (other effects in ``fixed`` held)."""
+    """Fit one effect's parameters (other effects in ``fixed`` held).
+
+    A grid over u in [0, 1] (6 points; 5 x 5 for two parameters, run in
+    parallel), then a local search from the best grid point (Brent's bounded
+    method on the bracketing grid cell; Nelder-Mead for two parameters; each
+    evaluation runs the records in parallel), then the curvature of J from
+    two neighbours per parameter at +-0.02 in u, which gives the interval.
+    """
+    from scipy.optimize import minimize, minimize_scalar
+
     effect = EFFECTS[name]
     dims = effect.n_params
-    n_grid, n_ref = (6, 3) if dims == 1 else (5, 3)
-    axes = [np.linspace(0.0, 1.0, n_grid) for _ in range(dims)]
+    n_grid = 6 if dims == 1 else 5
     step = 1.0 / (n_grid - 1)
     seen: dict = {}
 
@@ -87,51 +95,50 @@ def fit_effect(name: str, ev: Evaluator, misfit: Misfit, fixed: Candidate = ()) 
         vals = tuple(_to_value(effect, k, float(np.clip(u[k], 0, 1))) for k in range(dims))
         return fixed + ((name, vals),)
 
+    def key(u) -> tuple:
+        return tuple(float(x) for x in np.round(np.clip(np.atleast_1d(u), 0.0, 1.0), 9))
+
     def run(points) -> None:
-        pts = [tuple(np.round(p, 10)) for p in points if tuple(np.round(p, 10)) not in seen]
+        pts = list(dict.fromkeys(key(p) for p in points if key(p) not in seen))
         if not pts:
             return
         rows = ev.stats([cand(p) for p in pts], misfit.records)
         for p, row in zip(pts, rows):
             seen[p] = misfit.J(row)
 
-    grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(dims, -1).T
-    run(grid)
-    for _ in range(2):
-        best = np.array(min(seen, key=seen.get))
-        step *= 2.0 / (n_ref + 1)
-        offs = np.array(np.meshgrid(*[np.arange(-(n_ref // 2), n_ref // 2 + 1)] * dims, indexing="ij")).reshape(dims, -1).T
-        run([np.clip(best + o * step, 0, 1) for o in offs if np.any(o != 0)])
-    best = np.array(min(seen, key=seen.get))
-    J_best = seen[tuple(best)]
-    values = cand(best)[-1][1]
-    interval = _interval(effect, best, seen, misfit, step)
+    def J(u) -> float:
+        run([u])
+        v = seen[key(u)]
+        return v if math.isfinite(v) else 1e30
+
+    axes = [np.linspace(0.0, 1.0, n_grid)] * dims
+    run(np.array(np.meshgrid(*axes, indexing="ij")).reshape(dims, -1).T)
+    b = np.array(min(seen, key=seen.get))
+    if dims == 1:
+        lo, hi = max(0.0, b[0] - step), min(1.0, b[0] + step)
+        minimize_scalar(lambda u: J([u]), bounds=(lo, hi), method="bounded",
+                        options={"xatol": 2e-3, "maxiter": 12})
+    else:
+        simplex = [b, np.clip(b + [step / 2, 0], 0, 1), np.clip(b + [0, step / 2], 0, 1)]
+        minimize(lambda u: J(np.clip(u, 0, 1)), b, method="Nelder-Mead",
+                 options={"initial_simplex": simplex, "xatol": 2e-3, "fatol": 1e-4, "maxfev": 40})
+    b = np.array(min(seen, key=seen.get))
+    h = 0.02
+    unit = np.eye(dims)
+    run([np.clip(b + sgn * h * unit[k], 0, 1) for k in range(dims) for sgn in (-1.0, 1.0)])
+    J_best = seen[key(b)]
+    values = cand(b)[-1][1]
+    interval = []
+    for k in range(dims):
+        lo_k, hi_k = key(b - h * unit[k]), key(b + h * unit[k])
+        du = step
+        if lo_k != key(b) and hi_k != key(b):
+            a = (seen[lo_k] + seen[hi_k] - 2.0 * J_best) / (2.0 * h * h)
+            if a > 0 and math.isfinite(a):
+                du = math.sqrt(3.84 * J_best / (max(1, misfit.n_frames) * a))
+        ends = sorted((_to_value(effect, k, max(0.0, b[k] - du)), _to_value(effect, k, min(1.0, b[k] + du))))
+        interval.append((min(ends[0], values[k]), max(ends[1], values[k])))
     return FitResult((name,), {name: values}, J_best, interval={name: interval}, runs=len(seen))
-
-
-def _interval(effect: Effect, best: np.ndarray, seen: dict, misfit: Misfit, step: float) -> list:
-    """95 % interval per parameter from a parabola through J along each axis."""
-    J0 = seen[tuple(best)]
-    n_eff = max(1, misfit.n_frames)
-    out = []
-    for k in range(len(best)):
-        pts = [(p[k], J) for p, J in seen.items()
-               if np.allclose(np.delete(np.array(p), k), np.delete(best, k)) and math.isfinite(J)]
-        pts.sort()
-        us = np.array([p[0] for p in pts])
-        Js = np.array([p[1] for p in pts])
-        near = np.argsort(np.abs(us - best[k]))[:3]
-        lo_u, hi_u = 0.0, 1.0
-        if near.size == 3 and np.ptp(us[near]) > 0:
-            a = np.polyfit(us[near], Js[near], 2)[0]
-            if a > 0:
-                # chi2 = n_eff J / J0 rises by 3.84 (95 %) at du = sqrt(3.84 J0 / (n_eff a))
-                du = math.sqrt(3.84 * J0 / (n_eff * a))
-                lo_u, hi_u = max(0.0, best[k] - du), min(1.0, best[k] + du)
-        vals = sorted((_to_value(effect, k, lo_u), _to_value(effect, k, hi_u)))
-        v_best = _to_value(effect, k, best[k])
-        out.append((min(vals[0], v_best), max(vals[1], v_best)))
-    return out
 
 
 def fit_pair(a: FitResult, b: FitResult, ev: Evaluator, misfit: Misfit) -> FitResult:
