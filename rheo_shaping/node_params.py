@@ -68,7 +68,11 @@ class PlannerNodeParams:
         50.0, "rate of the /tool/command set-points on the node's clock (simulated time with "
         "use_sim_time)", "Hz", 1.0, 1000.0)
     autostart: bool = param(
-        True, "start the plan as soon as the interlock allows (else wait for ~/start)")
+        True, "start the plan as soon as the interlock allows (else wait for ~/start); never "
+        "when /tool/pose shows the tool away from home and from the plan's start")
+    start_tolerance: float = param(
+        2e-3, "autostart only with the measured tool this close to tool.home or the plan's start",
+        "m", 0.0, 1.0, lo_open=True)
     wait_for_monitor: bool = param(
         True, "interlock: move only while the monitor reports ready (/shaping/ready) with "
         "fresh data; a lost monitor stops the tool")
@@ -132,8 +136,9 @@ class MonitorNodeParams:
     diagnostics_period: float = param(
         0.5, "wall-clock time between /diagnostics messages", "s", 0.0, 60.0, lo_open=True)
     trend_abort: bool = param(
-        True, "also abort when the tension's trend predicts the threshold within detect_time "
-        "+ stop_time")
+        False, "also abort when the tension's linear trend predicts the threshold within "
+        "detect_time + stop_time (earlier aborts, more margin, but false aborts of runs that peak "
+        "just below the threshold: docs/safety.md)")
     trend_window: float = param(
         1.0, "time span of the samples the tension trend is fitted to (node clock)", "s",
         0.0, 60.0, lo_open=True)

@@ -84,6 +84,8 @@ class PlannerNode(Node):
         self.pub_state = self.create_publisher(String, '/shaping/planner_state', LATCHED_QOS)
         self.create_subscription(String, '/shaping/abort', self._on_abort, LATCHED_QOS)
         self.create_subscription(Bool, '/shaping/ready', self._on_ready, HEARTBEAT_QOS)
+        self.create_subscription(PoseStamped, '/tool/pose', self._on_pose, 10)
+        self._tool_pose: np.ndarray | None = None     # the latest measured tool pose [m]
         self.create_service(Trigger, '~/start', self._on_start)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
@@ -234,6 +236,26 @@ class PlannerNode(Node):
         self._ready = bool(msg.data)
         self._ready_rx = self._steady.now().nanoseconds
 
+    def _on_pose(self, msg: PoseStamped) -> None:
+        self._tool_pose = np.array(m.pose_xz(msg), dtype=float)
+
+    def _tool_away(self) -> str:
+        """Why autostart is unsafe: the tool is neither at home nor at the plan's start.
+
+        A planner (re)started while the tool stands somewhere in a run must not
+        run a plan from its beginning on its own (SAFETY-NOTES lesson 3): it
+        waits for ~/start, which plans an approach from where the tool is.
+        """
+        if self._tool_pose is None or self._hold is not None:
+            return ""
+        tol = self.settings.start_tolerance
+        for name, where in (("home", self.cell_used.tool.home), ("the plan's start", self.plan.start)):
+            if np.hypot(*(self._tool_pose - np.asarray(where, float))) <= tol:
+                return ""
+        x, z = self._tool_pose
+        return (f"the tool is at ({x:.4f}, {z:.4f}) m, neither at home nor at the plan's start "
+                f"(start_tolerance {tol:g} m): no autostart; call ~/start to approach from there")
+
     def _on_abort(self, msg: String) -> None:
         self._abort(f"monitor: {msg.data}")
 
@@ -267,6 +289,8 @@ class PlannerNode(Node):
             response.success, response.message = False, f"aborted ({self.abort_reason}); ~/reset first"
         else:
             self._start_requested = True
+            if self._tool_away():
+                self._hold = self._tool_pose.copy()          # the plan approaches from there
             response.success, response.message = True, "start requested: waiting for the interlock"
         return response
 
@@ -296,6 +320,12 @@ class PlannerNode(Node):
         if self.streamer is None:
             if self.aborted or not (self.settings.autostart or self._start_requested):
                 self._update_state()
+                return
+            away = "" if self._start_requested else self._tool_away()
+            if away:
+                if self._state != "tool_away":
+                    self.get_logger().warning(away)
+                self._set_state("tool_away")
                 return
             now = self._now_ns()
             if not ok:

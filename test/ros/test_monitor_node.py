@@ -188,7 +188,7 @@ def test_future_stamp_aborts(ros, cell):
 
 
 def test_rising_trend_aborts_before_the_threshold(ros, cell):
-    monitor = make_monitor(ros, trend_window=0.5, stop_time=1.0, detect_time=0.1)
+    monitor = make_monitor(ros, trend_abort=True, trend_window=0.5, stop_time=1.0, detect_time=0.1)
     get_ready(ros, monitor, cell)
     F = 0.2
     while monitor.state != "aborted":
