@@ -76,3 +76,24 @@ def test_material_rejects_nan_and_negative(name):
     for bad in (math.nan, -5.0):
         with pytest.raises(ValueError, match=name):
             ThreeElement(**{"k1": 95.0, "c1": 0.0, "c2": 1300.0, name: bad})
+
+
+@pytest.mark.parametrize("text,message", [
+    ("/**:\n  ros__parameters:\n    material: {k1: [1, 2}\n", r"bad\.yaml: line 3, column \d+"),
+    ("/**:\n  ros__parameters:\n    material: {k1: fast}\n", r"parameter 'material.k1' = 'fast' is invalid: expected a number in \(0, 1e\+06\] N/m"),
+    ("/**:\n  ros__parameters:\n    sheet: {thicknes: 0.004}\n", r"unknown parameter 'sheet.thicknes'"),
+    ("/**:\n  ros__parameters:\n    effects: {mass_error: -2.0}\n", r"parameter 'effects.mass_error' = -2.0 is invalid: expected a value in \[-0.9, 10\]"),
+])
+def test_malformed_params_file_is_one_line_and_writes_nothing(tmp_path, capsys, text, message):
+    """A params file's mistakes: one line naming file / parameter, value and range; no plot written."""
+    import re
+
+    from rheo_shaping.cli import main
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text)
+    plot = tmp_path / "plot.png"
+    assert main(["simulate", "--params", str(bad), "--plot", str(plot)]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err), err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not plot.exists()
