@@ -14,21 +14,22 @@ def residual_map(diag, path: Path) -> None:
     import matplotlib.pyplot as plt
     maps = diag.residual_maps
     fig, axes = plt.subplots(len(maps), 2, figsize=(11, 3.2 * len(maps)), squeeze=False,
-                             sharex="row", sharey="row")
+                             sharex="row", sharey="row", constrained_layout=True)
     lim = max(float(np.percentile(np.abs(r.profile), 99)) for _, r, _, _ in maps) * 1e3
     for row, (data, before, after, _) in enumerate(maps):
         t = data.record.profile_t[data.point_frame]
         for col, (res, title) in enumerate(((before, "nominal model"),
                                             (after, f"with {diag.verdict}" if diag.verdict_fit else "no effect added"))):
             ax = axes[row, col]
-            sc = ax.scatter(t, res.arc * 1e3, c=res.profile * 1e3, s=2, cmap="coolwarm", vmin=-lim, vmax=lim)
+            sc = ax.scatter(t, res.arc * 1e3, c=res.profile * 1e3, s=1, cmap="coolwarm", vmin=-lim, vmax=lim,
+                            rasterized=True, linewidths=0)
             held = " (holdout)" if data.record.name in diag.holdout else ""
             ax.set_title(f"{data.record.name}{held}: {title}", fontsize=9)
             ax.set_xlabel("time [s]")
             if col == 0:
                 ax.set_ylabel("arc length from the cake-top bond [mm]")
     fig.colorbar(sc, ax=axes, label="profile residual, measured - model [mm]", shrink=0.8)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=80)
     plt.close(fig)
 
 
