@@ -18,7 +18,10 @@
      (J0 - 1 <= ``NONE_EXCESS``);
    * the best effect when it explains at least ``EXPLAINED`` of the fit
      records' excess misfit (J0 - 1) and at least ``HOLDOUT_EXPLAINED`` of the
-     holdout records' (when there are any);
+     holdout records' (when there are any), AND leaves no more than
+     ``RESIDUAL_EXCESS`` (or ``RESIDUAL_FRACTION`` of J0 - 1) of excess: an
+     effect that explains most but not all of a large gap is a substitute for
+     one the library lacks, not the cause;
    * else a pair of the three best effects, under the same rule;
    * else ``unexplained``: no candidate accounts for the gap beyond noise.
 4. How far.  Gap figures before (nominal) and after (the verdict's effect) on
@@ -39,8 +42,10 @@ from .evaluate import Evaluator, apply
 from .fit import FitResult, Misfit, fit_effect, fit_pair
 
 NONE_EXCESS = 0.06        # J0 - 1 at or below this: the model agrees within noise
-EXPLAINED = 0.85          # fraction of the fit records' excess misfit the verdict must explain
-HOLDOUT_EXPLAINED = 0.6   # ... and of the holdout records'
+EXPLAINED = 0.9           # fraction of the fit records' excess misfit the verdict must explain
+HOLDOUT_EXPLAINED = 0.75  # ... and of the holdout records'
+RESIDUAL_EXCESS = 0.18    # J - 1 the verdict may leave (a systematic gap of 0.42 x the noise) ...
+RESIDUAL_FRACTION = 0.05  # ... or this fraction of J0 - 1 (twice it on the holdout), whichever is larger
 
 
 @dataclass
@@ -161,7 +166,10 @@ def _score(fits: list[FitResult], ev: Evaluator, hold: Misfit, frames: int) -> N
 
 
 def _accepts(diag: Diagnosis, f: FitResult) -> bool:
-    ok = diag.explained(f) >= EXPLAINED
+    """Named only when it explains the gap nearly completely, on the fit and the holdout records."""
+    ok = (diag.explained(f) >= EXPLAINED
+          and f.J - 1.0 <= max(RESIDUAL_EXCESS, RESIDUAL_FRACTION * (diag.J0 - 1.0)))
     if ok and diag.holdout and math.isfinite(diag.J0_holdout) and diag.J0_holdout - 1.0 > NONE_EXCESS:
-        ok = diag.explained(f, True) >= HOLDOUT_EXPLAINED
+        ok = (diag.explained(f, True) >= HOLDOUT_EXPLAINED
+              and f.J_holdout - 1.0 <= max(RESIDUAL_EXCESS, 2 * RESIDUAL_FRACTION * (diag.J0_holdout - 1.0)))
     return bool(ok)
