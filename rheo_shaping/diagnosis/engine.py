@@ -8,7 +8,8 @@
    observable, ranked by their systematic RMS sqrt(max(mean r^2 - s^2, 0))
    (:mod:`where`).
 3. Which.  Every effect of the library fitted to the fit records
-   (:func:`fit.fit_effect`); ranked by BIC = n ln J + k ln n (n: profile
+   (:func:`fit.fit_effect`: all on a coarse grid, the ``REFINED`` leaders
+   refined); ranked by BIC = n ln J + k ln n (n: profile
    frames of the fit records, a conservative effective sample size since
    residuals are correlated along the sheet and in time; k: the effect's
    parameters), and scored on the holdout records with the fitted values.
@@ -22,7 +23,7 @@
      ``RESIDUAL_EXCESS`` (or ``RESIDUAL_FRACTION`` of J0 - 1) of excess: an
      effect that explains most but not all of a large gap is a substitute for
      one the library lacks, not the cause;
-   * else a pair of the three best effects, under the same rule;
+   * else the pair of the two best effects, under the same rule;
    * else ``unexplained``: no candidate accounts for the gap beyond noise.
 4. How far.  Gap figures before (nominal) and after (the verdict's effect) on
    fit and holdout records (:mod:`gap`).
@@ -39,13 +40,15 @@ from ..effects import EFFECT_NAMES
 from ..record import Record
 from .compare import RecordData, noise_level, residuals, simulate
 from .evaluate import Evaluator, apply
-from .fit import FitResult, Misfit, fit_effect, fit_pair
+from .fit import FitResult, Misfit, fit_effect, fit_pair, grid_candidates
 
 NONE_EXCESS = 0.06        # J0 - 1 at or below this: the model agrees within noise
 EXPLAINED = 0.9           # fraction of the fit records' excess misfit the verdict must explain
 HOLDOUT_EXPLAINED = 0.75  # ... and of the holdout records'
 RESIDUAL_EXCESS = 0.18    # J - 1 the verdict may leave (a systematic gap of 0.42 x the noise) ...
 RESIDUAL_FRACTION = 0.05  # ... or this fraction of J0 - 1 (twice it on the holdout), whichever is larger
+REFINED = 3               # effects refined beyond their grid (the leaders by grid misfit)
+PAIRED = 2                # pairs are tried among this many best effects
 
 
 @dataclass
@@ -76,7 +79,7 @@ class Diagnosis:
 
     def to_json(self) -> dict:
         def eff(fr: FitResult, rank: int) -> dict:
-            return {"name": "+".join(fr.names), "rank": rank,
+            return {"name": "+".join(fr.names), "rank": rank, "refined": fr.refined,
                     "params": {n: list(v) for n, v in fr.values.items()},
                     "interval": {n: [list(iv) for iv in ivs] for n, ivs in fr.interval.items()},
                     "score": fr.score, "J_fit": fr.J, "J_holdout": _num(fr.J_holdout),
@@ -124,7 +127,13 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
     with Evaluator(data, jobs, progress) as ev:
         J0 = misfit.J(ev.stats([()], fit_idx)[0])
         J0h = hold.J(ev.stats([()], hold_idx)[0]) if hold_idx else math.nan
-        fits = [fit_effect(name, ev, misfit) for name in library] if J0 - 1.0 > NONE_EXCESS else []
+        fits = []
+        if J0 - 1.0 > NONE_EXCESS:
+            # every effect's grid in one parallel batch, then refine the leaders only
+            ev.stats([c for name in library for c in grid_candidates(name)], fit_idx)
+            coarse = {name: fit_effect(name, ev, misfit, refine=False) for name in library}
+            leaders = sorted(coarse, key=lambda n: coarse[n].J)[:REFINED]
+            fits = [fit_effect(name, ev, misfit) if name in leaders else coarse[name] for name in library]
         _score(fits, ev, hold, frames)
         diag = Diagnosis("none", None, fits, [], [], {}, {}, {"profile_m": sp, "force_N": sf},
                          J0, J0h, [d.record.name for d in data[:len(records)]],
@@ -134,7 +143,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             ranked = sorted(fits, key=lambda f: f.score)
             verdict_fit = next((f for f in ranked[:1] if _accepts(diag, f)), None)
             if verdict_fit is None and len(ranked) >= 2:
-                top = ranked[:3]
+                top = ranked[:PAIRED]
                 pairs = [fit_pair(a, b, ev, misfit) for i, a in enumerate(top) for b in top[i + 1:]]
                 _score(pairs, ev, hold, frames)
                 diag.pairs = pairs

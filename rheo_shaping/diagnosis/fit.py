@@ -64,6 +64,7 @@ class FitResult:
     interval: dict = field(default_factory=dict)   # name -> list of (lo, hi)
     runs: int = 0
     score: float = math.nan          # BIC (lower is better), set by the engine
+    refined: bool = True             # False: the grid's best point only (not among the leaders)
 
     @property
     def candidate(self) -> Candidate:
@@ -74,7 +75,21 @@ class FitResult:
         return sum(len(v) for v in self.values.values())
 
 
-def fit_effect(name: str, ev: Evaluator, misfit: Misfit, fixed: Candidate = ()) -> FitResult:
+def grid_candidates(name: str, fixed: Candidate = ()) -> list:
+    """The coarse grid of :func:`fit_effect` (to evaluate many effects in one parallel batch)."""
+    effect = EFFECTS[name]
+    dims = effect.n_params
+    n_grid = GRID_1D if dims == 1 else GRID_2D
+    axes = [np.linspace(0.0, 1.0, n_grid)] * dims
+    pts = np.array(np.meshgrid(*axes, indexing="ij")).reshape(dims, -1).T
+    return [fixed + ((name, tuple(_to_value(effect, k, float(u[k])) for k in range(dims))),) for u in pts]
+
+
+GRID_1D, GRID_2D = 5, 4   # grid points per parameter (one, two parameters)
+
+
+def fit_effect(name: str, ev: Evaluator, misfit: Misfit, fixed: Candidate = (),
+               refine: bool = True) -> FitResult:
     """Fit one effect's parameters (other effects in ``fixed`` held).
 
     A grid over u in [0, 1] (6 points; 5 x 5 for two parameters, run in
@@ -87,7 +102,7 @@ def fit_effect(name: str, ev: Evaluator, misfit: Misfit, fixed: Candidate = ()) 
 
     effect = EFFECTS[name]
     dims = effect.n_params
-    n_grid = 6 if dims == 1 else 5
+    n_grid = GRID_1D if dims == 1 else GRID_2D
     step = 1.0 / (n_grid - 1)
     seen: dict = {}
 
@@ -114,14 +129,20 @@ def fit_effect(name: str, ev: Evaluator, misfit: Misfit, fixed: Candidate = ()) 
     axes = [np.linspace(0.0, 1.0, n_grid)] * dims
     run(np.array(np.meshgrid(*axes, indexing="ij")).reshape(dims, -1).T)
     b = np.array(min(seen, key=seen.get))
+    if not refine:
+        values = cand(b)[-1][1]
+        ivs = [tuple(sorted((_to_value(effect, k, max(0.0, b[k] - step)), _to_value(effect, k, min(1.0, b[k] + step)))))
+               for k in range(dims)]
+        return FitResult((name,), {name: values}, seen[key(b)], interval={name: ivs}, runs=len(seen),
+                         refined=False)
     if dims == 1:
         lo, hi = max(0.0, b[0] - step), min(1.0, b[0] + step)
         minimize_scalar(lambda u: J([u]), bounds=(lo, hi), method="bounded",
-                        options={"xatol": 2e-3, "maxiter": 12})
+                        options={"xatol": 3e-3, "maxiter": 10})
     else:
         simplex = [b, np.clip(b + [step / 2, 0], 0, 1), np.clip(b + [0, step / 2], 0, 1)]
         minimize(lambda u: J(np.clip(u, 0, 1)), b, method="Nelder-Mead",
-                 options={"initial_simplex": simplex, "xatol": 2e-3, "fatol": 1e-4, "maxfev": 40})
+                 options={"initial_simplex": simplex, "xatol": 3e-3, "fatol": 1e-4, "maxfev": 32})
     b = np.array(min(seen, key=seen.get))
     h = 0.02
     unit = np.eye(dims)
@@ -141,7 +162,7 @@ def fit_effect(name: str, ev: Evaluator, misfit: Misfit, fixed: Candidate = ()) 
     return FitResult((name,), {name: values}, J_best, interval={name: interval}, runs=len(seen))
 
 
-def fit_pair(a: FitResult, b: FitResult, ev: Evaluator, misfit: Misfit) -> FitResult:
+def fit_pair(a: FitResult, b: FitResult, ev: Evaluator, misfit: Misfit) -> FitResult:  # noqa: D401
     """Two effects together: b refitted with a held, then a refitted with b held."""
     fb = fit_effect(b.names[0], ev, misfit, fixed=a.candidate)
     fa = fit_effect(a.names[0], ev, misfit, fixed=((b.names[0], fb.values[b.names[0]]),))
