@@ -321,6 +321,10 @@ class PlannerNode(Node):
             if self.aborted or not (self.settings.autostart or self._start_requested):
                 self._update_state()
                 return
+            if (not self._start_requested and self._tool_pose is None and self._hold is None
+                    and self.count_publishers('/tool/pose') > 0):
+                self._set_state("waiting_for_pose")      # know where the tool is before moving it
+                return
             away = "" if self._start_requested else self._tool_away()
             if away:
                 if self._state != "tool_away":
