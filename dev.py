@@ -172,7 +172,7 @@ def run_checked(cmd: list[str]) -> None:
 
 # --- ROS environment -------------------------------------------------------------
 
-_domain_lock = None  # kept open while dev.py runs: our claim on ROS_DOMAIN_ID
+_domain_locks: list = []  # kept open while dev.py runs: our claims on ROS_DOMAIN_IDs
 
 
 def claim_domain_id() -> int:
@@ -181,7 +181,6 @@ def claim_domain_id() -> int:
     A lock file per id under the temp dir is held (flock) for the lifetime of
     this process; child processes inherit the id through the environment.
     """
-    global _domain_lock
     import fcntl
     import tempfile
 
@@ -196,7 +195,7 @@ def claim_domain_id() -> int:
         except OSError:
             fh.close()
             continue
-        _domain_lock = fh
+        _domain_locks.append(fh)
         return i
     return random.choice(ids)
 

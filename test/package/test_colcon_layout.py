@@ -134,13 +134,32 @@ def test_sourced_workspace_imports_the_installed_package(install, prefix):
 
 
 @pytest.fixture(scope="module")
-def observer():
-    """An rclpy node in its own context that watches the ROS graph."""
+def node_domain() -> int:
+    """A ROS_DOMAIN_ID of its own for the start/stop tests.
+
+    Earlier ROS tests of the session SIGKILL node processes named ``planner`` and
+    ``simulator`` (test/ros/test_faults.py). DDS keeps such a participant in the
+    graph until its lease runs out (20 s with Fast DDS), and a ghost ``planner``
+    would let the test signal the new process before it has even started rclpy.
+    A fresh domain holds only the nodes started here.
+    """
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("rheo_dev_domain", REPO / "dev.py")
+    dev = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(dev)
+    node_domain.dev = dev   # keep the module (and its held lock file) alive
+    return dev.claim_domain_id()
+
+
+@pytest.fixture(scope="module")
+def observer(node_domain):
+    """An rclpy node in its own context (and domain) that watches the ROS graph."""
     import rclpy
     from rclpy.context import Context
 
     context = Context()
-    rclpy.init(context=context)
+    rclpy.init(context=context, domain_id=node_domain)
     node = rclpy.create_node("colcon_layout_test_observer", context=context)
     try:
         yield node
@@ -162,12 +181,12 @@ def _wait_for_node(observer, name: str, proc: subprocess.Popen, timeout: float) 
 
 
 @pytest.mark.parametrize("node_name", NODES)
-def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_name, tmp_path):
+def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain, node_name, tmp_path):
     exe = prefix / "lib" / PACKAGE / node_name
     log = tmp_path / f"{node_name}.log"
     with open(log, "w") as out:
         proc = subprocess.Popen(
-            _sourced(install, shlex.quote(str(exe))), env=_clean_env(),
+            _sourced(install, shlex.quote(str(exe))), env=_clean_env(ROS_DOMAIN_ID=str(node_domain)),
             stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
             start_new_session=True,  # a Ctrl-C on the test run does not hit it
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
