@@ -32,19 +32,19 @@ class SheetParams:
 
     thickness: float = param(4e-3, "sheet thickness = diameter of the lumped spheres", "m", 0.0, 0.05, lo_open=True)
     width: float = param(0.05, "strip width the tensions refer to", "m", 0.0, 1.0, lo_open=True)
-    mass_per_length: float = param(0.3205, "mass per unit rest length of the strip", "kg/m", 0.0, 100.0, lo_open=True)
-    n_masses: int = param(19, "number of lumped masses (links = n_masses + 1)", "", 1, 2000)
-    top_bond_x: float = param(-0.0243, "x of the bond on the cake top (z = cake height)", "m", -10.0, 0.0)
-    bottom_bond_x: float = param(0.0677, "x of the bond on the workplane (z = 0)", "m", 0.0, 10.0, lo_open=True)
-    excess_length: float = param(0.0067, "rest length beyond the taut drape (catenary sag at t = 0)", "m", 0.0, 1.0)
+    mass_per_length: float = param(0.3125, "mass per unit rest length of the strip", "kg/m", 0.0, 100.0, lo_open=True)
+    n_masses: int = param(63, "number of lumped masses (links = n_masses + 1)", "", 1, 2000)
+    top_bond_x: float = param(-0.0175, "x of the bond on the cake top (z = cake height)", "m", -10.0, 0.0)
+    bottom_bond_x: float = param(0.0611, "x of the bond on the workplane (z = 0)", "m", 0.0, 10.0, lo_open=True)
+    excess_length: float = param(0.0061, "rest length beyond the taut drape (catenary sag at t = 0)", "m", 0.0, 1.0)
 
 
 @dataclass(frozen=True)
 class CakeParams:
     """The mould: its 2-D cross-section (wall x = 0, top z = height)."""
 
-    height: float = param(0.0675, "cake height", "m", 0.0, 2.0, lo_open=True)
-    fillet_radius: float = param(0.0094, "radius of the rounded top edge", "m", 0.0, 1.0)
+    height: float = param(0.0576, "cake height", "m", 0.0, 2.0, lo_open=True)
+    fillet_radius: float = param(0.0112, "radius of the rounded top edge", "m", 0.0, 1.0)
     radius: float = param(0.09, "cake radius (plots; the model is 2-D)", "m", 0.0, 10.0, lo_open=True)
 
 
@@ -56,10 +56,10 @@ class ToolParams:
     radius: float = param(0.01, "circle radius", "m", 0.0, 1.0, lo_open=True)
     width: float = param(0.04, "rounded rectangle width (x)", "m", 0.0, 1.0, lo_open=True)
     height: float = param(0.04, "rounded rectangle height (z)", "m", 0.0, 1.0, lo_open=True)
-    corner_radius: float = param(0.0118, "rounding radius of the rectangle or polygon corners", "m", 0.0, 1.0)
+    corner_radius: float = param(0.0094, "rounding radius of the rectangle or polygon corners", "m", 0.0, 1.0)
     vertices: tuple = param([0.0, 0.0, 0.02, 0.0, 0.02, 0.04, 0.0, 0.04],
                             "polygon vertices x0, z0, x1, z1, ... counter-clockwise", "m", -1.0, 1.0, min_length=2)
-    home: tuple = param([0.0345, 0.066], "home position of the reference point (x, z)", "m", -10.0, 10.0, length=2)
+    home: tuple = param([0.0345, 0.0595], "home position of the reference point (x, z)", "m", -10.0, 10.0, length=2)
 
 
 @dataclass(frozen=True)
@@ -74,15 +74,15 @@ class MovementParams:
     dwell: float = param(30.0, "stop at the end of travel (movements 1-3; movement 4 splits it in two)", "s", 0.0, 3600.0)
     retract_speed: float = param(1e-3, "tool speed when it returns home", "m/s", 0.0, 0.1, lo_open=True)
     d: float = param(0.0145, "movement 4: distance of the tool from the cake wall in its vertical step", "m", 0.0, 1.0)
-    start_1: tuple = param([0.0266, 0.066], "movement 1 start (x, z) of the reference point", "m", -10.0, 10.0, length=2)
-    end_1: tuple = param([0.0266, 0.0241], "movement 1 end of travel (x, z)", "m", -10.0, 10.0, length=2)
-    start_2: tuple = param([0.0685, 0.0241], "movement 2 start (x, z)", "m", -10.0, 10.0, length=2)
-    end_2: tuple = param([0.0266, 0.0241], "movement 2 end of travel (x, z)", "m", -10.0, 10.0, length=2)
-    start_3: tuple = param([0.0562, 0.0537], "movement 3 start (x, z)", "m", -10.0, 10.0, length=2)
-    end_3: tuple = param([0.0266, 0.0241], "movement 3 end of travel (x, z)", "m", -10.0, 10.0, length=2)
-    start_4: tuple = param([0.0266, 0.066], "movement 4 start (x, z); its x is replaced by d", "m", -10.0, 10.0, length=2)
-    end_4: tuple = param([0.0266, 0.0241], "movement 4 end of travel (x, z); the vertical step ends at this z", "m", -10.0, 10.0, length=2)
-    waypoints: tuple = param([0.0345, 0.0241, 0.0266, 0.0241], "movement 0: waypoints x0, z0, x1, z1, ... after home", "m", -10.0, 10.0, min_length=2)
+    start_1: tuple = param([0.0262, 0.0595], "movement 1 start (x, z) of the reference point", "m", -10.0, 10.0, length=2)
+    end_1: tuple = param([0.0262, 0.0241], "movement 1 end of travel (x, z)", "m", -10.0, 10.0, length=2)
+    start_2: tuple = param([0.0616, 0.0241], "movement 2 start (x, z)", "m", -10.0, 10.0, length=2)
+    end_2: tuple = param([0.0262, 0.0241], "movement 2 end of travel (x, z)", "m", -10.0, 10.0, length=2)
+    start_3: tuple = param([0.0512, 0.0491], "movement 3 start (x, z)", "m", -10.0, 10.0, length=2)
+    end_3: tuple = param([0.0262, 0.0241], "movement 3 end of travel (x, z)", "m", -10.0, 10.0, length=2)
+    start_4: tuple = param([0.0262, 0.0595], "movement 4 start (x, z); its x is replaced by d", "m", -10.0, 10.0, length=2)
+    end_4: tuple = param([0.0262, 0.0241], "movement 4 end of travel (x, z); the vertical step ends at this z", "m", -10.0, 10.0, length=2)
+    waypoints: tuple = param([0.0345, 0.0241, 0.0262, 0.0241], "movement 0: waypoints x0, z0, x1, z1, ... after home", "m", -10.0, 10.0, min_length=2)
     dwells: tuple = param([15.0, 15.0], "movement 0: stop after each waypoint", "s", 0.0, 3600.0, min_length=1)
 
 

@@ -58,10 +58,12 @@ def phases(data, run) -> np.ndarray:
     touching = np.any(np.abs(run.tool_contact) > 0, axis=(1, 2))
     k = np.clip(np.searchsorted(run.t, t), 0, run.t.size - 1)
     contact = touching[k]
-    h = 0.25
+    # the tool's speed [m/s] over +-1 s of the reconstructed path: the measured poses'
+    # jitter (tens of um) stays below a tenth of the movement's speed, any move above it
+    h = 1.0
     pos = np.array([data.path.position(x) for x in np.r_[t - h, t + h]]).reshape(2, -1, 2)
     speed = np.hypot(*(pos[1] - pos[0]).T) / (2 * h)
-    moving = speed > 0.1 * data.record.scenario.movement.speed * 0.1 + 1e-5
+    moving = speed > 0.1 * data.record.scenario.movement.speed
     out = np.full(t.size, 0)
     if not contact.any():
         return out

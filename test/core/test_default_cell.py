@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+import pytest
 import yaml
 
 from rheo_shaping.config import dump_cell, load_cell
@@ -36,11 +38,23 @@ def test_dump_of_the_default_cell_round_trips(tmp_path):
     assert load_cell(f) == CellParams()
 
 
-def test_sphere_mass_is_the_papers():
+def test_the_strip_is_the_papers_2g_spheres_split_in_four():
+    """The strip weighs 2e-3 kg per 6.4 mm (paper Sec. 4.1's sphere on its 0.3125 kg/m strip);
+    the default cell splits each paper sphere into four masses (docs/model.md, convergence)."""
     from rheo_shaping.simulation import build_chain
-    c, _ = build_chain(CellParams())
-    # 2e-3 kg per sphere (paper Sec. 4.1); links of a drape around the fillet are chords, so a hair shorter
-    assert abs(c.mass.mean() - 2e-3) < 2e-5
+    p = CellParams()
+    c, _ = build_chain(p)
+    assert p.sheet.mass_per_length == pytest.approx(2e-3 / 6.4e-3, rel=1e-12)
+    assert (p.sheet.n_masses + 1) % 4 == 0
+    paper_spheres = (p.sheet.n_masses + 1) // 4
+    # as many paper spheres as the 6.4 mm pitch fits on the sheet's rest length
+    rest = c.rest_length.sum()
+    assert paper_spheres == round(rest / 6.4e-3)
+    # Sec. 4.1's lumping: mass per unit rest length x half of each adjacent link
+    l = c.rest_length
+    assert np.allclose(c.mass, p.sheet.mass_per_length * 0.5 * (l[:-1] + l[1:]), rtol=1e-12, atol=0)
+    # about a quarter of the paper's sphere each (the pitch is the sheet's length over N + 1)
+    assert abs(c.mass.mean() - 0.5e-3) < 0.05 * 0.5e-3
 
 
 def test_every_chosen_number_is_commented():

@@ -195,7 +195,8 @@ def test_directions_in_the_default_process(base, plan, nominal_run):
     # friction on the tool resists the sheet sliding over it: more tension near the tool
     assert run_with(base, plan, "friction_tool", (0.4,)).F_max > F0
     # friction on the mould holds the sheet on the cake: less of it is drawn down, larger gap
-    assert run_with(base, plan, "friction_mould", (0.4,)).delta > D0 + 0.5e-3
+    # (by more than twice the 0.1 mm discretisation tolerance of Delta)
+    assert run_with(base, plan, "friction_mould", (0.4,)).delta > D0 + 0.25e-3
     # a stiff sheet does not follow the tool into the corner: larger gap
     assert run_with(base, plan, "bending", (4e-6,)).delta > D0 + 0.5e-3
     # a heavier sheet: more tension
