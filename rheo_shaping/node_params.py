@@ -151,8 +151,9 @@ class MonitorNodeParams:
         "(jerk-limited stop from the faster of movement.speed and movement.retract_speed)", "s",
         0.0, 60.0)
     stamp_tolerance: float = param(
-        0.05, "how far a header stamp may lie ahead of the node's clock before it is a fault",
-        "s", 0.0, 10.0)
+        0.05, "how far a header stamp may lie ahead of the node's clock before it is a fault "
+        "(on simulated time: still ahead max_data_age of wall time after it arrived, so a /clock "
+        "handled late is not a fault)", "s", 0.0, 10.0)
     startup_timeout: float = param(
         60.0, "wall-clock time after start within which tension data must arrive; none by "
         "then: abort", "s", 0.0, 3600.0, lo_open=True)

@@ -12,7 +12,8 @@ the reason in ``data``) when
   predicts that threshold within ``detect_time + stop_time`` (the tool's
   reaction and jerk-limited stopping time);
 * a tension is NaN or infinite (SAFETY-NOTES lesson 2);
-* a header stamp is zero or lies in the future (lesson 2);
+* a header stamp is zero or lies in the future (lesson 2; on simulated time
+  only if it is still ahead of the node's clock ``max_data_age`` later);
 * the tension data go stale: no sample for ``max_data_age`` on the steady
   clock (a watchdog timer that does not depend on /clock, lesson 1), a QoS
   deadline missed, or stamps older than ``max_stamp_age`` on the node clock;
@@ -195,6 +196,7 @@ class MonitorNode(Node):
         self._rx: dict[str, int | None] = {t: None for t in TENSION_TOPICS + STAMPED_TOPICS}
         self._stamp_age: dict[str, float] = {}
         self._stamp_fault = ""
+        self._future: dict[str, tuple[int, int]] = {}   # topic -> (stamp, steady arrival) [ns]
         self.tension = math.nan                # latest largest link tension [N]
         self.link = 0
         self.contact = math.nan
@@ -303,8 +305,14 @@ class MonitorNode(Node):
         age = (now - stamp) / NS
         self._stamp_age[topic] = age
         if -age > self.settings.stamp_tolerance:
-            self._abort(f"header stamp on {topic} lies {-age:.3f} s in the future of the node "
-                        f"clock (stamp_tolerance {self.settings.stamp_tolerance:g} s)")
+            if self._sim_time():
+                # On simulated time the node's clock is the newest /clock message it has
+                # *processed*; a busy process can handle a data message before the /clock
+                # messages that arrived with it. The stamp is judged again on the watchdog
+                # (steady clock): still ahead after max_data_age -> abort.
+                self._future.setdefault(topic, (stamp, self._steady.now().nanoseconds))
+            else:
+                self._abort(self._future_reason(topic, -age))
         elif age > self.settings.max_stamp_age:
             self._stamp_fault = (f"header stamp on {topic} is {age:.3f} s old "
                                  f"(max_stamp_age {self.settings.max_stamp_age:g} s)")
@@ -312,6 +320,26 @@ class MonitorNode(Node):
                 self._abort(f"stale data: {self._stamp_fault}")
         else:
             self._stamp_fault = ""
+
+    def _future_reason(self, topic: str, ahead: float) -> str:
+        return (f"header stamp on {topic} lies {ahead:.3f} s in the future of the node "
+                f"clock (stamp_tolerance {self.settings.stamp_tolerance:g} s)")
+
+    def _sim_time(self) -> bool:
+        return bool(self.get_parameter("use_sim_time").value)
+
+    def _check_future(self, steady_now: int) -> None:
+        """Future stamps held back on simulated time: clear once the clock has caught up,
+        abort if one is still ahead after ``max_data_age`` of wall time."""
+        now = self.get_clock().now().nanoseconds
+        for topic, (stamp, arrived) in list(self._future.items()):
+            ahead = (stamp - now) / NS
+            if ahead <= self.settings.stamp_tolerance:
+                del self._future[topic]
+            elif (steady_now - arrived) / NS > self.settings.max_data_age:
+                del self._future[topic]
+                self._abort(self._future_reason(topic, ahead) + f", {(steady_now - arrived) / NS:.3f} s "
+                            f"after it arrived")
 
     def _on_deadline(self, topic: str, event) -> None:
         if self.state == "ready":
@@ -321,6 +349,8 @@ class MonitorNode(Node):
     def _on_watchdog(self) -> None:
         s = self.settings
         now = self._steady.now().nanoseconds
+        if self._future and self.state != "aborted":
+            self._check_future(now)
         ages = {t: self._age(t, now) for t in TENSION_TOPICS}
         stale = [t for t, a in ages.items() if a > s.max_data_age]
         if self.state == "ready" and stale:
@@ -330,7 +360,7 @@ class MonitorNode(Node):
                         + f" (max_data_age {s.max_data_age:g} s)")
         elif self.state == "waiting":
             clock_ok = self.get_clock().now().nanoseconds > 0
-            if not stale and not self._stamp_fault and clock_ok:
+            if not stale and not self._stamp_fault and not self._future and clock_ok:
                 self.state = "ready"
                 self.get_logger().info("ready: fresh tension data")
             elif (now - self._start) / NS > s.startup_timeout:

@@ -182,9 +182,35 @@ def test_zero_stamp_aborts(ros, cell):
 def test_future_stamp_aborts(ros, cell):
     monitor = make_monitor(ros)
     get_ready(ros, monitor, cell)
-    cell.publish(stamp_ns=cell.t_ns + 5 * NS)
-    ros.spin_until(lambda: monitor.state == "aborted", 5.0, "abort")
+    cell.publish(stamp_ns=cell.t_ns + 1000 * NS)
+    ros.spin_until(lambda: monitor.state == "aborted", 5.0, "abort", every=lambda: cell.publish())
     assert "future" in monitor.abort_reason
+
+
+def test_future_stamp_on_sim_time_waits_for_the_clock_then_aborts(ros, cell):
+    """A data stamp ahead of the /clock the node has processed so far: no abort while the
+    clock catches up (a busy process handles /clock late); still ahead after max_data_age
+    of wall time: abort, with the reason."""
+    monitor = make_monitor(ros, max_data_age=0.5)
+    get_ready(ros, monitor, cell)
+    # the data run 2.4 s of simulated time ahead of the clock, then the clock catches up
+    lagging = cell.t_ns
+    cell.t_ns += int(2.4 * NS)
+    ahead = cell.t_ns
+    cell.clock.publish(m.clock_msg(lagging))
+    ros.spin_for(0.1)
+    cell.profile.publish(m.profile_msg([[0.01, 0.05]], ahead))
+    ros.spin_for(0.2)
+    assert monitor.state == "ready"                  # held back, not judged yet
+    cell.stream(1.0)                                 # the clock catches up: every stamp on time
+    assert monitor.state == "ready", monitor.abort_reason
+    # a stamp 1000 s ahead that the clock does not reach
+    t_bad = time.monotonic()
+    cell.profile.publish(m.profile_msg([[0.01, 0.05]], cell.t_ns + 1000 * NS))
+    ros.spin_until(lambda: monitor.state == "aborted", 5.0, "abort", every=lambda: cell.publish())
+    took = time.monotonic() - t_bad
+    assert "future" in monitor.abort_reason
+    assert 0.5 <= took <= 0.5 + 0.05 + 0.5, took      # max_data_age + one period (+ scheduling)
 
 
 def test_rising_trend_aborts_before_the_threshold(ros, cell):
