@@ -2,7 +2,8 @@
 """What each unmodelled effect does to the default process (docs/model.md, "Effects").
 
 Runs movement 4 of the default cell (``CellParams()``) nominally and with each
-effect of the library at the middle of its realistic range, one at a time, and
+effect of the library at a typical value inside its realistic range (those of
+test_effects.py::test_directions_in_the_default_process), one at a time, and
 prints a markdown table: F_max change [%], Delta [mm], the largest distance
 between the final profiles [mm] and the wall time of each run [s] on this
 machine (one process; run it on an idle machine).
@@ -29,7 +30,7 @@ from rheo_shaping.params import CellParams  # noqa: E402
 from rheo_shaping.scenarios import movement_scenario, scenario_plan  # noqa: E402
 from rheo_shaping.simulation import Simulation, run_scenario  # noqa: E402
 
-#: effect name -> (value, how it is printed): the middle of each realistic range
+#: effect name -> (value, how it is printed): typical values inside each realistic range
 CASES = {
     "friction_mould": ((0.4,), "0.4"),
     "friction_tool": ((0.4,), "0.4"),

@@ -9,7 +9,7 @@ whether any case would change class (would tear, false abort, missed). Use it
 after a change of the core's numerics to tell whether a campaign still
 stands; a change of class means: re-run the campaign.
 
-    .venv/bin/python benchmarks/rescore_campaign.py --campaign benchmarks/results/abort_campaign.json
+    PYTHONPATH=. python benchmarks/rescore_campaign.py --campaign benchmarks/results/abort_campaign.json
 """
 from __future__ import annotations
 
@@ -29,17 +29,17 @@ from rheo_shaping.params import CellParams  # noqa: E402
 
 
 def _score(cell) -> tuple[float, float]:
-    from rheo_shaping.abort_budget import tension_rates
+    """(offline F_max [N], the monitor's default threshold [N]) of a cell, with the core as it is."""
+    from rheo_shaping.abort_budget import abort_horizon, configured_speed_threshold
     from rheo_shaping.node_params import MonitorNodeParams
-    from rheo_shaping.nodes.monitor import auto_stop_time   # needs rclpy: run in .venv
     from rheo_shaping.scenarios import movement_scenario, scenario_plan
     from rheo_shaping.simulation import run_scenario
 
     f_off = run_scenario(cell, scenario_plan(cell, movement_scenario(cell))).F_max
     s = MonitorNodeParams()
-    horizon = s.detect_time + (s.stop_time if s.stop_time > 0 else auto_stop_time(cell))
-    r = max(row.r for row in tension_rates(cell, speed_factors=(1.0,)))
-    return float(f_off), float(cell.material.F_break - r * horizon - 3.0 * s.noise_sigma)
+    threshold, _, _ = configured_speed_threshold(cell, abort_horizon(cell, s.detect_time, s.stop_time),
+                                                 s.noise_sigma)
+    return float(f_off), float(threshold)
 
 
 def main(argv=None) -> int:

@@ -127,6 +127,31 @@ def tension_rates(params: CellParams, movements: Sequence[int] = (1, 2, 3, 4),
     return tuple(rows)
 
 
+def auto_stop_time(cell: CellParams) -> float:
+    """Jerk-limited stopping time [s] from the faster of the cell's tool speeds."""
+    mv = cell.movement
+    v = max(mv.speed, mv.retract_speed)
+    return stopping_time(v, MotionLimits(v, mv.accel, mv.jerk))
+
+
+def abort_horizon(cell: CellParams, detect_time: float, stop_time: float) -> float:
+    """t_detect + t_stop [s]; ``stop_time`` 0 means the cell's :func:`auto_stop_time`."""
+    return detect_time + (stop_time if stop_time > 0 else auto_stop_time(cell))
+
+
+def configured_speed_threshold(cell: CellParams, horizon: float,
+                               sigma: float) -> tuple[float, float, tuple[RateRow, ...]]:
+    """Lesson 4's abort threshold at the cell's configured speed (the monitor's default).
+
+    F_abort [N] = F_break - r * horizon - 3 sigma, with r [N/s] the largest tension
+    rate of movements 1-4 run by the core at ``movement.speed``, ``horizon`` [s] =
+    t_detect + t_stop and ``sigma`` [N] the tension noise. Returns (F_abort, r, rows).
+    """
+    rows = tension_rates(cell, speed_factors=(1.0,))
+    r = max(row.r for row in rows)
+    return cell.material.F_break - r * horizon - 3.0 * sigma, r, rows
+
+
 def abort_budget(params: CellParams | None = None, t_detect: float = DEFAULT_T_DETECT,
                  sigma: float = DEFAULT_SIGMA, movements: Sequence[int] = (1, 2, 3, 4),
                  speed_factors: Sequence[float] = (1.0, 2.0, 5.0)) -> AbortBudget:

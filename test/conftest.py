@@ -16,14 +16,30 @@ import importlib.util
 import os
 from pathlib import Path
 
+import pytest
+
+
+def _dev():
+    """dev.py, loaded once for the session: its module holds every claimed lock file open."""
+    if _dev.module is None:
+        spec = importlib.util.spec_from_file_location("rheo_dev", Path(__file__).resolve().parents[1] / "dev.py")
+        _dev.module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(_dev.module)
+    return _dev.module
+
+
+_dev.module = None
+
 
 def _claim_domain_id() -> int:
     """dev.py's lock-file claim of a free ROS_DOMAIN_ID (one implementation for both)."""
-    spec = importlib.util.spec_from_file_location("rheo_dev", Path(__file__).resolve().parents[1] / "dev.py")
-    dev = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(dev)
-    _claim_domain_id.dev = dev   # keep the module (and its held lock file) alive for the session
-    return dev.claim_domain_id()
+    return _dev().claim_domain_id()
+
+
+@pytest.fixture(scope="session")
+def claim_ros_domain():
+    """Claim another free ROS_DOMAIN_ID, held until the session ends: ``claim_ros_domain()``."""
+    return _claim_domain_id
 
 
 def pytest_configure(config):

@@ -45,10 +45,8 @@ from std_srvs.srv import Trigger
 
 from ..node_params import MonitorNodeParams
 from ..params import CellParams
-from ..planning import MotionLimits
-from ..abort_budget import tension_rates
+from ..abort_budget import abort_horizon, configured_speed_threshold
 from ..schema import ParameterError
-from ..stopping import stopping_time
 from . import messages as m
 from .ros_params import SchemaParameters
 from .spin import run_node
@@ -60,13 +58,6 @@ HEARTBEAT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
 TENSION_TOPICS = ("/sheet/tensions", "/sheet/contact_tension")
 STAMPED_TOPICS = ("/sheet/profile", "/tool/wrench")
-
-
-def auto_stop_time(cell: CellParams) -> float:
-    """Jerk-limited stopping time [s] from the faster of the cell's tool speeds."""
-    mv = cell.movement
-    v = max(mv.speed, mv.retract_speed)
-    return stopping_time(v, MotionLimits(v, mv.accel, mv.jerk))
 
 
 class MonitorNode(Node):
@@ -112,8 +103,7 @@ class MonitorNode(Node):
     @property
     def horizon(self) -> float:
         """detect_time + stop_time [s]: how far ahead the trend must stay below the threshold."""
-        s = self.settings
-        return s.detect_time + (s.stop_time if s.stop_time > 0 else auto_stop_time(self.cell))
+        return abort_horizon(self.cell, self.settings.detect_time, self.settings.stop_time)
 
     def _set_ratio(self) -> None:
         """``abort_ratio``, or with 0 the lesson-4 bound at the configured speed (core runs)."""
@@ -123,13 +113,11 @@ class MonitorNode(Node):
             return
         cell = self.cell
         try:
-            rows = tension_rates(cell, speed_factors=(1.0,))
+            F_abort, r, rows = configured_speed_threshold(cell, self.horizon, s.noise_sigma)
         except (RuntimeError, ValueError) as exc:
             raise ParameterError(f"abort_ratio 0: the core could not compute the tension rates "
                                  f"({exc}); set abort_ratio") from None
-        r = max(row.r for row in rows)
         Fb = cell.material.F_break
-        F_abort = Fb - r * self.horizon - 3.0 * s.noise_sigma
         if F_abort <= 0:
             raise ParameterError(
                 f"abort_ratio 0: no threshold meets SAFETY-NOTES lesson 4 at movement.speed "
@@ -305,7 +293,7 @@ class MonitorNode(Node):
         age = (now - stamp) / NS
         self._stamp_age[topic] = age
         if -age > self.settings.stamp_tolerance:
-            if self._sim_time():
+            if self.get_clock().ros_time_is_active:
                 # On simulated time the node's clock is the newest /clock message it has
                 # *processed*; a busy process can handle a data message before the /clock
                 # messages that arrived with it. The stamp is judged again on the watchdog
@@ -324,9 +312,6 @@ class MonitorNode(Node):
     def _future_reason(self, topic: str, ahead: float) -> str:
         return (f"header stamp on {topic} lies {ahead:.3f} s in the future of the node "
                 f"clock (stamp_tolerance {self.settings.stamp_tolerance:g} s)")
-
-    def _sim_time(self) -> bool:
-        return bool(self.get_parameter("use_sim_time").value)
 
     def _check_future(self, steady_now: int) -> None:
         """Future stamps held back on simulated time: clear once the clock has caught up,

@@ -54,11 +54,11 @@ def test_profile_points_lie_on_the_sheet_and_are_spaced_along_it(short_cell):
         # each point lies on the polyline (distance to the nearest segment)
         rel = pts[:, None, :] - line[None, :-1, :]
         s = np.clip(np.einsum("psk,sk->ps", rel, seg) / np.einsum("sk,sk->s", seg, seg), 0, 1)
-        d = np.min(np.linalg.norm(rel - s[..., None] * seg, axis=2), axis=1)
-        assert np.max(d) < 1e-12
+        dist = np.linalg.norm(rel - s[..., None] * seg, axis=2)
+        assert np.max(np.min(dist, axis=1)) < 1e-12
         # consecutive points are one spacing apart along the sheet's arc (not its chords)
         seg_len = np.linalg.norm(seg, axis=1)
-        j = np.argmin(np.linalg.norm(rel - s[..., None] * seg, axis=2), axis=1)
+        j = np.argmin(dist, axis=1)
         arc = np.r_[0.0, np.cumsum(seg_len)][j] + s[np.arange(len(j)), j] * seg_len[j]
         assert np.allclose(np.diff(arc), ms.profile_spacing, rtol=1e-9, atol=1e-12)
         chord = np.linalg.norm(np.diff(pts, axis=0), axis=1)

@@ -134,7 +134,7 @@ def test_sourced_workspace_imports_the_installed_package(install, prefix):
 
 
 @pytest.fixture(scope="module")
-def node_domain() -> int:
+def node_domain(claim_ros_domain) -> int:
     """A ROS_DOMAIN_ID of its own for the start/stop tests.
 
     Earlier ROS tests of the session SIGKILL node processes named ``planner`` and
@@ -143,13 +143,7 @@ def node_domain() -> int:
     would let the test signal the new process before it has even started rclpy.
     A fresh domain holds only the nodes started here.
     """
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("rheo_dev_domain", REPO / "dev.py")
-    dev = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(dev)
-    node_domain.dev = dev   # keep the module (and its held lock file) alive
-    return dev.claim_domain_id()
+    return claim_ros_domain()
 
 
 @pytest.fixture(scope="module")
