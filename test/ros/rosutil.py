@@ -94,6 +94,11 @@ class Recorder:
                                               else DurabilityPolicy.VOLATILE))
             self.subs.append(node.create_subscription(msg_type, topic, self._cb(topic), q))
 
+    def add(self, topic: str, msg_type, qos) -> None:
+        """Record one more topic, with a QoS of its own."""
+        self.msgs[topic], self.infos[topic] = [], []
+        self.subs.append(self.node.create_subscription(msg_type, topic, self._cb(topic), qos))
+
     def _cb(self, topic):
         def cb(msg, info):
             self.order.append((topic, len(self.msgs[topic])))
