@@ -164,6 +164,11 @@ class Cake:
         """True for points inside or on the boundary."""
         return self.signed_distance(points, offset)[0] <= 0.0
 
+    def kernel_description(self) -> tuple[int, float, np.ndarray]:
+        """(kind 0, fillet radius [m], quadrant corner (1, 2) [m]) for the compiled step
+        (rheo_shaping.kernel.shape_eval): the quadrant grown by the fillet radius."""
+        return 0, float(self.fillet_radius), self._centre.reshape(1, 2).copy()
+
     def outline(self, n_points: int = 64, closed: bool = False) -> np.ndarray:
         """Boundary points (K, 2) [m] from (-top_length, height) along the top,
         round the fillet and down the wall to (0, 0); ``closed=True`` continues
@@ -210,6 +215,10 @@ class Workplane:
     def contains(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
         """True for points on or below the plane."""
         return self.signed_distance(points, offset)[0] <= 0.0
+
+    def kernel_description(self) -> tuple[int, float, np.ndarray]:
+        """(kind 1, 0, no vertices) for the compiled step: the half-plane z <= 0."""
+        return 1, 0.0, np.zeros((0, 2))
 
     def outline(self, n_points: int = 2) -> np.ndarray:
         """Points (n_points, 2) [m] along z = 0 from x_min to x_max."""
@@ -380,6 +389,11 @@ class RoundedConvexPolygon:
     def contains(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
         """True for points inside or on the boundary."""
         return self.signed_distance(points, offset)[0] <= 0.0
+
+    def kernel_description(self) -> tuple[int, float, np.ndarray]:
+        """(kind 2, radius [m], vertices (K, 2) [m], CCW) for the compiled step
+        (rheo_shaping.kernel.shape_eval): the polygon grown by the disc."""
+        return 2, float(self.radius), self._v.copy()
 
     def outline(self, n_points: int = 64, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
         """Closed boundary (n_points, 2) [m], counter-clockwise, last point not

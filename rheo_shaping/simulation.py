@@ -185,10 +185,11 @@ def settle(model: SheetModel, x0: np.ndarray, duration: float, dt: float, tool=(
     """
     state = model.initial_state(x0, tool)
     n = int(np.ceil(duration / dt - 1e-9))
+    if on_step is None:                       # all n steps in the compiled kernel
+        return model.run_steps(state, duration / n, n, tool, dynamic=True)
     for _ in range(n):
         state = model.step(state, duration / n, tool, dynamic=True)
-        if on_step is not None:
-            on_step(state)
+        on_step(state)
     return state
 
 
