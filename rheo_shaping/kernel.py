@@ -826,6 +826,30 @@ def advance_fixed(x, v, e1, p, ten, con, tool, dt, n_steps, dynamic, fpar, links
     return x, v, e1, p, ten, con, cur, iters, status, res
 
 
+@njit(**_JIT)
+def advance_path(x, v, e1, p, ten, con, tool_prev, dts, tools, dynamic, fpar, links, masses,
+                 ob_i, ob_f, ob_v, max_newton, stats, rx, rv, re1, rp, rten, rcon, rit):
+    """Steps of ``dts`` (K,) [s], the tool ending step k at ``tools[k]`` [m], each with the
+    half-step retries of :func:`advance`; step k's state is written to ``rx[k]`` ... (the
+    record arrays).  Returns (steps done, status, residual [N]): fewer than K on failure."""
+    cur = tool_prev.copy()
+    for k in range(dts.shape[0]):
+        dt = dts[k]
+        x, v, e1, p, ten, con, cur, iters, status, res = advance(
+            x, v, e1, p, ten, con, cur, tools[k], dt, dynamic, dt / 256.0, fpar, links,
+            masses, ob_i, ob_f, ob_v, max_newton, stats)
+        if status != OK:
+            return k, status, res
+        rx[k] = x
+        rv[k] = v
+        re1[k] = e1
+        rp[k] = p
+        rten[k] = ten
+        rcon[k] = con
+        rit[k] = iters
+    return dts.shape[0], OK, 0.0
+
+
 def pack_model(constants, obstacles, reach, mu, kc: float, force_tol: float, effects):
     """The arrays the kernel takes: (fpar, links (5, N+1), masses (2, N), ob_i, ob_f, ob_v)."""
     c = constants

@@ -154,6 +154,39 @@ def _check_array(name: str, values, size: int, unit: str, positive: bool, allow_
                          f"{'finite ' if not allow_inf else ''}value {want}")
 
 
+@dataclass
+class StepRecord:
+    """States after each of K steps (SheetModel.run_path): arrays over the steps first."""
+
+    t: np.ndarray          # (K,) s
+    x: np.ndarray          # (K, N, 2) m
+    v: np.ndarray          # (K, N, 2) m/s
+    e1: np.ndarray         # (K, N+1) m
+    p: np.ndarray          # (K, N+1) m
+    tension: np.ndarray    # (K, N+1) N
+    contact: np.ndarray    # (K, n_obstacles, N, 2) N
+    tool: np.ndarray       # (K, 2) m
+    newton_iterations: np.ndarray   # (K,)
+    error: Exception | None = None
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def head(self, k: int) -> "StepRecord":
+        """The first ``k`` steps."""
+        return StepRecord(self.t[:k], self.x[:k], self.v[:k], self.e1[:k], self.p[:k],
+                          self.tension[:k], self.contact[:k], self.tool[:k],
+                          self.newton_iterations[:k], self.error)
+
+    def state(self, k: int) -> "SheetState":
+        """The state after step ``k`` (its own arrays)."""
+        return SheetState(t=float(self.t[k]), x=self.x[k].copy(), v=self.v[k].copy(),
+                          e1=self.e1[k].copy(), p=self.p[k].copy(),
+                          tension=self.tension[k].copy(), contact=self.contact[k].copy(),
+                          tool=self.tool[k].copy(),
+                          newton_iterations=int(self.newton_iterations[k]))
+
+
 class ConvergenceError(RuntimeError):
     """Newton's method did not converge in a step."""
 
@@ -246,6 +279,44 @@ class SheetModel:
                                bool(dynamic), *self._packed, self.max_newton, self.stats)
         return self._result(state.t + n_steps * dt, out)
 
+    def run_path(self, state: SheetState, dts: np.ndarray, tools: np.ndarray,
+                 dynamic: bool = True) -> "StepRecord":
+        """Steps of ``dts`` (K,) [s], the tool ending step k at ``tools[k]`` (K, 2) [m], all
+        in the kernel; the same steps as as many :meth:`step` calls.  The record holds
+        every step's state; on a failed step it ends before it, and ``error`` holds the
+        :class:`ConvergenceError` for the caller to raise once it kept the record."""
+        dts = np.ascontiguousarray(dts, dtype=float).reshape(-1)
+        tools = np.ascontiguousarray(tools, dtype=float).reshape(-1, 2)
+        if dts.size and not (np.all(np.isfinite(dts)) and np.all(dts > 0.0)):
+            bad = dts[~(np.isfinite(dts) & (dts > 0.0))][0]
+            raise ValueError(f"time step dt = {bad!r} s is invalid: expected a finite value > 0")
+        k, n, n_ob = dts.size, self._n, len(self.obstacles)
+        rec = StepRecord(t=state.t + np.cumsum(dts) if k else np.zeros(0),
+                         x=np.empty((k, n, 2)), v=np.empty((k, n, 2)), e1=np.empty((k, n + 1)),
+                         p=np.empty((k, n + 1)), tension=np.empty((k, n + 1)),
+                         contact=np.empty((k, n_ob, n, 2)), tool=tools.copy(),
+                         newton_iterations=np.zeros(k, dtype=np.int64))
+        if k:
+            # the clock as step() keeps it: t + dt, step by step
+            t = state.t
+            for i in range(k):
+                t = t + dts[i]
+                rec.t[i] = t
+            done, status, res = _k.advance_path(
+                *self._state_args(state), dts, tools, bool(dynamic), *self._packed,
+                self.max_newton, self.stats, rec.x, rec.v, rec.e1, rec.p, rec.tension,
+                rec.contact, rec.newton_iterations)
+            if done < k:
+                rec = rec.head(done)
+                rec.error = self._error(status, res)
+        return rec
+
+    def _error(self, status: int, res: float) -> ConvergenceError:
+        if status == _k.NOT_SPD:   # pragma: no cover - the Hessian is SPD by construction
+            return ConvergenceError("Newton system not positive definite (banded Cholesky)")
+        return ConvergenceError(f"Newton did not converge in {self.max_newton} iterations "
+                                f"(force residual {res:.3g} N)")
+
     @staticmethod
     def _state_args(state: SheetState):
         c = np.ascontiguousarray
@@ -255,12 +326,8 @@ class SheetModel:
 
     def _result(self, t: float, out) -> SheetState:
         x, v, e1, p, ten, con, tool, iters, status, res = out
-        if status == _k.NOT_SPD:   # pragma: no cover - the Hessian is SPD by construction
-            raise ConvergenceError("Newton system not positive definite (banded Cholesky)")
         if status != _k.OK:
-            raise ConvergenceError(
-                f"Newton did not converge in {self.max_newton} iterations "
-                f"(force residual {res:.3g} N)")
+            raise self._error(status, res)
         return SheetState(t=t, x=x, v=v, e1=e1, p=p, tension=ten, contact=con,
                           tool=tool, newton_iterations=int(iters))
 
