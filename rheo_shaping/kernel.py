@@ -65,9 +65,9 @@ def shape_eval(kind, nv, verts, rad, px, pz, ox, oz):
     """Signed distance d [m], outward normal (nx, nz) and curvature kappa [1/m] of the
     distance's level set at point (px, pz) of a shape translated by (ox, oz).
 
-    Cake (kind 0): the quadrant x <= cx, z <= cz (``verts[0]``) grown by ``rad``;
-    plane (1): z <= 0; polygon (2): convex polygon ``verts[:nv]`` (CCW) grown by
-    ``rad`` (nv = 1 a disc, 2 a capsule).  kappa is 1/(d + rad) where the nearest
+    Cake (kind 0): the quadrant x <= cx, z <= cz (``verts[0, :2]``) grown by ``rad``;
+    plane (1): z <= 0; polygon (2): convex polygon of ``nv`` vertices (CCW) grown by
+    ``rad`` (nv = 1 a disc, 2 a capsule), ``verts`` its :func:`shape_table`.  kappa is 1/(d + rad) where the nearest
     feature is a corner point, 0 along a flat face and inside.
     """
     if kind == PLANE_KIND:
@@ -101,18 +101,13 @@ def shape_eval(kind, nv, verts, rad, px, pz, ox, oz):
     smax = -np.inf
     snx = 0.0
     snz = 0.0
-    n0x = 0.0
-    n0z = 0.0
     for j in range(nv):
-        k = j + 1 if j + 1 < nv else 0
-        vx = verts[j, 0]
-        vz = verts[j, 1]
-        ex = verts[k, 0] - vx
-        ez = verts[k, 1] - vz
-        len2 = ex * ex + ez * ez
-        rx = rx0 - vx
-        rz = rz0 - vz
-        t = (rx * ex + rz * ez) / len2
+        # table row: vertex, edge to the next vertex, 1/|edge|^2, outward edge normal
+        rx = rx0 - verts[j, 0]
+        rz = rz0 - verts[j, 1]
+        ex = verts[j, 2]
+        ez = verts[j, 3]
+        t = (rx * ex + rz * ez) * verts[j, 4]
         t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
         dx = rx - t * ex
         dz = rz - t * ez
@@ -122,24 +117,18 @@ def shape_eval(kind, nv, verts, rad, px, pz, ox, oz):
             bdx = dx
             bdz = dz
             bt = t
-        ln = math.sqrt(len2)
-        nx = ez / ln
-        nz = -ex / ln
-        if j == 0:
-            n0x = nx
-            n0z = nz
-        s = rx * nx + rz * nz
+        s = rx * verts[j, 5] + rz * verts[j, 6]
         if s > smax:
             smax = s
-            snx = nx
-            snz = nz
+            snx = verts[j, 5]
+            snz = verts[j, 6]
     dist = math.sqrt(best)
     dd = dist if dist > _TINY else _TINY
     kap = 1.0 / dd if (bt <= 0.0 or bt >= 1.0) else 0.0
     if nv == 2:                                     # capsule: no interior
         if dist > 0.0:
             return dist - rad, bdx / dd, bdz / dd, kap
-        return dist - rad, n0x, n0z, 0.0
+        return dist - rad, verts[0, 5], verts[0, 6], 0.0
     if smax > 0.0:
         return dist - rad, bdx / dd, bdz / dd, kap
     return smax - rad, snx, snz, 0.0
@@ -200,8 +189,9 @@ def link_constants(links, e1, p, tension, fpar):
 # --------------------------------------------------------------------- band solve
 @njit(**_JIT)
 def band_cholesky(band, kd, L):
-    """Cholesky H = L L^T of a banded SPD matrix: ``band[i, k] = H[i, i+k]`` (k <= kd),
-    ``L[i, k] = L[i, i-k]``.  False when H is not positive definite."""
+    """Cholesky H = L L^T of a banded SPD matrix: ``band[i, k] = H[i, i+k]`` (k <= kd <= 4),
+    ``L[i, k] = L[i, i-k]`` and ``L[i, 5] = 1 / L[i, i]``.  False when H is not positive
+    definite."""
     m = band.shape[0]
     for j in range(m):
         s = band[j, 0]
@@ -212,14 +202,16 @@ def band_cholesky(band, kd, L):
         if not s > 0.0:
             return False
         ljj = math.sqrt(s)
+        inv = 1.0 / ljj
         L[j, 0] = ljj
+        L[j, 5] = inv
         iend = j + kd + 1 if j + kd + 1 < m else m
         for i in range(j + 1, iend):
             s = band[j, i - j]
             k0 = i - kd if i - kd > 0 else 0
             for k in range(k0, j):
                 s -= L[i, i - k] * L[j, j - k]
-            L[i, i - j] = s / ljj
+            L[i, i - j] = s * inv
     return True
 
 
@@ -232,13 +224,13 @@ def band_solve(L, kd, b, out):
         k0 = i - kd if i - kd > 0 else 0
         for k in range(k0, i):
             s -= L[i, i - k] * out[k]
-        out[i] = s / L[i, 0]
+        out[i] = s * L[i, 5]
     for i in range(m - 1, -1, -1):
         s = out[i]
         kend = i + kd + 1 if i + kd + 1 < m else m
         for k in range(i + 1, kend):
             s -= L[k, k - i] * out[k]
-        out[i] = s / L[i, 0]
+        out[i] = s * L[i, 5]
 
 
 # ------------------------------------------------------------------- the potential
@@ -464,7 +456,7 @@ def _pattern_hash(forced):
 
 @njit(**_JIT)
 def newton_step(grad, band, has_curv, curv, gd, gn, present, radius, kc, kd, step, work,
-                stats):
+                bb, stats):
     """Newton step (into ``step`` (N, 2)) with the contact set predicted on the quadratic
     model: masses the plain step would push into an obstacle get its penalty,
     linearised; masses the model would then hold adhesively are let go (a few banded
@@ -475,8 +467,7 @@ def newton_step(grad, band, has_curv, curv, gd, gn, present, radius, kc, kd, ste
     n_ob = present.shape[0]
     m = 2 * n
     L0 = work[0]
-    bb = work[1]
-    Lf = work[2]
+    Lf = work[1]
     if not band_cholesky(band, kd, L0):
         if not has_curv:
             return False
@@ -573,7 +564,8 @@ def minimise(x, x_pred, inertia, S, L_star, weight, kb, fpar, ob_i, ob_f, ob_v, 
     t_gn = np.zeros((n_ob, n, 2))
     t_present = np.zeros(n_ob, dtype=np.bool_)
     t_curv = np.empty((n, 3))
-    work = np.zeros((3, m, 5))
+    work = np.zeros((2, m, 6))
+    wband = np.empty((m, 5))
     step = np.empty((n, 2))
     trial = np.empty((n, 2))
     x = x.copy()
@@ -587,7 +579,7 @@ def minimise(x, x_pred, inertia, S, L_star, weight, kb, fpar, ob_i, ob_f, ob_v, 
         stats[ST_NEWTON] += 1
         sband = band.copy()
         if not newton_step(grad, sband, has_curv, curv, gd, gn, present, radius, kc, kd,
-                           step, work, stats):
+                           step, work, wband, stats):
             return x, it, NOT_SPD, _maxabs(grad), gd, gn, present
         slope = 0.0
         for j in range(n):
@@ -850,6 +842,23 @@ def advance_path(x, v, e1, p, ten, con, tool_prev, dts, tools, dynamic, fpar, li
     return dts.shape[0], OK, 0.0
 
 
+def shape_table(verts) -> np.ndarray:
+    """Rows (K, 8) of a shape's vertices (K, 2) [m]: vertex x, z, edge to the next vertex
+    x, z, 1/|edge|^2 [1/m^2] (0 for a single vertex), outward unit edge normal x, z, 0."""
+    v = np.asarray(verts, dtype=float).reshape(-1, 2)
+    table = np.zeros((max(len(v), 1), 8))
+    if len(v) == 0:
+        return table
+    e = np.roll(v, -1, axis=0) - v
+    len2 = np.einsum("ij,ij->i", e, e)
+    with np.errstate(divide="ignore"):
+        inv = np.where(len2 > 0.0, 1.0 / np.where(len2 > 0, len2, 1.0), 0.0)
+    ln = np.sqrt(len2)
+    nrm = np.column_stack((e[:, 1], -e[:, 0])) / np.where(ln > 0, ln, 1.0)[:, None]
+    table[:, 0:2], table[:, 2:4], table[:, 4], table[:, 5:7] = v, e, inv, nrm
+    return table
+
+
 def pack_model(constants, obstacles, reach, mu, kc: float, force_tol: float, effects):
     """The arrays the kernel takes: (fpar, links (5, N+1), masses (2, N), ob_i, ob_f, ob_v)."""
     c = constants
@@ -878,12 +887,10 @@ def pack_model(constants, obstacles, reach, mu, kc: float, force_tol: float, eff
     kmax = max([len(d[2]) for d in descs] + [1])
     ob_i = np.zeros((len(obstacles), 3), dtype=np.int64)
     ob_f = np.zeros((len(obstacles), 3))
-    ob_v = np.zeros((len(obstacles), kmax, 2))
+    ob_v = np.zeros((len(obstacles), kmax, 8))
     for k, (ob, (kind, rad, verts)) in enumerate(zip(obstacles, descs)):
         ob_i[k] = (kind, len(verts), 1 if ob.moving else 0)
         ob_f[k] = (rad, reach[k], mu[k])
         if len(verts):
-            ob_v[k, :len(verts)] = verts
-    if len(obstacles) == 0:      # numba needs a concrete array type even when empty
-        ob_v = np.zeros((0, 1, 2))
+            ob_v[k, :len(verts)] = shape_table(verts)
     return fpar, links, masses, ob_i, ob_f, ob_v
