@@ -67,8 +67,8 @@ def shape_eval(kind, nv, verts, rad, px, pz, ox, oz):
 
     Cake (kind 0): the quadrant x <= cx, z <= cz (``verts[0, :2]``) grown by ``rad``;
     plane (1): z <= 0; polygon (2): convex polygon of ``nv`` vertices (CCW) grown by
-    ``rad`` (nv = 1 a disc, 2 a capsule), ``verts`` its :func:`shape_table`.  kappa is 1/(d + rad) where the nearest
-    feature is a corner point, 0 along a flat face and inside.
+    ``rad`` (nv = 1 a disc, 2 a capsule), ``verts`` its :func:`shape_table`.  kappa is
+    1/(d + rad) where the nearest feature is a corner point, 0 along a flat face and inside.
     """
     if kind == PLANE_KIND:
         return pz - oz, 0.0, 1.0, 0.0
@@ -456,11 +456,12 @@ def _pattern_hash(forced):
 
 @njit(**_JIT)
 def newton_step(grad, band, has_curv, curv, gd, gn, present, radius, kc, kd, step, work,
-                bb, stats):
+                bb, fset, stats):
     """Newton step (into ``step`` (N, 2)) with the contact set predicted on the quadratic
     model: masses the plain step would push into an obstacle get its penalty,
     linearised; masses the model would then hold adhesively are let go (a few banded
-    solves at most, only when the set changes).  Where the exact Hessian is not SPD its
+    solves at most, only when the set changes).  The set starts from ``fset`` (the last
+    prediction, or the state's contacts) and is written back to it.  Where the exact Hessian is not SPD its
     curvature part is dropped (Gauss-Newton; ``band`` is modified).  False: no SPD
     system."""
     n = grad.shape[0]
@@ -476,16 +477,24 @@ def newton_step(grad, band, has_curv, curv, gd, gn, present, radius, kc, kd, ste
             return False
     g = grad.reshape(m)
     s = step.reshape(m)
+    # warm start: the set of the last prediction and the state's contacts (``fset``), for
+    # the spheres that are out of contact now; without it contact re-enters ~8 spheres a
+    # round and a step costs O(N^2)
     forced = np.zeros((n_ob, n), dtype=np.bool_)
-    # rounds until the predicted set settles (~N/8 rounds as contact spreads along the
-    # sheet); a repeated set is a cycle, after which spheres may only enter, so the set
-    # grows and the loop ends
+    any_forced = False
+    for o in range(n_ob):
+        if present[o]:
+            for j in range(n):
+                if fset[o, j] and gd[o, j] >= radius:
+                    forced[o, j] = True
+                    any_forced = True
+    # rounds until the predicted set settles (one or two with the warm start); a repeated
+    # set is a cycle, after which spheres may only enter, so the set grows and the loop ends
     cap = 4 * n_ob * n + 16
     seen = np.empty(cap, dtype=np.int64)
     n_seen = 0
     only_enter = False
     g2 = np.empty(m)
-    any_forced = False
     while True:
         if any_forced:
             g2[:] = g
@@ -536,12 +545,13 @@ def newton_step(grad, band, has_curv, curv, gd, gn, present, radius, kc, kd, ste
         else:
             seen[n_seen] = h
             n_seen += 1
+    fset[:, :] = forced
     return True
 
 
 @njit(**_JIT)
 def minimise(x, x_pred, inertia, S, L_star, weight, kb, fpar, ob_i, ob_f, ob_v, tool,
-             fr_on, fr_tang, fr_mun, fr_x0, fr_move, kd, max_newton, stats):
+             fr_on, fr_tang, fr_mun, fr_x0, fr_move, kd, max_newton, fset, stats):
     """Newton's method with backtracking on the step's potential from ``x`` (N, 2).
 
     Returns (x, iterations, status, force residual [N], gd, gn, present) with the
@@ -579,7 +589,7 @@ def minimise(x, x_pred, inertia, S, L_star, weight, kb, fpar, ob_i, ob_f, ob_v, 
         stats[ST_NEWTON] += 1
         sband = band.copy()
         if not newton_step(grad, sband, has_curv, curv, gd, gn, present, radius, kc, kd,
-                           step, work, wband, stats):
+                           step, work, wband, fset, stats):
             return x, it, NOT_SPD, _maxabs(grad), gd, gn, present
         slope = 0.0
         for j in range(n):
@@ -699,9 +709,13 @@ def one_step(x0, v0, e10, p0, ten0, con0, tool_prev, tool, dt, dynamic, fpar, li
     fr_on, fr_tang, fr_mun, fr_move = _friction_setup(x0, con0, real_prev, real, ob_i, ob_f,
                                                       ob_v, fpar)
     kd = 4 if fpar[P_BENDING] > 0.0 else 3
+    fset = np.zeros((n_ob, n), dtype=np.bool_)     # the state's contacts (warm start)
+    for o in range(n_ob):
+        for j in range(n):
+            fset[o, j] = con0[o, j, 0] != 0.0 or con0[o, j, 1] != 0.0
     x, iters, status, res, gd, gn, present = minimise(
         guess, x_pred, inertia, S, L_star, weight, kb, fpar, ob_i, ob_f, ob_v, real,
-        fr_on, fr_tang, fr_mun, x0, fr_move, kd, max_newton, stats)
+        fr_on, fr_tang, fr_mun, x0, fr_move, kd, max_newton, fset, stats)
     if status != OK:
         stats[ST_FAILED] += 1
         return x, v0, e10, p0, ten0, con0, iters, status, res
@@ -746,7 +760,8 @@ def one_step(x0, v0, e10, p0, ten0, con0, tool_prev, tool, dt, dynamic, fpar, li
         for j in range(n):
             tx = fr_tang[o, j, 0]
             tz = fr_tang[o, j, 1]
-            u = (x[j, 0] - x0[j, 0] - fr_move[o, 0]) * tx + (x[j, 1] - x0[j, 1] - fr_move[o, 1]) * tz
+            u = (x[j, 0] - x0[j, 0] - fr_move[o, 0]) * tx \
+                + (x[j, 1] - x0[j, 1] - fr_move[o, 1]) * tz
             fs = fr_mun[o, j] * u / math.sqrt(u * u + eps_f * eps_f)
             contact[o, j, 0] -= fs * tx
             contact[o, j, 1] -= fs * tz
