@@ -10,17 +10,24 @@ Measures, on this machine:
   settle (the inertial pre-sag, cached per cell in ``simulation._SETTLED``) is
   timed separately, with the cache cleared; the cycle is timed with the settle
   cached.  Medians of ``--repeats`` runs.
-* ``scaling``: the same cycle for N = 25 ... 400: wall seconds per simulated
+* ``scaling``: the same cycle for N = 25 ... 1000: wall seconds per simulated
   second (and CPU seconds), steps, Newton iterations, energy evaluations and
-  banded solves per step, settle time.  Sizes run in a process pool
-  (``--jobs``, a fresh process per size, so two sizes share the two cores).
+  banded solves per step (the compiled kernel's counters, ``SheetModel.stats``),
+  settle time.  Sizes run in a process pool (``--jobs``, a fresh process per
+  size, so two sizes share the two cores).
 * ``peak_memory_mb``: for N = 25 and the largest N, the peak RSS during the
   timed cycles (VmHWM reset before them; the interpreter with numpy and scipy
   loaded included) and the tracemalloc peak of one more cycle (N = 25; the
   largest N with ``--trace-largest``).
 * ``profile``: cProfile of the N = 25 cycle (settle cached): top functions by
-  own and cumulative time, call counts, and per-call costs measured without
-  the profiler (``micro``).
+  own and cumulative time (the compiled kernel is one call), the kernel's work
+  per step, and per-call costs measured without the profiler (``micro``).
+* ``effects``: the default cell's cycle (N = 63) with each effect of
+  :mod:`rheo_shaping.effects` alone at the top of its realistic range, timed
+  interleaved with the nominal cycle: the ratio of the two.
+* ``cold_start``: ``rheo-shaping simulate --json`` in a fresh process, first
+  with an empty compile cache (a temporary ``NUMBA_CACHE_DIR``), then with the
+  cache it filled.
 * ``mujoco_ratio``: MuJoCo's wall time over ours on a shared elastic problem,
   both run until their largest node error against the exact discrete
   equilibrium (``analytic.elastic_chain_equilibrium``) is <= 1e-6 m.  Chain
@@ -43,7 +50,8 @@ Wall times include whatever else runs on the machine: the load average is
 recorded, and CPU times (``time.process_time``) are given beside them.
 
 ``--json`` prints one JSON object (progress bars go to stderr); ``--quick``
-runs fewer repeats, sizes up to 200 and a smaller MuJoCo grid.
+runs fewer repeats, sizes up to 200 and a smaller MuJoCo grid; ``--no-effects``,
+``--no-cold-start`` and ``--no-mujoco`` skip those parts.
 """
 from __future__ import annotations
 
