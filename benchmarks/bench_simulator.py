@@ -88,7 +88,6 @@ try:
 except ImportError:                                   # run from a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import rheo_shaping.sheet as sheet_mod
 import rheo_shaping.simulation as simulation
 from rheo_shaping.analytic import elastic_chain_equilibrium
 from rheo_shaping.params import CellParams

@@ -638,7 +638,7 @@ def minimise(x, x_pred, inertia, S, L_star, weight, kb, fpar, ob_i, ob_f, ob_v, 
 
 # ------------------------------------------------------------------------ the step
 @njit(**_JIT)
-def _friction_setup(x, contact, tool_prev, tool_real, ob_i, ob_f, ob_v, fpar):
+def _friction_setup(x, contact, tool_prev, tool_real, ob_i, ob_f, ob_v):
     """Friction terms of a step, lagged on the state: (on (n_ob,), tangents (n_ob, N, 2),
     mu * normal force (n_ob, N) [N], obstacle shifts over the step (n_ob, 2) [m])."""
     n = x.shape[0]
@@ -707,7 +707,7 @@ def one_step(x0, v0, e10, p0, ten0, con0, tool_prev, tool, dt, dynamic, fpar, li
     real_prev = np.array((tool_prev[0] + fpar[P_SHX], tool_prev[1] + fpar[P_SHZ]))
     real = np.array((tool[0] + fpar[P_SHX], tool[1] + fpar[P_SHZ]))
     fr_on, fr_tang, fr_mun, fr_move = _friction_setup(x0, con0, real_prev, real, ob_i, ob_f,
-                                                      ob_v, fpar)
+                                                      ob_v)
     kd = 4 if fpar[P_BENDING] > 0.0 else 3
     fset = np.zeros((n_ob, n), dtype=np.bool_)     # the state's contacts (warm start)
     for o in range(n_ob):
