@@ -16,7 +16,9 @@ power law, thinning, tool offset, mass error).
 Compiled code is cached on disk (``cache=True``) in a user cache directory,
 so a read-only install (colcon prefix, site-packages) compiles once per user:
 ``$NUMBA_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rheo_shaping/numba``
-(``~/.cache/rheo_shaping/numba``).
+(``~/.cache/rheo_shaping/numba``).  The cache of this file is found by the
+file's content, not its path (:class:`_ContentCacheLocator`), so every install
+of the same source (a checkout, site-packages, a colcon prefix) shares it.
 """
 from __future__ import annotations
 
@@ -36,10 +38,34 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
     if "numba" in sys.modules:                     # numba read its config already
         sys.modules["numba"].config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
 
+import hashlib  # noqa: E402
 import math  # noqa: E402
 
 import numpy as np  # noqa: E402
 from numba import njit  # noqa: E402
+from numba.core import caching as _caching  # noqa: E402
+
+
+class _ContentCacheLocator(_caching.UserProvidedCacheLocator):
+    """numba's user-directory cache, with the folder named by the source file's content
+    (SHA-256) instead of its directory: a new install of the same source finds the code
+    compiled by an earlier one (numba checks its own version and the CPU in the index)."""
+
+    def __init__(self, py_func, py_file):
+        super().__init__(py_func, py_file)
+        with open(py_file, "rb") as fh:
+            digest = hashlib.sha256(fh.read()).hexdigest()[:20]
+        self._cache_path = os.path.join(_caching.config.CACHE_DIR, f"rheo_shaping_{digest}")
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if Path(py_file).resolve() != Path(__file__).resolve():
+            return None                           # only this module's functions
+        return super().from_function(py_func, py_file)
+
+
+if _ContentCacheLocator not in _caching.CacheImpl._locator_classes:
+    _caching.CacheImpl._locator_classes.insert(0, _ContentCacheLocator)
 
 #: Obstacle kinds of the array description (``Shape.kernel_description``).
 CAKE_KIND, PLANE_KIND, POLYGON_KIND = 0, 1, 2

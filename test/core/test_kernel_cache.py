@@ -104,3 +104,10 @@ def _check_cache(tmp_path: Path) -> None:
     assert "data saved to" not in log, log[-2000:]
     mode = stat.S_IMODE(os.stat(site / "rheo_shaping").st_mode)
     assert mode == 0o555
+    # another install of the same source (another prefix) finds the same cache: its folder
+    # is named by the source's content, not by where the source lies
+    other = _read_only_copy(tmp_path / "other-prefix")
+    third = _run(other, home, user, debug=True)
+    assert third.returncode == 0, third.stderr[-3000:]
+    log = third.stdout + third.stderr
+    assert "data loaded from" in log and "data saved to" not in log, log[-2000:]
