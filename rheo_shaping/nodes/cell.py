@@ -25,6 +25,7 @@ from rclpy.parameter import Parameter
 from .monitor import MonitorNode
 from .planner import PlannerNode
 from .simulator import SimulatorNode
+from .topics import CLOCK_REMAP
 
 #: Simulated seconds per step of the runner's simulator (its step period is
 #: this divided by the real-time factor).
@@ -60,15 +61,19 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
              real_time_factor: float = 50.0, timeout: float = 300.0,
              progress: Callable[[str], None] | None = print, progress_period: float = 10.0,
              overrides: dict[str, Sequence[Parameter]] | None = None,
-             log_level: str = "warn") -> CellResult:
+             log_level: str = "warn", namespace: str = "") -> CellResult:
     """Run the cell once; returns its figures (raises ParameterError for bad parameters).
 
     ``overrides`` maps a node name to extra parameters for it; ``log_level``
-    (debug, info, warn, error) is the nodes' logging threshold.
+    (debug, info, warn, error) is the nodes' logging threshold; ``namespace``
+    (e.g. ``/cell2``) moves every node, topic and service of the cell there, the
+    clock included (``-r __ns:=NS -r /clock:=clock``, docs/ros.md).
     """
-    args = ["rheo_shaping_cell"]
+    args = ["rheo_shaping_cell", "--ros-args"]
     if params_file is not None:
-        args += ["--ros-args", "--params-file", str(params_file)]
+        args += ["--params-file", str(params_file)]
+    if namespace.strip("/"):
+        args += ["-r", f"__ns:=/{namespace.strip('/')}", *CLOCK_REMAP]
     common = [] if movement is None else [Parameter("movement.number", value=int(movement))]
     extra = overrides or {}
     sim_params = [Parameter("real_time_factor", value=float(real_time_factor)),

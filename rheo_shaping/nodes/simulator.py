@@ -33,16 +33,10 @@ import math
 import sys
 
 import numpy as np
-from geometry_msgs.msg import PoseArray, PoseStamped, WrenchStamped
+from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
-from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rosgraph_msgs.msg import Clock as ClockMsg
-from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
-from visualization_msgs.msg import MarkerArray
-from diagnostic_msgs.msg import DiagnosticArray
 
 from ..geometry import Cake
 from ..metrics import safety_factor
@@ -53,21 +47,11 @@ from ..sheet import ConvergenceError
 from ..simulation import Simulation
 from ..tools import tool_shape
 from . import messages as m
+from . import topics as T
 from .ros_params import SchemaParameters
 from .spin import run_node
 
 NS = 1_000_000_000
-
-#: QoS of the state topics: reliable, volatile, a short queue.
-STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
-#: /tool/command: reliable with room for a whole batch of set-points.
-COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
-#: /clock: the latest value only (rclpy subscribes best effort, depth 1).
-CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
-
 
 class SimulatorNode(Node):
     """Steps the sheet under /tool/command and publishes the cell's state."""
@@ -78,18 +62,18 @@ class SimulatorNode(Node):
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": SimulatorNodeParams},
                                        on_change=self._on_parameters)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.pub_profile = self.create_publisher(PoseArray, '/sheet/profile', STATE_QOS)
-        tension_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                                 durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST,
-                                 deadline=Duration(seconds=self.settings.offered_deadline))
-        self.pub_tensions = self.create_publisher(Float64MultiArray, '/sheet/tensions', tension_qos)
-        self.pub_contact = self.create_publisher(Float64, '/sheet/contact_tension', tension_qos)
-        self.pub_pose = self.create_publisher(PoseStamped, '/tool/pose', STATE_QOS)
-        self.pub_wrench = self.create_publisher(WrenchStamped, '/tool/wrench', STATE_QOS)
-        self.pub_markers = self.create_publisher(MarkerArray, '/sheet/markers', 1)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        pub = self._publisher
+        self.pub_profile = pub(T.PROFILE)
+        tension_qos = T.tension_qos(self.settings.offered_deadline)
+        self.pub_tensions = pub(T.TENSIONS, tension_qos)
+        self.pub_contact = pub(T.CONTACT_TENSION, tension_qos)
+        self.pub_pose = pub(T.TOOL_POSE)
+        self.pub_wrench = pub(T.TOOL_WRENCH)
+        self.pub_markers = pub(T.MARKERS)
+        self.pub_diag = pub(T.DIAGNOSTICS)
         self.pub_clock = None                  # only while this node is the clock (_configure_time)
-        self.create_subscription(PoseStamped, '/tool/command', self._on_command, COMMAND_QOS)
+        self.create_subscription(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name, self._on_command,
+                                 T.TOOL_COMMAND.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
         self._t_ns = 0                 # time of the latest computed state (node or simulated clock)
@@ -111,6 +95,9 @@ class SimulatorNode(Node):
             f"simulator up: {self.cell.sheet.n_masses} masses, movement {self.cell.movement.number}, "
             f"{mode}, step {self._dt_ns / NS:g} s every {self.settings.step_period:g} s")
 
+    def _publisher(self, topic: T.Topic, qos=None):
+        return self.create_publisher(topic.type, topic.name, qos or topic.qos)
+
     # -- parameters -------------------------------------------------------------------
     @property
     def cell(self) -> CellParams:
@@ -125,7 +112,7 @@ class SimulatorNode(Node):
         self._sim_clock = s.real_time_factor != 1.0 or s.publish_clock
         self._dt_ns = max(int(round(s.real_time_factor * s.step_period * NS)), 1)
         if self._sim_clock and self.pub_clock is None:
-            self.pub_clock = self.create_publisher(ClockMsg, '/clock', CLOCK_QOS)
+            self.pub_clock = self._publisher(T.CLOCK)
         elif not self._sim_clock and self.pub_clock is not None:
             self.destroy_publisher(self.pub_clock)
             self.pub_clock = None
