@@ -60,7 +60,8 @@ class MonitorNode(Node):
         super().__init__('monitor', **node_kwargs)
         self.get_logger().info('starting')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": MonitorNodeParams},
-                                       on_change=self._on_parameters)
+                                       on_change=self._on_parameters,
+                                       cli_args=node_kwargs.get('cli_args'))
         self._set_ratio()
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         s = self.settings

@@ -69,7 +69,8 @@ class PlannerNode(Node):
         super().__init__('planner', **node_kwargs)
         self.get_logger().info('starting: parameters, then the plan')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": PlannerNodeParams},
-                                       on_change=self._on_parameters)
+                                       on_change=self._on_parameters,
+                                       cli_args=node_kwargs.get('cli_args'))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         for attr, topic in (("pub_command", T.TOOL_COMMAND),
                             ("pub_trajectory", T.PLANNED_TRAJECTORY),

@@ -60,7 +60,8 @@ class SimulatorNode(Node):
         super().__init__('simulator', **node_kwargs)
         self.get_logger().info('starting: parameters, then the settled sheet')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": SimulatorNodeParams},
-                                       on_change=self._on_parameters)
+                                       on_change=self._on_parameters,
+                                       cli_args=node_kwargs.get('cli_args'))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         pub = self._publisher
         self.pub_profile = pub(T.PROFILE)
