@@ -4,9 +4,10 @@ the nodes, the params YAML and the one-process runner (``rheo-shaping cell``).
 Like :mod:`rheo_shaping.params`, every field carries a :class:`~rheo_shaping.schema.Spec`
 (description, unit, range); ``rheo_shaping/nodes/ros_params.py`` turns them into
 ROS parameters with descriptors and range checks.  The names are plain (no
-section prefix): they live in the node's own section of the params file::
+section prefix): they live in the node's own section of the params file
+(keyed ``/**/<node>`` so that it applies in any namespace)::
 
-    simulator:
+    /**/simulator:
       ros__parameters:
         real_time_factor: 20.0
 
