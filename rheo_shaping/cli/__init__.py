@@ -13,8 +13,8 @@ import importlib
 import sys
 
 #: Subcommand modules, in the order ``--help`` lists them.
-SUBCOMMANDS = ("identify", "simulate", "reproduce", "cell", "record", "import-csv", "diagnose",
-               "diagnose-benchmark")
+SUBCOMMANDS = ("identify", "simulate", "reproduce", "cell", "record", "record-cell", "replay",
+               "import-csv", "diagnose", "diagnose-benchmark")
 
 
 class UserError(Exception):

@@ -83,8 +83,9 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
     context = Context()
     rclpy.init(args=args, context=context)
     level = getattr(rclpy.logging.LoggingSeverity, log_level.upper())
+    prefix = namespace.strip("/").replace("/", ".")
     for name in ("simulator", "planner", "monitor"):
-        rclpy.logging.set_logger_level(name, level)
+        rclpy.logging.set_logger_level(f"{prefix}.{name}" if prefix else name, level)
     nodes = []
     executor = None
     t_wall = time.monotonic()

@@ -39,6 +39,7 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from ..geometry import Cake
+from ..measurement import MeasurementParams, profile_frame
 from ..metrics import safety_factor
 from ..node_params import SimulatorNodeParams
 from ..params import CellParams
@@ -72,6 +73,7 @@ class SimulatorNode(Node):
         self.pub_wrench = pub(T.TOOL_WRENCH)
         self.pub_markers = pub(T.MARKERS)
         self.pub_diag = pub(T.DIAGNOSTICS)
+        self.pub_camera = pub(T.MEASURED_PROFILE)
         self.pub_clock = None                  # only while this node is the clock (_configure_time)
         self.create_subscription(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name, self._on_command,
                                  T.TOOL_COMMAND.qos)
@@ -85,6 +87,9 @@ class SimulatorNode(Node):
         self._force_publish = False
         self._last_marker = None
         self._last_diag = None
+        self._last_camera = None        # the next camera frame is due at this time [ns]
+        seed = self.settings.camera_seed
+        self._camera_rng = np.random.default_rng(seed if seed else None)
         self._rate_ref = None          # (steady ns, sim ns) to measure the achieved factor
         self.achieved_factor = math.nan
         self._configure_time()
@@ -314,6 +319,11 @@ class SimulatorNode(Node):
                 or t_ns - self._last_pub_ns >= s.publish_period * NS - 1):
             self._force_publish = False
             self._publish_state(t_ns)
+        if s.camera and (self._last_camera is None or t_ns >= self._last_camera):
+            # frames on a grid of 1 / camera_rate (each at the first step at or after it)
+            period = int(round(NS / s.camera_rate))
+            self._last_camera = (t_ns // period + 1) * period
+            self._publish_camera(t_ns)
         now = self._steady.now().nanoseconds
         if s.publish_markers and (self._last_marker is None
                                   or now - self._last_marker >= s.marker_period * NS):
@@ -341,6 +351,16 @@ class SimulatorNode(Node):
         self.pub_contact.publish(m.float_msg(contact))
         self.pub_pose.publish(m.pose_msg(st.tool, t_ns))
         self.pub_wrench.publish(m.wrench_msg(self.sim.tool_force(), t_ns))
+
+    def _publish_camera(self, t_ns: int) -> None:
+        """A frame of the simulated camera (rheo_shaping.measurement.profile_frame)."""
+        s = self.settings
+        if self._broken or self._camera_rng.random() < s.camera_frame_dropout:
+            return
+        ms = MeasurementParams(profile_spacing=s.camera_spacing, profile_noise=s.camera_noise,
+                               point_dropout=s.camera_point_dropout)
+        pts = profile_frame(self.sim.nodes(), ms, self._camera_rng)
+        self.pub_camera.publish(m.profile_msg(pts, t_ns))
 
     def _measure_rate(self, now: int) -> None:
         if self._rate_ref is not None and now > self._rate_ref[0]:
