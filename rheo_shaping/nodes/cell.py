@@ -118,9 +118,11 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
             t = sim.process_time if sim.started else 0.0
             if progress is not None and progress_period > 0 and sim.started and t >= next_report:
                 st = sim.sim.state
-                say(f"  t = {t:6.1f} s  tool ({st.tool[0] * 1e3:6.2f}, {st.tool[1] * 1e3:6.2f}) mm  "
-                    f"largest tension {max(st.tension):.4f} N  planner {planner.state}, "
-                    f"monitor {monitor.state}")
+                elapsed = time.monotonic() - t_started
+                eta = f", ETA {elapsed * (pt - t) / t:4.0f} s" if t > 0 and t < pt else ""
+                say(f"  t = {t:6.1f} / {pt:g} s{eta}  tool ({st.tool[0] * 1e3:6.2f}, "
+                    f"{st.tool[1] * 1e3:6.2f}) mm  largest tension {max(st.tension):.4f} N  "
+                    f"planner {planner.state}, monitor {monitor.state}")
                 while next_report <= t:
                     next_report += progress_period
             if sim.summary is not None and planner.state in ("done", "holding"):

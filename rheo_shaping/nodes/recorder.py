@@ -204,13 +204,19 @@ def record_cell(out: Path, *, namespace: str = "", scenario: CellParams | None =
         say(f"record-cell: waiting for the process start on "
             f"{T.TOOL_COMMAND.in_namespace(namespace or '/')}")
         t_wall = time.monotonic()
+        t_first = None
         next_report = 0.0
         try:
             while time.monotonic() - t_wall < timeout and context.ok():
                 executor.spin_once(timeout_sec=0.05)
                 t = node.recorded_time()
                 if node.buf.start_ns is not None and t >= next_report:
-                    say(f"  recorded {t:6.1f} / {end_time:g} s of process time "
+                    if t_first is None:
+                        t_first = time.monotonic()
+                    elapsed = time.monotonic() - t_first
+                    eta = (f", ETA {elapsed * (end_time - t) / t:4.0f} s"
+                           if 0 < t < end_time else "")
+                    say(f"  recorded {t:6.1f} / {end_time:g} s of process time{eta} "
                         f"({len(node.buf.profile)} frames), planner {node.buf.planner_state}")
                     next_report += 10.0
                 done = node.buf.planner_state in ("done", "holding") and node.buf.ran

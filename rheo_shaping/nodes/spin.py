@@ -41,6 +41,18 @@ def _fatal(name: str, message: str) -> int:
 
 def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
     argv = sys.argv if args is None else args
+    user = list(argv[1:])
+    if "--ros-args" in user:
+        user = user[:user.index("--ros-args")]
+    if "--version" in user:
+        from .. import __version__
+        print(f"{name} (rheo_shaping) {__version__}")
+        return 0
+    if "-h" in user or "--help" in user:
+        print(f"usage: {name} [--version] [--ros-args --params-file FILE -p NAME:=VALUE "
+              f"-r __ns:=/NS ...]\n\nThe rheo_shaping {name} node (docs/ros.md: topics, "
+              f"parameters, QoS).")
+        return 0
     for path in params_files(argv):
         try:
             check_params_file(path)

@@ -162,3 +162,12 @@ def test_node_sections_apply_in_a_namespace(ros, procs):
                  "-r", "__ns:=/cell2", "-p", "control_rate:=25.0")
     got = _get_parameters(ros, "/cell2/planner", ["control_rate", "use_sim_time"])
     assert got == {"control_rate": 25.0, "use_sim_time": True}, proc.text()
+
+
+@pytest.mark.parametrize("node", ["simulator", "planner", "monitor"])
+def test_node_executables_print_their_version(node):
+    import rheo_shaping
+    proc = subprocess.run([str(BIN / node), "--version"], stdout=subprocess.PIPE,
+                          stderr=subprocess.STDOUT, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stdout
+    assert proc.stdout.strip() == f"{node} (rheo_shaping) {rheo_shaping.__version__}"
