@@ -30,6 +30,9 @@ def add_parser(sub) -> None:
                    help="stop when the cell has been silent S wall-clock seconds (default 5)")
     p.add_argument("--timeout", type=float, default=3600.0, metavar="S",
                    help="give up after S wall-clock seconds (default 3600)")
+    p.add_argument("--start", action="store_true",
+                   help="start the cell's planner (its ~/start, for a planner with autostart "
+                        "false) once the first pose and camera frame have arrived")
     p.add_argument("--force", action="store_true", help="replace an existing record directory")
     p.add_argument("--json", action="store_true", help="print one JSON object at the end")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
@@ -59,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         path, rec = record_cell(out, namespace=_namespace(args.namespace), scenario=scenario,
                                 duration=args.duration, idle_timeout=args.idle_timeout,
-                                timeout=args.timeout, force=args.force, progress=say)
+                                timeout=args.timeout, force=args.force, progress=say,
+                                start=args.start)
     except (RecordCellError, RecordError) as exc:
         raise UserError(str(exc)) from None
     summary = {"record": str(path), "duration_s": rec.duration,

@@ -14,6 +14,7 @@ ROS in stamp order, paced on its stamps (``/clock`` too, so nodes on
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +36,9 @@ from . import messages as m
 from . import topics as T
 
 NS = 1_000_000_000
+#: How close [m] the last tool pose before the start must be to the first set-point for
+#: the cell to count as at rest there.
+REST_TOLERANCE = 1e-4
 
 
 class RecordCellError(RuntimeError):
@@ -47,6 +51,7 @@ class _Buffer:
     profile: list = field(default_factory=list)    # (stamp ns, (M, 2) array)
     wrench: list = field(default_factory=list)     # (stamp ns, fx, fz)
     start_ns: int | None = None                    # the process start
+    start_xz: tuple[float, float] | None = None    # the first set-point [m]
     first_rx_ns: int | None = None                 # stamp of the first state message received
     planner_state: str = ""
     ran: bool = False
@@ -94,8 +99,9 @@ class CellRecorder(Node):
 
     def _on_command(self, msg) -> None:
         t = m.stamp_ns(msg.header.stamp)
-        if t > 0 and (self.buf.start_ns is None or t < self.buf.start_ns):
+        if t > 0 and (self.buf.start_ns is None or t <= self.buf.start_ns):
             self.buf.start_ns = t
+            self.buf.start_xz = m.pose_xz(msg)
 
     def _on_plan(self, msg) -> None:
         t = m.stamp_ns(msg.header.stamp)
@@ -121,24 +127,51 @@ class CellRecorder(Node):
         if b.start_ns is None:
             raise RecordCellError("the process never started: no tool/command and no "
                                   "tool/planned_trajectory seen (is the planner running?)")
-        # Keep exactly what the cell published from the start on; the start's own state
-        # (the simulator publishes it with the first set-point's stamp) counts.
-        pose = sorted(p for p in b.pose if p[0] >= b.start_ns)
+        # Keep what the cell published from the start on.  The cell is at rest until the
+        # first set-point (the simulator holds the settled sheet at process time 0), so the
+        # last sample before the start is the state at the start: it is kept, stamped with
+        # the start, when it is older than the first sample after it (a busy cell may
+        # publish its first state after the start late) and its tool pose is the first
+        # set-point's.
+        t0 = b.start_ns
+        pre_pose = [p for p in b.pose if p[0] < t0]
+        pose = sorted(p for p in b.pose if p[0] >= t0)
+        at_rest = bool(pre_pose) and (b.start_xz is None or math.hypot(
+            pre_pose[-1][1] - b.start_xz[0], pre_pose[-1][2] - b.start_xz[1]) <= REST_TOLERANCE)
+        if not pre_pose and (not pose or pose[0][0] - t0 > NS // 2):
+            raise RecordCellError(
+                f"no tool/pose before the process start and none at it (the first is "
+                f"{(pose[0][0] - t0) / NS if pose else math.nan:.2f} s after it): record-cell "
+                f"joined after the process had started; start it before the cell's planner "
+                f"moves")
+
+        def with_start(samples: list, always: bool) -> list:
+            """Samples from t0 on; the last one before t0 re-stamped at t0 when the first
+            after it is late (``always``: later than t0 at all, as the record's t = 0 is
+            its first pose; else: more than the topic's median spacing)."""
+            before = [x for x in samples if x[0] < t0]
+            after = sorted((x for x in samples if x[0] >= t0), key=lambda x: x[0])
+            stamps = sorted(x[0] for x in samples)
+            spacing = float(np.median(np.diff(stamps))) if len(stamps) > 2 else 0.0
+            late = not after or after[0][0] - t0 > (0 if always else spacing)
+            if at_rest and before and late:
+                return [(t0, *before[-1][1:])] + after
+            return after
+
+        if pose and pose[0][0] > t0 and not at_rest:
+            raise RecordCellError(
+                f"the first tool/pose after the process start is {(pose[0][0] - t0) / NS:.2f} s "
+                f"late and the tool was not at rest at the first set-point before it")
+        pose = with_start(b.pose, True)
         if len(pose) < 2:
             raise RecordCellError(f"fewer than two tool/pose messages after the process start "
                                   f"({len(pose)})")
-        if pose[0][0] - b.start_ns > NS // 2:
-            raise RecordCellError(
-                f"the first tool/pose after the process start is "
-                f"{(pose[0][0] - b.start_ns) / NS:.2f} s late: record-cell joined after the "
-                f"process had started; start it before the cell's planner moves")
-        frames = sorted((f for f in b.profile if f[0] >= b.start_ns), key=lambda f: f[0])
+        frames = with_start(b.profile, False)
         if len(frames) < 2:
             raise RecordCellError(
                 f"{len(frames)} sheet/measured_profile frame(s) after the process start: a "
                 f"record needs a camera (the simulator's: camera:=true)")
-        wrench = sorted(w for w in b.wrench if w[0] >= b.start_ns)
-        t0 = b.start_ns
+        wrench = with_start(b.wrench, True)
         pose_a = np.array(pose, float)
         rec = Record(scenario=scenario, pose_t=(pose_a[:, 0] - t0) / NS, pose_xz=pose_a[:, 1:],
                      profile_t=np.array([(f[0] - t0) / NS for f in frames]),
@@ -180,13 +213,15 @@ def record_cell(out: Path, *, namespace: str = "", scenario: CellParams | None =
                 duration: float | None = None, idle_timeout: float = 5.0,
                 timeout: float = 3600.0, force: bool = False,
                 progress: Callable[[str], None] | None = None,
-                start_stamp: float | None = None) -> tuple[Path, Record]:
+                start_stamp: float | None = None, start: bool = False) -> tuple[Path, Record]:
     """Record one run of the cell in ``namespace`` and write it to ``out``.
 
     Stops when the planner is done (or holds after an abort) and the record covers
     ``movement.process_time``, when ``duration`` [s] of process time is recorded, when
     the cell has been silent ``idle_timeout`` [s] of wall time after the start, after
-    ``timeout`` [s], or on Ctrl-C; then writes what it has.
+    ``timeout`` [s], or on Ctrl-C; then writes what it has.  ``start``: once a pose and a
+    camera frame have arrived (so the record has the state before the start), call the
+    planner's ``~/start`` (a cell whose planner has ``autostart: false``).
     """
     args = ["record_cell", "--ros-args"]
     if namespace:
@@ -203,6 +238,8 @@ def record_cell(out: Path, *, namespace: str = "", scenario: CellParams | None =
         end_time = duration if duration is not None else cell.movement.process_time
         say(f"record-cell: waiting for the process start on "
             f"{T.TOOL_COMMAND.in_namespace(namespace or '/')}")
+        if start:
+            _start_planner(node, executor, f"{namespace.rstrip('/')}/planner", timeout, say)
         t_wall = time.monotonic()
         t_first = None
         next_report = 0.0
@@ -236,6 +273,26 @@ def record_cell(out: Path, *, namespace: str = "", scenario: CellParams | None =
         executor.shutdown(timeout_sec=1.0)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def _start_planner(node: CellRecorder, executor, planner: str, timeout: float, say) -> None:
+    from std_srvs.srv import Trigger
+    end = time.monotonic() + timeout
+    client = node.create_client(Trigger, f"{planner}/start")
+    while not (node.buf.pose and node.buf.profile and client.service_is_ready()):
+        if time.monotonic() > end:
+            raise RecordCellError(f"no tool/pose and camera frame, or no {planner}/start "
+                                  f"service, within {timeout:g} s: is the cell running?")
+        executor.spin_once(timeout_sec=0.05)
+    future = client.call_async(Trigger.Request())
+    while not future.done():
+        if time.monotonic() > end:
+            raise RecordCellError(f"{planner}/start did not answer")
+        executor.spin_once(timeout_sec=0.05)
+    reply = future.result()
+    if not reply.success:
+        raise RecordCellError(f"{planner}/start refused: {reply.message}")
+    say(f"record-cell: started the planner ({reply.message})")
 
 
 # -- replay ----------------------------------------------------------------------------------

@@ -51,9 +51,14 @@ def recorded(tmp_path_factory):
     """One simulated cell recorded by record-cell: (record directory, cell's JSON result)."""
     import rclpy
     from rclpy.context import Context
-    out = tmp_path_factory.mktemp("records") / "cell-run"
+    folder = tmp_path_factory.mktemp("records")
+    out = folder / "cell-run"
+    # the planner waits for ~/start, which record-cell calls once it receives the cell
+    # (so the record holds the state before the start, whatever discovery takes)
+    params = folder / "cell.yaml"
+    params.write_text("/**/planner:\n  ros__parameters:\n    autostart: false\n")
     recorder = _cli("record-cell", "--namespace", NSPACE, "--out", str(out), "--json",
-                    "--timeout", str(TIMEOUT_S))
+                    "--timeout", str(TIMEOUT_S), "--start")
     cell = None
     context = Context()
     rclpy.init(context=context)
@@ -72,7 +77,7 @@ def recorded(tmp_path_factory):
             executor.spin_once(timeout_sec=0.1)
         assert ok, f"record-cell never subscribed to {topic}: {recorder.communicate()}"
         cell = _cli("cell", "--namespace", NSPACE, "--json", "--real-time-factor", "20",
-                    "--timeout", str(TIMEOUT_S))
+                    "--timeout", str(TIMEOUT_S), "--params", str(params))
         cell_out, cell_err = cell.communicate(timeout=TIMEOUT_S)
         rec_out, rec_err = recorder.communicate(timeout=TIMEOUT_S)
     finally:
