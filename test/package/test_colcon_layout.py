@@ -101,6 +101,12 @@ def test_package_xml_and_config_installed(prefix):
         assert (share / "config" / name).read_bytes() == (REPO / "config" / name).read_bytes()
 
 
+def test_launch_and_rviz_files_installed(prefix):
+    share = prefix / "share" / PACKAGE
+    for rel in ("launch/cell.launch.py", "rviz/cell.rviz"):
+        assert (share / rel).read_bytes() == (REPO / rel).read_bytes(), rel
+
+
 def test_packaged_data_installed(prefix):
     data_src = REPO / PACKAGE / "data"
     wanted = sorted(p.name for p in data_src.glob("*") if p.is_file()) if data_src.is_dir() else []
