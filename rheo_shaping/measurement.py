@@ -36,7 +36,10 @@ class MeasurementParams:
     wrench: bool = param(True, "record the load cell's force on the tool")
     wrench_rate: float = param(50.0, "load cell samples per second", "Hz", 0.0, 10000.0, lo_open=True)
     wrench_noise: float = param(0.01, "standard deviation of the measured force (x and z)", "N", 0.0, 10.0)
-    start_stamp: float = param(0.0, "stamp of the process start (e.g. 1.7e9 for wall-clock stamps)", "s", 0.0, 1e10)
+    start_stamp: float = param(
+        0.0, "stamp of the process start (e.g. 1.7e9); 0: the wall-clock time the record is "
+        "written, as a real cell's stamps are (a zero stamp is a fault to the monitor)", "s",
+        0.0, 1e10)
 
 
 def resample_polyline(nodes: np.ndarray, spacing: float, phase: float) -> np.ndarray:
@@ -55,6 +58,16 @@ def nodes_at(run: RunResult, t: float) -> np.ndarray:
     return (1.0 - w) * run.nodes(k - 1) + w * run.nodes(k)
 
 
+def profile_frame(nodes: np.ndarray, ms: MeasurementParams,
+                  rng: np.random.Generator) -> np.ndarray:
+    """One vision frame of the centreline ``nodes`` (K, 2) [m]: points every
+    ``profile_spacing`` from a random phase, Gaussian noise, point dropout (frame
+    dropout is the caller's).  Used by :func:`measure` and the simulator node's camera."""
+    pts = resample_polyline(nodes, ms.profile_spacing, rng.uniform(0.0, ms.profile_spacing))
+    pts = pts + rng.normal(0.0, ms.profile_noise, pts.shape)
+    return pts[rng.random(len(pts)) >= ms.point_dropout]
+
+
 def measure(run: RunResult, path, params: CellParams, measurement: MeasurementParams,
             rng: np.random.Generator, name: str = "") -> Record:
     """The sensors' view of ``run`` (tool commanded on ``path``)."""
@@ -66,9 +79,7 @@ def measure(run: RunResult, path, params: CellParams, measurement: MeasurementPa
     frame_t = frame_t[rng.random(frame_t.size) >= ms.frame_dropout]
     profiles = []
     for t in frame_t:
-        pts = resample_polyline(nodes_at(run, t), ms.profile_spacing, rng.uniform(0.0, ms.profile_spacing))
-        pts = pts + rng.normal(0.0, ms.profile_noise, pts.shape)
-        profiles.append(pts[rng.random(len(pts)) >= ms.point_dropout])
+        profiles.append(profile_frame(nodes_at(run, t), ms, rng))
     wrench_t = wrench = None
     if ms.wrench:
         wrench_t = np.arange(0.0, t_end + 1e-9, 1.0 / ms.wrench_rate)

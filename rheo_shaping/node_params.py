@@ -4,9 +4,10 @@ the nodes, the params YAML and the one-process runner (``rheo-shaping cell``).
 Like :mod:`rheo_shaping.params`, every field carries a :class:`~rheo_shaping.schema.Spec`
 (description, unit, range); ``rheo_shaping/nodes/ros_params.py`` turns them into
 ROS parameters with descriptors and range checks.  The names are plain (no
-section prefix): they live in the node's own section of the params file::
+section prefix): they live in the node's own section of the params file
+(keyed ``/**/<node>`` so that it applies in any namespace)::
 
-    simulator:
+    /**/simulator:
       ros__parameters:
         real_time_factor: 20.0
 
@@ -58,6 +59,21 @@ class SimulatorNodeParams:
         1.0, "wall-clock time between the simulator's /diagnostics status", "s", 0.0, 60.0, lo_open=True)
     progress_period: float = param(
         10.0, "process time between progress lines in the log (0: none)", "s", 0.0, 3600.0)
+    camera: bool = param(
+        True, "publish sheet/measured_profile: a simulated camera with the measurement model of "
+        "rheo-shaping record (rheo_shaping.measurement: points along the centreline, noise, "
+        "dropouts), stamped with the state's time")
+    camera_rate: float = param(2.0, "camera frames per second of process time", "Hz", 0.0, 100.0,
+                               lo_open=True)
+    camera_spacing: float = param(3e-3, "spacing of the camera's points along the centreline",
+                                  "m", 0.0, 0.1, lo_open=True)
+    camera_noise: float = param(3e-4, "standard deviation of each camera point (x and z)", "m",
+                                0.0, 0.01)
+    camera_frame_dropout: float = param(0.05, "fraction of camera frames lost", "", 0.0, 0.9)
+    camera_point_dropout: float = param(0.02, "fraction of points lost within a frame", "",
+                                        0.0, 0.9)
+    camera_seed: int = param(0, "seed of the camera's noise and dropouts (0: random)", "", 0,
+                             2**31 - 1)
 
 
 @dataclass(frozen=True)

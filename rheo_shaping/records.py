@@ -53,9 +53,17 @@ def _pose(ts, x: float, z: float):
 
 
 def write_record(record: Record, out_dir: str | Path, truth: CellParams | None = None,
-                 start_stamp: float = 0.0, force: bool = False) -> Path:
-    """Write ``record`` as a rosbag2 MCAP directory ``out_dir`` with scenario.yaml (and truth.yaml)."""
+                 start_stamp: float | None = None, force: bool = False) -> Path:
+    """Write ``record`` as a rosbag2 MCAP directory ``out_dir`` with scenario.yaml (and truth.yaml).
+
+    ``start_stamp`` [s] is the stamp of t = 0; None or 0: the wall-clock time now (whole
+    seconds), as a real cell's record has (a zero stamp is a fault to the monitor).
+    """
     import shutil
+    import time
+
+    if not start_stamp:
+        start_stamp = float(int(time.time()))
 
     from rosbags.rosbag2 import StoragePlugin, Writer
 

@@ -13,8 +13,8 @@ import importlib
 import sys
 
 #: Subcommand modules, in the order ``--help`` lists them.
-SUBCOMMANDS = ("identify", "simulate", "reproduce", "cell", "record", "import-csv", "diagnose",
-               "diagnose-benchmark")
+SUBCOMMANDS = ("identify", "simulate", "reproduce", "cell", "record", "record-cell", "replay",
+               "import-csv", "diagnose", "diagnose-benchmark")
 
 
 class UserError(Exception):
@@ -26,6 +26,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="rheo-shaping",
         description="Robotic shaping of thin rheological sheets over a mould.",
     )
+    from .. import __version__
+    parser.add_argument("--version", action="version", version=f"rheo-shaping {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in SUBCOMMANDS:
@@ -36,6 +38,11 @@ def build_parser() -> argparse.ArgumentParser:
                 continue  # not built yet
             raise
         module.add_parser(sub)
+    for name, sp in sub.choices.items():
+        if not any("--quiet" in a.option_strings for a in sp._actions):
+            sp.add_argument("--quiet", action="store_true", dest="quiet_all",
+                            help="print nothing but errors (the exit code tells the result; "
+                                 "--json still prints its object)")
     return parser
 
 
@@ -43,6 +50,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        if getattr(args, "quiet_all", False) and not getattr(args, "json", False):
+            import contextlib
+            import os
+            with open(os.devnull, "w") as null, contextlib.redirect_stdout(null):
+                return int(args.func(args) or 0)
         return int(args.func(args) or 0)
     except UserError as exc:
         print(f"rheo-shaping {args.command}: error: {exc}", file=sys.stderr)

@@ -32,6 +32,10 @@ def add_parser(sub) -> None:
                         "rather than skipping physics when the machine cannot keep up)")
     p.add_argument("--timeout", type=float, default=300.0, metavar="S",
                    help="give up after S wall-clock seconds (default 300)")
+    p.add_argument("--namespace", default="", metavar="NS",
+                   help="run the cell in ROS namespace NS (e.g. /cell2): every node, topic, "
+                        "service and the simulated clock move there, so several cells share "
+                        "one ROS domain")
     p.add_argument("--compare", action="store_true",
                    help="also run the core offline on the same plan and print both")
     p.add_argument("--json", action="store_true", help="print one JSON object at the end")
@@ -56,7 +60,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         result = run_cell(args.params, movement=args.movement,
                           real_time_factor=args.real_time_factor, timeout=args.timeout, progress=say,
-                          log_level="info" if args.verbose else "warn")
+                          log_level="info" if args.verbose else "warn",
+                          namespace=_namespace(args.namespace))
     except ParameterError as exc:
         raise UserError(str(exc)) from None
     except Exception as exc:   # rcl refuses the params file, etc.
@@ -92,6 +97,18 @@ def run(args: argparse.Namespace) -> int:
     if not result.finished:
         return 1
     return 3 if result.aborted else 0
+
+
+def _namespace(text: str) -> str:
+    """A ROS namespace from --namespace, or UserError naming what is wrong."""
+    import re
+    ns = text.strip()
+    if ns in ("", "/"):
+        return ""
+    if not re.fullmatch(r"/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*", ns):
+        raise UserError(f"--namespace = {text!r}: expected a ROS namespace such as /cell2 "
+                        "(tokens of letters, digits and _, each starting with a letter)")
+    return "/" + ns.lstrip("/")
 
 
 def _finite(value):

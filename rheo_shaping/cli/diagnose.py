@@ -28,6 +28,7 @@ def add_parser(sub) -> None:
     p.add_argument("--force", action="store_true", help="write into an existing --out directory")
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
@@ -55,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from ..diagnosis.engine import diagnose
-    bar = tqdm(desc="diagnose", unit="sim", file=sys.stderr)
+    bar = tqdm(desc="diagnose", unit="sim", file=sys.stderr, disable=args.quiet)
     t0 = time.monotonic()
     try:
         diag = diagnose(fit, hold, library=library, jobs=args.jobs, progress=bar.update)

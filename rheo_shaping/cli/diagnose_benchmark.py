@@ -24,6 +24,7 @@ def add_parser(sub) -> None:
     p.add_argument("--save", metavar="FILE", help="also write the summary with every case to FILE (JSON)")
     p.add_argument("--force", action="store_true", help="overwrite --save's file")
     p.add_argument("--json", action="store_true", help="print one JSON object (summary) instead of a table")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
@@ -36,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from ..diagnosis.benchmark import run_benchmark
-    bar = tqdm(total=args.n, desc="diagnose-benchmark", unit="case", file=sys.stderr)
+    bar = tqdm(total=args.n, desc="diagnose-benchmark", unit="case", file=sys.stderr,
+               disable=args.quiet)
 
     def progress(row: dict) -> None:
         bar.update(1)

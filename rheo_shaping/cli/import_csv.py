@@ -21,6 +21,7 @@ def add_parser(sub) -> None:
     p.add_argument("--wrench", metavar="CSV", help="tool force table t,fx,fz [s, N] (optional)")
     p.add_argument("--out", required=True, metavar="DIR", help="record directory to create")
     p.add_argument("--force", action="store_true", help="replace an existing record directory")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
 
@@ -33,6 +34,14 @@ def run(args: argparse.Namespace) -> int:
         write_record(record, out, force=args.force)
     except RecordError as exc:
         raise UserError(str(exc)) from None
-    print(f"wrote {out}: {record.pose_t.size} poses, {len(record.profiles)} profile frames, "
-          f"{record.wrench_t.size if record.has_wrench else 0} wrench samples, {record.duration:.1f} s")
+    summary = {"record": str(out), "pose_samples": int(record.pose_t.size),
+               "profile_frames": len(record.profiles),
+               "wrench_samples": int(record.wrench_t.size) if record.has_wrench else 0,
+               "duration_s": record.duration}
+    if args.json:
+        import json
+        print(json.dumps(summary))
+        return 0
+    print(f"wrote {out}: {summary['pose_samples']} poses, {summary['profile_frames']} profile "
+          f"frames, {summary['wrench_samples']} wrench samples, {record.duration:.1f} s")
     return 0

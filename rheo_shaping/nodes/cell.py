@@ -26,6 +26,7 @@ from rclpy.parameter import Parameter
 from .monitor import MonitorNode
 from .planner import PlannerNode
 from .simulator import SimulatorNode
+from .topics import CLOCK_REMAP
 
 #: Simulated seconds per step of the runner's simulator (its step period is
 #: this divided by the real-time factor).
@@ -61,15 +62,19 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
              real_time_factor: float = 50.0, timeout: float = 300.0,
              progress: Callable[[str], None] | None = print, progress_period: float = 10.0,
              overrides: dict[str, Sequence[Parameter]] | None = None,
-             log_level: str = "warn") -> CellResult:
+             log_level: str = "warn", namespace: str = "") -> CellResult:
     """Run the cell once; returns its figures (raises ParameterError for bad parameters).
 
     ``overrides`` maps a node name to extra parameters for it; ``log_level``
-    (debug, info, warn, error) is the nodes' logging threshold.
+    (debug, info, warn, error) is the nodes' logging threshold; ``namespace``
+    (e.g. ``/cell2``) moves every node, topic and service of the cell there, the
+    clock included (``-r __ns:=NS -r /clock:=clock``, docs/ros.md).
     """
-    args = ["rheo_shaping_cell"]
+    args = ["rheo_shaping_cell", "--ros-args"]
     if params_file is not None:
-        args += ["--ros-args", "--params-file", str(params_file)]
+        args += ["--params-file", str(params_file)]
+    if namespace.strip("/"):
+        args += ["-r", f"__ns:=/{namespace.strip('/')}", *CLOCK_REMAP]
     common = [] if movement is None else [Parameter("movement.number", value=int(movement))]
     extra = overrides or {}
     sim_params = [Parameter("real_time_factor", value=float(real_time_factor)),
@@ -79,8 +84,9 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
     context = Context()
     rclpy.init(args=args, context=context)
     level = getattr(rclpy.logging.LoggingSeverity, log_level.upper())
+    prefix = namespace.strip("/").replace("/", ".")
     for name in ("simulator", "planner", "monitor"):
-        rclpy.logging.set_logger_level(name, level)
+        rclpy.logging.set_logger_level(f"{prefix}.{name}" if prefix else name, level)
     nodes = []
     executor = None
     t_wall = time.monotonic()
@@ -113,9 +119,11 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
             t = sim.process_time if sim.started else 0.0
             if progress is not None and progress_period > 0 and sim.started and t >= next_report:
                 st = sim.sim.state
-                say(f"  t = {t:6.1f} s  tool ({st.tool[0] * 1e3:6.2f}, {st.tool[1] * 1e3:6.2f}) mm  "
-                    f"largest tension {max(st.tension):.4f} N  planner {planner.state}, "
-                    f"monitor {monitor.state}")
+                elapsed = time.monotonic() - t_started
+                eta = f", ETA {elapsed * (pt - t) / t:4.0f} s" if t > 0 and t < pt else ""
+                say(f"  t = {t:6.1f} / {pt:g} s{eta}  tool ({st.tool[0] * 1e3:6.2f}, "
+                    f"{st.tool[1] * 1e3:6.2f}) mm  largest tension {max(st.tension):.4f} N  "
+                    f"planner {planner.state}, monitor {monitor.state}")
                 while next_report <= t:
                     next_report += progress_period
             if sim.summary is not None and planner.state in ("done", "holding"):

@@ -33,13 +33,9 @@ import sys
 from collections import deque
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseArray, WrenchStamped
 from rclpy.clock import Clock, ClockType
-from rclpy.duration import Duration
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 from std_srvs.srv import Trigger
 
@@ -48,16 +44,13 @@ from ..params import CellParams
 from ..abort_budget import abort_horizon, configured_speed_threshold
 from ..schema import ParameterError
 from . import messages as m
+from . import topics as T
 from .ros_params import SchemaParameters
 from .spin import run_node
 
 NS = 1_000_000_000
-ABORT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
-HEARTBEAT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
-TENSION_TOPICS = ("/sheet/tensions", "/sheet/contact_tension")
-STAMPED_TOPICS = ("/sheet/profile", "/tool/wrench")
+TENSION_TOPICS = (T.TENSIONS.contract, T.CONTACT_TENSION.contract)
+STAMPED_TOPICS = (T.PROFILE.contract, T.TOOL_WRENCH.contract)
 
 
 class MonitorNode(Node):
@@ -67,13 +60,14 @@ class MonitorNode(Node):
         super().__init__('monitor', **node_kwargs)
         self.get_logger().info('starting')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": MonitorNodeParams},
-                                       on_change=self._on_parameters)
+                                       on_change=self._on_parameters,
+                                       cli_args=node_kwargs.get('cli_args'))
         self._set_ratio()
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         s = self.settings
-        self.pub_abort = self.create_publisher(String, '/shaping/abort', ABORT_QOS)
-        self.pub_ready = self.create_publisher(Bool, '/shaping/ready', HEARTBEAT_QOS)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.pub_abort = self._publisher(T.ABORT)
+        self.pub_ready = self._publisher(T.READY)
+        self.pub_diag = self._publisher(T.DIAGNOSTICS)
         self._subs = []
         self._subscribe(s.max_data_age)
         self.create_service(Trigger, '~/reset', self._on_reset)
@@ -157,23 +151,26 @@ class MonitorNode(Node):
         self.get_logger().info(f"parameters {sorted(names)} changed: abort at {self.threshold:.4f} N, "
                                f"trend horizon {self.horizon:.3f} s")
 
+    def _publisher(self, topic: T.Topic):
+        return self.create_publisher(topic.type, topic.name, topic.qos)
+
     def _subscribe(self, max_age: float) -> None:
-        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST,
-                         deadline=Duration(seconds=max_age))
+        qos = T.tension_qos(max_age)
         self._subs = [
             self.create_subscription(
-                Float64MultiArray, '/sheet/tensions', self._on_tensions, qos,
+                T.TENSIONS.type, T.TENSIONS.name, self._on_tensions, qos,
                 event_callbacks=SubscriptionEventCallbacks(
-                    deadline=lambda e: self._on_deadline('/sheet/tensions', e))),
+                    deadline=lambda e: self._on_deadline(T.TENSIONS.contract, e))),
             self.create_subscription(
-                Float64, '/sheet/contact_tension', self._on_contact, qos,
+                T.CONTACT_TENSION.type, T.CONTACT_TENSION.name, self._on_contact, qos,
                 event_callbacks=SubscriptionEventCallbacks(
-                    deadline=lambda e: self._on_deadline('/sheet/contact_tension', e))),
-            self.create_subscription(PoseArray, '/sheet/profile',
-                                     lambda msg: self._on_stamped('/sheet/profile', msg), 10),
-            self.create_subscription(WrenchStamped, '/tool/wrench',
-                                     lambda msg: self._on_stamped('/tool/wrench', msg), 10),
+                    deadline=lambda e: self._on_deadline(T.CONTACT_TENSION.contract, e))),
+            self.create_subscription(
+                T.PROFILE.type, T.PROFILE.name,
+                lambda msg: self._on_stamped(T.PROFILE.contract, msg), T.PROFILE.qos),
+            self.create_subscription(
+                T.TOOL_WRENCH.type, T.TOOL_WRENCH.name,
+                lambda msg: self._on_stamped(T.TOOL_WRENCH.contract, msg), T.TOOL_WRENCH.qos),
         ]
 
     # -- state ------------------------------------------------------------------------
@@ -211,7 +208,7 @@ class MonitorNode(Node):
 
     def _on_reset(self, request, response):
         self.destroy_publisher(self.pub_abort)      # drops the transient-local abort sample
-        self.pub_abort = self.create_publisher(String, '/shaping/abort', ABORT_QOS)
+        self.pub_abort = self._publisher(T.ABORT)
         was = self.abort_reason
         self._clear()
         response.success = True
@@ -221,7 +218,7 @@ class MonitorNode(Node):
 
     # -- data -------------------------------------------------------------------------
     def _on_tensions(self, msg: Float64MultiArray) -> None:
-        self._rx['/sheet/tensions'] = self._steady.now().nanoseconds
+        self._rx[T.TENSIONS.contract] = self._steady.now().nanoseconds
         values = np.asarray(msg.data, dtype=float)
         if values.size == 0:
             self._abort("empty /sheet/tensions message")
@@ -238,7 +235,7 @@ class MonitorNode(Node):
         self._check_trend(self.tension)
 
     def _on_contact(self, msg: Float64) -> None:
-        self._rx['/sheet/contact_tension'] = self._steady.now().nanoseconds
+        self._rx[T.CONTACT_TENSION.contract] = self._steady.now().nanoseconds
         value = float(msg.data)
         if not math.isfinite(value):
             self._abort(f"non-finite contact tension ({value}) on /sheet/contact_tension")
@@ -372,8 +369,8 @@ class MonitorNode(Node):
             "contact_tension": self.contact, "F_break": F_break, "abort_threshold": self.threshold,
             "safety_factor": F_break / F if math.isfinite(F) and F > 0 else math.inf,
             "largest_tension_seen": self.F_seen, "trend_rate": self.trend_rate,
-            "data_age_tensions": ages['/sheet/tensions'],
-            "data_age_contact_tension": ages['/sheet/contact_tension'],
+            "data_age_tensions": ages[T.TENSIONS.contract],
+            "data_age_contact_tension": ages[T.CONTACT_TENSION.contract],
             "stamp_age": max(self._stamp_age.values(), default=math.nan),
             "abort_reason": self.abort_reason,
         }

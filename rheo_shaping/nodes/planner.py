@@ -39,10 +39,8 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
-from trajectory_msgs.msg import JointTrajectory
 
 from ..clearance import plan_clearance
 from ..node_params import PlannerNodeParams
@@ -53,6 +51,7 @@ from ..scenarios import movement_limits, movement_scenario, scenario_plan
 from ..schema import ParameterError
 from ..stopping import TrajectoryStreamer
 from . import messages as m
+from . import topics as T
 from .ros_params import SchemaParameters
 from .spin import run_node
 
@@ -60,12 +59,6 @@ NS = 1_000_000_000
 #: Most set-points published in one timer call (a huge clock jump skips ahead).
 MAX_BATCH = 5000
 
-COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
-LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
-HEARTBEAT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
 MOVING = ("running", "stopping", "retracting")
 
 
@@ -76,15 +69,16 @@ class PlannerNode(Node):
         super().__init__('planner', **node_kwargs)
         self.get_logger().info('starting: parameters, then the plan')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": PlannerNodeParams},
-                                       on_change=self._on_parameters)
+                                       on_change=self._on_parameters,
+                                       cli_args=node_kwargs.get('cli_args'))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.pub_command = self.create_publisher(PoseStamped, '/tool/command', COMMAND_QOS)
-        self.pub_trajectory = self.create_publisher(JointTrajectory, '/tool/planned_trajectory',
-                                                    LATCHED_QOS)
-        self.pub_state = self.create_publisher(String, '/shaping/planner_state', LATCHED_QOS)
-        self.create_subscription(String, '/shaping/abort', self._on_abort, LATCHED_QOS)
-        self.create_subscription(Bool, '/shaping/ready', self._on_ready, HEARTBEAT_QOS)
-        self.create_subscription(PoseStamped, '/tool/pose', self._on_pose, 10)
+        for attr, topic in (("pub_command", T.TOOL_COMMAND),
+                            ("pub_trajectory", T.PLANNED_TRAJECTORY),
+                            ("pub_state", T.PLANNER_STATE)):
+            setattr(self, attr, self.create_publisher(topic.type, topic.name, topic.qos))
+        for topic, callback in ((T.ABORT, self._on_abort), (T.READY, self._on_ready),
+                                (T.TOOL_POSE, self._on_pose)):
+            self.create_subscription(topic.type, topic.name, callback, topic.qos)
         self._tool_pose: np.ndarray | None = None     # the latest measured tool pose [m]
         self.create_service(Trigger, '~/start', self._on_start)
         self.create_service(Trigger, '~/reset', self._on_reset)
@@ -322,7 +316,7 @@ class PlannerNode(Node):
                 self._update_state()
                 return
             if (not self._start_requested and self._tool_pose is None and self._hold is None
-                    and self.count_publishers('/tool/pose') > 0):
+                    and self.count_publishers(T.TOOL_POSE.name) > 0):
                 self._set_state("waiting_for_pose")      # know where the tool is before moving it
                 return
             away = "" if self._start_requested else self._tool_away()

@@ -7,7 +7,10 @@ with dotted names such as ``material.k1``; a node's settings from
 * a ``ParameterDescriptor`` whose description holds the field's description,
   unit and valid range, with a ``FloatingPointRange`` / ``IntegerRange`` where
   the range is bounded on both sides;
-* its default from the dataclass, overridden by ``--params-file`` / ``-p``;
+* its default from the dataclass, overridden by ``--params-file``, which ``-p``
+  beats (:func:`command_line_parameters`: rcl's own merge lets a params file's
+  node section win over ``-p`` once the file has more than one node section, so
+  the ``-p name:=value`` of the command line are applied again on top);
 * an on-set-parameters callback that refuses, at runtime
   (``set_parameters``), any value the schema refuses, and any combination the
   dataclasses' cross-field checks refuse, with the schema's message (it names
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import array
 import math
+import sys
 from typing import Any, Callable, Iterable, Mapping
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
@@ -37,6 +41,46 @@ from rclpy.parameter import Parameter
 from ..config import CELL_SECTIONS
 from ..node_params import ROS_BUILTIN_PARAMETERS
 from ..schema import FieldInfo, ParameterError, from_flat, iter_fields, validate_value
+
+
+#: The process's command line as rclpy.init got it (run_node sets it; else sys.argv).
+_COMMAND_LINE: list[str] | None = None
+
+
+def set_command_line(argv: list[str] | None) -> None:
+    """Remember the arguments given to ``rclpy.init`` (None: sys.argv)."""
+    global _COMMAND_LINE
+    _COMMAND_LINE = None if argv is None else list(argv)
+
+
+def command_line_parameters(argv: Iterable[str] | None = None) -> dict[str, Any]:
+    """The ``-p NAME:=VALUE`` / ``--param NAME:=VALUE`` of the ``--ros-args`` blocks.
+
+    Values are YAML, as rcl reads them (``20.0`` float, ``20`` int, ``false`` bool,
+    ``[1, 2]`` list); later ones win.  Arguments outside ``--ros-args ... --`` are
+    not ROS's and are skipped.
+    """
+    import yaml
+    args = list(sys.argv if argv is None else argv)
+    out: dict[str, Any] = {}
+    in_ros = False
+    i = 0
+    while i < len(args):
+        a = args[i]
+        if a == "--ros-args":
+            in_ros = True
+        elif a == "--":
+            in_ros = False
+        elif in_ros and a in ("-p", "--param") and i + 1 < len(args):
+            i += 1
+            name, sep, text = args[i].partition(":=")
+            if sep and name and ":" not in name:
+                try:
+                    out[name] = yaml.safe_load(text) if text.strip() else text
+                except yaml.YAMLError:
+                    out[name] = text     # rcl then refuses it with its own message
+        i += 1
+    return out
 
 
 def describe(fi: FieldInfo) -> ParameterDescriptor:
@@ -84,7 +128,8 @@ class SchemaParameters:
     """
 
     def __init__(self, node: Node, groups: Mapping[str, type],
-                 on_change: Callable[[set[str]], None] | None = None):
+                 on_change: Callable[[set[str]], None] | None = None,
+                 cli_args: Iterable[str] | None = None):
         self.node = node
         self.groups = dict(groups)
         self.fields: dict[str, FieldInfo] = {}
@@ -97,6 +142,7 @@ class SchemaParameters:
                 self.group_of[fi.name] = group
         self.on_change = on_change
         self.values: dict[str, Any] = {}
+        self._apply_command_line(cli_args)
         self._check_overrides()
         node.add_on_set_parameters_callback(self._validate)
         try:
@@ -117,6 +163,24 @@ class SchemaParameters:
         return [n for n, g in self.group_of.items() if g == group]
 
     # -- internals --------------------------------------------------------------
+    def _apply_command_line(self, cli_args: Iterable[str] | None) -> None:
+        """``-p`` beats the params file (the process's arguments, then the node's own)."""
+        given = command_line_parameters(_COMMAND_LINE)
+        given.update(command_line_parameters(["--ros-args", *cli_args] if cli_args else []))
+        overrides = self.node._parameter_overrides
+        for name, value in given.items():
+            try:
+                param = Parameter(name, value=value)
+            except TypeError:
+                continue                 # not a parameter type: rcl has refused it already
+            overrides[name] = param
+            if self.node.has_parameter(name) and name not in self.fields:
+                # declared by rclpy before us (use_sim_time): set it again
+                if self.node.get_parameter(name).value != value:
+                    result = self.node.set_parameters([param])[0]
+                    if not result.successful:
+                        raise ParameterError(f"-p {name}:={value!r}: {result.reason}")
+
     def _check_overrides(self) -> None:
         """Refuse invalid or unknown start-up values with the schema's message."""
         overrides = getattr(self.node, "_parameter_overrides", {}) or {}

@@ -33,18 +33,13 @@ import math
 import sys
 
 import numpy as np
-from geometry_msgs.msg import PoseArray, PoseStamped, WrenchStamped
+from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
-from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rosgraph_msgs.msg import Clock as ClockMsg
-from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
-from visualization_msgs.msg import MarkerArray
-from diagnostic_msgs.msg import DiagnosticArray
 
 from ..geometry import Cake
+from ..measurement import MeasurementParams, profile_frame
 from ..metrics import safety_factor
 from ..node_params import SimulatorNodeParams
 from ..params import CellParams
@@ -53,22 +48,11 @@ from ..sheet import ConvergenceError
 from ..simulation import Simulation
 from ..tools import tool_shape
 from . import messages as m
+from . import topics as T
 from .ros_params import SchemaParameters
 from .spin import run_node
 
 NS = 1_000_000_000
-
-#: QoS of the state topics: reliable, volatile, a queue of 100 states: a reader that a busy
-#: machine deschedules for 0.5 s of a 200 Hz stream (10x faster than real time) loses none.
-STATE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
-#: /tool/command: reliable with room for a whole batch of set-points.
-COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
-#: /clock: the latest value only (rclpy subscribes best effort, depth 1).
-CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
-
 
 class SimulatorNode(Node):
     """Steps the sheet under /tool/command and publishes the cell's state."""
@@ -77,20 +61,22 @@ class SimulatorNode(Node):
         super().__init__('simulator', **node_kwargs)
         self.get_logger().info('starting: parameters, then the settled sheet')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": SimulatorNodeParams},
-                                       on_change=self._on_parameters)
+                                       on_change=self._on_parameters,
+                                       cli_args=node_kwargs.get('cli_args'))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.pub_profile = self.create_publisher(PoseArray, '/sheet/profile', STATE_QOS)
-        tension_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                                 durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST,
-                                 deadline=Duration(seconds=self.settings.offered_deadline))
-        self.pub_tensions = self.create_publisher(Float64MultiArray, '/sheet/tensions', tension_qos)
-        self.pub_contact = self.create_publisher(Float64, '/sheet/contact_tension', tension_qos)
-        self.pub_pose = self.create_publisher(PoseStamped, '/tool/pose', STATE_QOS)
-        self.pub_wrench = self.create_publisher(WrenchStamped, '/tool/wrench', STATE_QOS)
-        self.pub_markers = self.create_publisher(MarkerArray, '/sheet/markers', 1)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        pub = self._publisher
+        self.pub_profile = pub(T.PROFILE)
+        tension_qos = T.tension_qos(self.settings.offered_deadline)
+        self.pub_tensions = pub(T.TENSIONS, tension_qos)
+        self.pub_contact = pub(T.CONTACT_TENSION, tension_qos)
+        self.pub_pose = pub(T.TOOL_POSE)
+        self.pub_wrench = pub(T.TOOL_WRENCH)
+        self.pub_markers = pub(T.MARKERS)
+        self.pub_diag = pub(T.DIAGNOSTICS)
+        self.pub_camera = pub(T.MEASURED_PROFILE)
         self.pub_clock = None                  # only while this node is the clock (_configure_time)
-        self.create_subscription(PoseStamped, '/tool/command', self._on_command, COMMAND_QOS)
+        self.create_subscription(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name, self._on_command,
+                                 T.TOOL_COMMAND.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
         self._t_ns = 0                 # time of the latest computed state (node or simulated clock)
@@ -101,6 +87,9 @@ class SimulatorNode(Node):
         self._force_publish = False
         self._last_marker = None
         self._last_diag = None
+        self._last_camera = None        # the next camera frame is due at this time [ns]
+        seed = self.settings.camera_seed
+        self._camera_rng = np.random.default_rng(seed if seed else None)
         self._rate_ref = None          # (steady ns, sim ns) to measure the achieved factor
         self.achieved_factor = math.nan
         self._configure_time()
@@ -111,6 +100,9 @@ class SimulatorNode(Node):
         self.get_logger().info(
             f"simulator up: {self.cell.sheet.n_masses} masses, movement {self.cell.movement.number}, "
             f"{mode}, step {self._dt_ns / NS:g} s every {self.settings.step_period:g} s")
+
+    def _publisher(self, topic: T.Topic, qos=None):
+        return self.create_publisher(topic.type, topic.name, qos or topic.qos)
 
     # -- parameters -------------------------------------------------------------------
     @property
@@ -126,7 +118,7 @@ class SimulatorNode(Node):
         self._sim_clock = s.real_time_factor != 1.0 or s.publish_clock
         self._dt_ns = max(int(round(s.real_time_factor * s.step_period * NS)), 1)
         if self._sim_clock and self.pub_clock is None:
-            self.pub_clock = self.create_publisher(ClockMsg, '/clock', CLOCK_QOS)
+            self.pub_clock = self._publisher(T.CLOCK)
         elif not self._sim_clock and self.pub_clock is not None:
             self.destroy_publisher(self.pub_clock)
             self.pub_clock = None
@@ -337,6 +329,11 @@ class SimulatorNode(Node):
                 or t_ns - self._last_pub_ns >= s.publish_period * NS - 1):
             self._force_publish = False
             self._publish_state(t_ns)
+        if s.camera and (self._last_camera is None or t_ns >= self._last_camera):
+            # frames on a grid of 1 / camera_rate (each at the first step at or after it)
+            period = int(round(NS / s.camera_rate))
+            self._last_camera = (t_ns // period + 1) * period
+            self._publish_camera(t_ns)
         now = self._steady.now().nanoseconds
         if s.publish_markers and (self._last_marker is None
                                   or now - self._last_marker >= s.marker_period * NS):
@@ -364,6 +361,16 @@ class SimulatorNode(Node):
         self.pub_contact.publish(m.float_msg(contact))
         self.pub_pose.publish(m.pose_msg(st.tool, t_ns))
         self.pub_wrench.publish(m.wrench_msg(self.sim.tool_force(), t_ns))
+
+    def _publish_camera(self, t_ns: int) -> None:
+        """A frame of the simulated camera (rheo_shaping.measurement.profile_frame)."""
+        s = self.settings
+        if self._broken or self._camera_rng.random() < s.camera_frame_dropout:
+            return
+        ms = MeasurementParams(profile_spacing=s.camera_spacing, profile_noise=s.camera_noise,
+                               point_dropout=s.camera_point_dropout)
+        pts = profile_frame(self.sim.nodes(), ms, self._camera_rng)
+        self.pub_camera.publish(m.profile_msg(pts, t_ns))
 
     def _measure_rate(self, now: int) -> None:
         if self._rate_ref is not None and now > self._rate_ref[0]:

@@ -2,21 +2,67 @@
 
 In the style of ros2/demos: ``rclpy.init``, spin until SIGINT or an external
 shutdown, destroy the node, exit 0.  An invalid parameter at start is logged
-with the schema's message and exits with code 2.
+with the schema's message and exits with code 2; so is a params file that the
+core refuses (:func:`rheo_shaping.config.check_params_file`, checked before
+``rclpy.init``: the same rule and message as ``rheo-shaping simulate``) or that
+rcl refuses: no traceback for a user's file.
 """
 from __future__ import annotations
 
-from typing import Callable
+import sys
+from typing import Callable, Iterable
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
+from ..config import ConfigError, check_params_file
 from ..schema import ParameterError
+from .ros_params import set_command_line
+
+
+def params_files(argv: Iterable[str]) -> list[str]:
+    """The ``--params-file FILE`` of the ``--ros-args`` blocks, in order."""
+    args, out, in_ros = list(argv), [], False
+    for i, a in enumerate(args):
+        if a == "--ros-args":
+            in_ros = True
+        elif a == "--":
+            in_ros = False
+        elif in_ros and a == "--params-file" and i + 1 < len(args):
+            out.append(args[i + 1])
+    return out
+
+
+def _fatal(name: str, message: str) -> int:
+    print(f"[FATAL] [{name}]: {message}", file=sys.stderr, flush=True)
+    return 2
 
 
 def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
-    rclpy.init(args=args)
+    argv = sys.argv if args is None else args
+    user = list(argv[1:])
+    if "--ros-args" in user:
+        user = user[:user.index("--ros-args")]
+    if "--version" in user:
+        from .. import __version__
+        print(f"{name} (rheo_shaping) {__version__}")
+        return 0
+    if "-h" in user or "--help" in user:
+        print(f"usage: {name} [--version] [--ros-args --params-file FILE -p NAME:=VALUE "
+              f"-r __ns:=/NS ...]\n\nThe rheo_shaping {name} node (docs/ros.md: topics, "
+              f"parameters, QoS).")
+        return 0
+    for path in params_files(argv):
+        try:
+            check_params_file(path)
+        except ConfigError as exc:
+            return _fatal(name, str(exc))
+    set_command_line(args)            # -p NAME:=VALUE beats the params file (ros_params)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:          # noqa: BLE001  rcl refuses the arguments (RCLError)
+        return _fatal(name, f"ROS refused the command line: {str(exc).strip()}")
     try:
         node = factory()
     except ParameterError as exc:

@@ -101,6 +101,12 @@ def test_package_xml_and_config_installed(prefix):
         assert (share / "config" / name).read_bytes() == (REPO / "config" / name).read_bytes()
 
 
+def test_launch_and_rviz_files_installed(prefix):
+    share = prefix / "share" / PACKAGE
+    for rel in ("launch/cell.launch.py", "rviz/cell.rviz"):
+        assert (share / rel).read_bytes() == (REPO / rel).read_bytes(), rel
+
+
 def test_packaged_data_installed(prefix):
     data_src = REPO / PACKAGE / "data"
     wanted = sorted(p.name for p in data_src.glob("*") if p.is_file()) if data_src.is_dir() else []
@@ -201,3 +207,51 @@ def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain,
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
     assert f"[{node_name}]" in log.read_text()  # its logger spoke
+
+
+# -- colcon test ------------------------------------------------------------------------
+#: A small, fast subset of the ROS-free tests for colcon test (a bare `colcon test`
+#: runs setup.cfg's testpaths, all of test/core).
+COLCON_TEST_SUBSET = ("test/core/test_params_file_rule.py", "test/package/test_package_manifest.py",
+                      "test/package/test_launch_files.py")
+
+
+def _colcon_test(workspace: Path, results: str, pytest_args: list[str]) -> subprocess.CompletedProcess:
+    cmd = [*_colcon_cmd(), "--log-base", str(workspace / "log"), "test",
+           "--base-paths", str(REPO), "--build-base", str(workspace / "build"),
+           "--install-base", str(workspace / "install"),
+           "--test-result-base", str(workspace / results), "--return-code-on-test-failure",
+           "--event-handlers", "console_direct-", "--pytest-args", *pytest_args]
+    return subprocess.run(cmd, cwd=workspace, env=_clean_env(COLCON_HOME=str(workspace / "colcon_home")),
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          timeout=BUILD_TIMEOUT_S)
+
+
+def _test_result(workspace: Path, results: str) -> tuple[int, str]:
+    proc = subprocess.run([*_colcon_cmd(), "test-result", "--test-result-base",
+                           str(workspace / results)], stdout=subprocess.PIPE,
+                          stderr=subprocess.STDOUT, text=True, timeout=60, env=_clean_env())
+    return proc.returncode, proc.stdout
+
+
+def test_colcon_test_runs_the_package_pytest_tests(workspace):
+    """colcon picks pytest (setup.py's tests_require) and the tests run and pass."""
+    import re
+    proc = _colcon_test(workspace, "results", list(COLCON_TEST_SUBSET))
+    assert proc.returncode == 0, proc.stdout
+    rc, text = _test_result(workspace, "results")
+    summary = re.search(r"Summary: (\d+) tests?, (\d+) errors?, (\d+) failures?, (\d+) skipped", text)
+    assert summary, text
+    tests, errors, failures, _skipped = map(int, summary.groups())
+    print(f"colcon test: {tests} tests, {errors} errors, {failures} failures")
+    assert rc == 0 and tests > 0 and errors == 0 and failures == 0, text
+    assert (workspace / "results" / PACKAGE / "pytest.xml").is_file()
+
+
+def test_colcon_test_fails_when_a_test_fails(workspace, tmp_path):
+    failing = tmp_path / "test_must_fail.py"
+    failing.write_text("def test_fails():\n    assert 1 == 2\n")
+    proc = _colcon_test(workspace, "results_failing", [str(failing)])
+    assert proc.returncode != 0, proc.stdout
+    rc, text = _test_result(workspace, "results_failing")
+    assert rc != 0 and "1 failure" in text, text

@@ -8,11 +8,28 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 
-EXEC_DEPENDS = {
-    "rclpy", "std_msgs", "geometry_msgs", "trajectory_msgs", "visualization_msgs",
-    "diagnostic_msgs", "rosgraph_msgs", "std_srvs",
-    "python3-numpy", "python3-scipy", "python3-numba", "python3-yaml", "python3-matplotlib", "ruckig",
+#: The rosdep key of every third-party module the package may import. Each key resolves
+#: on Jazzy: ROS packages of jazzy/distribution.yaml, system/pip keys of
+#: rosdep/python.yaml (ros/rosdistro, 2026-08).
+MODULE_KEYS = {
+    "rclpy": "rclpy", "rcl_interfaces": "rcl_interfaces",
+    "builtin_interfaces": "builtin_interfaces", "std_msgs": "std_msgs",
+    "geometry_msgs": "geometry_msgs", "trajectory_msgs": "trajectory_msgs",
+    "visualization_msgs": "visualization_msgs", "diagnostic_msgs": "diagnostic_msgs",
+    "rosgraph_msgs": "rosgraph_msgs", "std_srvs": "std_srvs",
+    "launch": "launch", "launch_ros": "launch_ros", "ament_index_python": "ament_index_python",
+    "numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml",
+    "matplotlib": "python3-matplotlib", "tqdm": "python3-tqdm", "numba": "python3-numba",
+    "rosbags": "python3-rosbags-pip",
 }
+#: Modules no rosdep key provides, with the documented command that does.
+PIP_ONLY = {"ruckig": "pip install ruckig",
+            # optional: only `--executor dask://HOST:PORT` imports it (docs/scale-out.md)
+            "distributed": "pip install 'dask[distributed]'"}
+#: Keys of rosdistro that the manifest may use (the ones above, and rviz2 for the
+#: RViz configuration): a misspelt key would make `rosdep install` fail.
+JAZZY_KEYS = set(MODULE_KEYS.values()) | {"rviz2", "python3-pytest"}
+EXEC_DEPENDS = set(MODULE_KEYS.values()) | {"rviz2"}
 TEST_DEPENDS = {"python3-pytest"}
 CONSOLE_SCRIPTS = {
     "simulator": "rheo_shaping.nodes.simulator:main",
@@ -44,6 +61,48 @@ def test_package_xml_lists_every_dependency():
     test_deps = {e.text.strip() for e in root.iter("test_depend")}
     assert EXEC_DEPENDS <= exec_deps, f"missing exec_depend: {sorted(EXEC_DEPENDS - exec_deps)}"
     assert TEST_DEPENDS <= test_deps, f"missing test_depend: {sorted(TEST_DEPENDS - test_deps)}"
+
+
+def _third_party_imports() -> dict[str, set[str]]:
+    """Top-level modules imported anywhere in rheo_shaping/ (and launch/) -> files."""
+    import sys
+    found: dict[str, set[str]] = {}
+    files = [*(REPO / "rheo_shaping").rglob("*.py"), *(REPO / "launch").glob("*.py")]
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            for name in names:
+                top = name.split(".")[0]
+                if top not in sys.stdlib_module_names and top != "rheo_shaping":
+                    found.setdefault(top, set()).add(str(path.relative_to(REPO)))
+    return found
+
+
+def test_every_third_party_import_is_declared_with_a_jazzy_key():
+    root = _manifest()
+    declared = {e.text.strip() for tag in ("exec_depend", "depend") for e in root.iter(tag)}
+    imports = _third_party_imports()
+    assert {"rclpy", "numpy", "rosbags", "tqdm", "ruckig"} <= set(imports), "the scan works"
+    for module, files in sorted(imports.items()):
+        if module in PIP_ONLY:
+            continue
+        assert module in MODULE_KEYS, (f"{module} (imported by {sorted(files)}) has no rosdep "
+                                       f"key: add it to MODULE_KEYS and package.xml")
+        assert MODULE_KEYS[module] in declared, \
+            f"package.xml: <exec_depend>{MODULE_KEYS[module]}</exec_depend> missing for {module}"
+    assert declared <= JAZZY_KEYS, f"keys not known on Jazzy: {sorted(declared - JAZZY_KEYS)}"
+
+
+def test_pip_only_modules_are_documented():
+    readme = (REPO / "README.md").read_text()
+    manifest = (REPO / "package.xml").read_text()
+    for module, command in PIP_ONLY.items():
+        assert command in readme, f"README.md must tell users to `{command}`"
+        assert command in manifest
 
 
 def test_package_xml_version_matches_setup_py_and_package():

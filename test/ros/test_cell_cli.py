@@ -41,7 +41,7 @@ def test_cell_prints_progress_and_the_figures():
     proc = _run("--movement", "2", "--compare")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     text = proc.stdout
-    assert "t =   10.0 s" in text and "F_max =" in text and "SF    =" in text and "Delta =" in text
+    assert "t =   10.0 / 120 s, ETA" in text and "F_max =" in text and "SF    =" in text and "Delta =" in text
     assert "offline (core, same plan)" in text
 
 

@@ -47,18 +47,16 @@ def test_best_d_is_the_smallest_F_max_within_the_delta_limit():
         best_d(cell, ds, delta_limit=1e-9)
 
 
-def test_load_cell_ignores_node_sections(tmp_path):
+def test_load_cell_reads_the_wildcard_section_and_node_sections_hold_node_settings(tmp_path):
     ros = tmp_path / "ros.yaml"
     ros.write_text("/**:\n  ros__parameters:\n    material: {k1: 90.0}\n"
-                   "simulator:\n  ros__parameters:\n    real_time_factor: 20.0\n"
+                   "/**/simulator:\n  ros__parameters:\n    real_time_factor: 20.0\n"
                    "planner:\n  ros__parameters:\n    control_rate: 100.0\n"
-                   "monitor:\n  ros__parameters:\n    abort_ratio: 0.5\n")
-    plain = tmp_path / "plain.yaml"
-    plain.write_text("material: {k1: 90.0}\nreal_time_factor: 20.0\nuse_sim_time: true\n")
+                   "/cell2/monitor:\n  ros__parameters:\n    abort_ratio: 0.5\n")
     want = replace(CellParams(), material=replace(CellParams().material, k1=90.0))
     for node in ("simulator", "planner", "monitor"):
         assert load_cell(ros, node) == want
-    assert load_cell(plain) == want
+    assert load_cell(ros) == want
 
 
 def test_shipped_params_files_load_in_the_core_and_their_node_sections_are_valid():
@@ -69,7 +67,8 @@ def test_shipped_params_files_load_in_the_core_and_their_node_sections_are_valid
         load_cell(path)
         data = read_yaml(path)
         for node, cls in NODE_PARAMS.items():
-            section = data.get(node, {}).get("ros__parameters", {})
+            section = data.get(f"/**/{node}", {}).get("ros__parameters", {})
+            assert section, f"{path.name}: no '/**/{node}' section"
             flat = {k: v for k, v in flatten(section).items() if k not in ROS_BUILTIN_PARAMETERS
                     and k.split(".", 1)[0] not in ("material", "sheet", "cake", "tool", "movement",
                                                    "solver")}

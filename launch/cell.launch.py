@@ -1,0 +1,72 @@
+"""The shaping cell: simulator, planner and monitor (and RViz) from one params file.
+
+    ros2 launch rheo_shaping cell.launch.py
+    ros2 launch rheo_shaping cell.launch.py namespace:=/cell2 rviz:=true
+    ros2 launch rheo_shaping cell.launch.py params_file:=my_cell.yaml use_sim_time:=false
+
+Arguments (docs/ros.md, "Launch"):
+
+* ``params_file``: the cell in ``/**``, node settings in ``/**/simulator``,
+  ``/**/planner``, ``/**/monitor`` (default: the package's config/cell.yaml);
+* ``namespace``: every node, topic and service of the cell moves there; planner
+  and monitor follow their own simulator's clock (``/clock`` -> ``clock``);
+* ``use_sim_time``: ``true`` (default) the simulator is the clock (its
+  ``real_time_factor`` from the file) and planner and monitor follow it;
+  ``false``: everything on the wall clock, the simulator at real time;
+* ``rviz``: ``true`` also starts RViz with the package's rviz/cell.rviz.
+
+Values given here reach the nodes as ``-p`` on their command line, which beats the
+params file's node sections (rheo_shaping/nodes/ros_params.py).
+"""
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.conditions import IfCondition
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+PACKAGE = 'rheo_shaping'
+
+
+def _nodes(context):
+    share = get_package_share_directory(PACKAGE)
+    params_file = LaunchConfiguration('params_file').perform(context)
+    namespace = LaunchConfiguration('namespace').perform(context)
+    sim_time = LaunchConfiguration('use_sim_time').perform(context).lower() in ('true', '1')
+    follow = ['-p', f"use_sim_time:={'true' if sim_time else 'false'}"]
+    simulator_args = [] if sim_time else ['-p', 'real_time_factor:=1.0',
+                                          '-p', 'publish_clock:=false']
+    clock = [('/clock', 'clock')]
+    common = dict(package=PACKAGE, namespace=namespace, parameters=[params_file],
+                  output='screen', emulate_tty=True)
+    return [
+        Node(executable='simulator', name='simulator', ros_arguments=simulator_args, **common),
+        Node(executable='monitor', name='monitor', ros_arguments=follow, remappings=clock,
+             **common),
+        Node(executable='planner', name='planner', ros_arguments=follow, remappings=clock,
+             **common),
+        Node(package='rviz2', executable='rviz2', name='rviz2', namespace=namespace,
+             arguments=['-d', os.path.join(share, 'rviz', 'cell.rviz')],
+             parameters=[{'use_sim_time': sim_time}], remappings=clock, output='screen',
+             condition=IfCondition(LaunchConfiguration('rviz'))),
+    ]
+
+
+def generate_launch_description():
+    share = get_package_share_directory(PACKAGE)
+    return LaunchDescription([
+        DeclareLaunchArgument(
+            'params_file', default_value=os.path.join(share, 'config', 'cell.yaml'),
+            description='params file: the cell in /**, node settings in /**/<node>'),
+        DeclareLaunchArgument(
+            'namespace', default_value='',
+            description='ROS namespace of the whole cell (e.g. /cell2); empty: the root'),
+        DeclareLaunchArgument(
+            'use_sim_time', default_value='true',
+            description='true: the simulator is the clock; false: wall clock, real time'),
+        DeclareLaunchArgument(
+            'rviz', default_value='false', description='true: start RViz with rviz/cell.rviz'),
+        OpaqueFunction(function=_nodes),
+    ])

@@ -1,0 +1,363 @@
+"""Records from a running cell, and records played back into ROS (docs/records.md).
+
+:class:`CellRecorder` (``rheo-shaping record-cell``) subscribes to a cell's
+``tool/pose``, ``sheet/measured_profile`` (a camera, or the simulator's simulated
+one) and ``tool/wrench``, keeps the messages from the process start on (the stamp
+of the first ``tool/command``, or the latched plan's start), and writes a record
+directory: the rosbag2 MCAP bag with the messages on their own header stamps, and
+``scenario.yaml``, the nominal cell (every effect off) from a params file or from
+the running simulator's parameters.
+
+:func:`replay` (``rheo-shaping replay``) publishes a record's messages back into
+ROS in stamp order, paced on its stamps (``/clock`` too, so nodes on
+``use_sim_time`` see the recorded time).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+from ..config import cell_from_flat
+from ..effects import nominal
+from ..params import CellParams
+from ..record import Record
+from ..records import write_record
+from ..schema import iter_fields
+from . import messages as m
+from . import topics as T
+
+NS = 1_000_000_000
+#: How close [m] the last tool pose before the start must be to the first set-point for
+#: the cell to count as at rest there.
+REST_TOLERANCE = 1e-4
+
+
+class RecordCellError(RuntimeError):
+    """The cell could not be recorded; the message says why and what to do."""
+
+
+@dataclass
+class _Buffer:
+    pose: list = field(default_factory=list)       # (stamp ns, x, z)
+    profile: list = field(default_factory=list)    # (stamp ns, (M, 2) array)
+    wrench: list = field(default_factory=list)     # (stamp ns, fx, fz)
+    start_ns: int | None = None                    # the process start
+    start_xz: tuple[float, float] | None = None    # the first set-point [m]
+    first_rx_ns: int | None = None                 # stamp of the first state message received
+    planner_state: str = ""
+    ran: bool = False
+
+
+class CellRecorder(Node):
+    """Subscribes to one cell's measured topics and keeps them from the process start."""
+
+    def __init__(self, **kwargs):
+        super().__init__("record_cell", **kwargs)
+        self.buf = _Buffer()
+        sub = self.create_subscription
+        sub(T.TOOL_POSE.type, T.TOOL_POSE.name, self._on_pose, T.TOOL_POSE.qos)
+        sub(T.MEASURED_PROFILE.type, T.MEASURED_PROFILE.name, self._on_profile,
+            T.MEASURED_PROFILE.qos)
+        sub(T.TOOL_WRENCH.type, T.TOOL_WRENCH.name, self._on_wrench, T.TOOL_WRENCH.qos)
+        sub(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name, self._on_command, T.TOOL_COMMAND.qos)
+        sub(T.PLANNED_TRAJECTORY.type, T.PLANNED_TRAJECTORY.name, self._on_plan,
+            T.PLANNED_TRAJECTORY.qos)
+        sub(T.PLANNER_STATE.type, T.PLANNER_STATE.name, self._on_state, T.PLANNER_STATE.qos)
+        self.last_rx = time.monotonic()
+
+    # -- callbacks -----------------------------------------------------------------------
+    def _seen(self, stamp: int) -> None:
+        self.last_rx = time.monotonic()
+        if self.buf.first_rx_ns is None:
+            self.buf.first_rx_ns = stamp
+
+    def _on_pose(self, msg) -> None:
+        t = m.stamp_ns(msg.header.stamp)
+        self._seen(t)
+        x, z = m.pose_xz(msg)
+        self.buf.pose.append((t, x, z))
+
+    def _on_profile(self, msg) -> None:
+        t = m.stamp_ns(msg.header.stamp)
+        self._seen(t)
+        self.buf.profile.append((t, m.profile_points(msg)))
+
+    def _on_wrench(self, msg) -> None:
+        t = m.stamp_ns(msg.header.stamp)
+        self._seen(t)
+        f = msg.wrench.force
+        self.buf.wrench.append((t, float(f.x), float(f.z)))
+
+    def _on_command(self, msg) -> None:
+        t = m.stamp_ns(msg.header.stamp)
+        if t > 0 and (self.buf.start_ns is None or t <= self.buf.start_ns):
+            self.buf.start_ns = t
+            self.buf.start_xz = m.pose_xz(msg)
+
+    def _on_plan(self, msg) -> None:
+        t = m.stamp_ns(msg.header.stamp)
+        if t > 0 and (self.buf.start_ns is None or t < self.buf.start_ns):
+            self.buf.start_ns = t
+
+    def _on_state(self, msg) -> None:
+        self.buf.planner_state = msg.data
+        if msg.data in ("running", "stopping", "retracting"):
+            self.buf.ran = True
+
+    # -- the record ----------------------------------------------------------------------
+    def recorded_time(self) -> float:
+        """Process time [s] of the newest pose (0 before the start)."""
+        b = self.buf
+        if b.start_ns is None or not b.pose:
+            return 0.0
+        return max((b.pose[-1][0] - b.start_ns) / NS, 0.0)
+
+    def record(self, scenario: CellParams, name: str) -> Record:
+        """The record from the process start on (t = 0 at the start)."""
+        b = self.buf
+        if b.start_ns is None:
+            raise RecordCellError("the process never started: no tool/command and no "
+                                  "tool/planned_trajectory seen (is the planner running?)")
+        # Keep what the cell published from the start on.  The cell is at rest until the
+        # first set-point (the simulator holds the settled sheet at process time 0), so the
+        # last sample before the start is the state at the start: it is kept, stamped with
+        # the start, when it is older than the first sample after it (a busy cell may
+        # publish its first state after the start late) and its tool pose is the first
+        # set-point's.
+        t0 = b.start_ns
+        pre_pose = [p for p in b.pose if p[0] < t0]
+        pose = sorted(p for p in b.pose if p[0] >= t0)
+        at_rest = bool(pre_pose) and (b.start_xz is None or math.hypot(
+            pre_pose[-1][1] - b.start_xz[0], pre_pose[-1][2] - b.start_xz[1]) <= REST_TOLERANCE)
+        if not pre_pose and (not pose or pose[0][0] - t0 > NS // 2):
+            raise RecordCellError(
+                f"no tool/pose before the process start and none at it (the first is "
+                f"{(pose[0][0] - t0) / NS if pose else math.nan:.2f} s after it): record-cell "
+                f"joined after the process had started; start it before the cell's planner "
+                f"moves")
+
+        def with_start(samples: list, always: bool) -> list:
+            """Samples from t0 on; the last one before t0 re-stamped at t0 when the first
+            after it is late (``always``: later than t0 at all, as the record's t = 0 is
+            its first pose; else: more than the topic's median spacing)."""
+            before = [x for x in samples if x[0] < t0]
+            after = sorted((x for x in samples if x[0] >= t0), key=lambda x: x[0])
+            stamps = sorted(x[0] for x in samples)
+            spacing = float(np.median(np.diff(stamps))) if len(stamps) > 2 else 0.0
+            late = not after or after[0][0] - t0 > (0 if always else spacing)
+            if at_rest and before and late:
+                return [(t0, *before[-1][1:])] + after
+            return after
+
+        if pose and pose[0][0] > t0 and not at_rest:
+            raise RecordCellError(
+                f"the first tool/pose after the process start is {(pose[0][0] - t0) / NS:.2f} s "
+                f"late and the tool was not at rest at the first set-point before it")
+        pose = with_start(b.pose, True)
+        if len(pose) < 2:
+            raise RecordCellError(f"fewer than two tool/pose messages after the process start "
+                                  f"({len(pose)})")
+        frames = with_start(b.profile, False)
+        if len(frames) < 2:
+            raise RecordCellError(
+                f"{len(frames)} sheet/measured_profile frame(s) after the process start: a "
+                f"record needs a camera (the simulator's: camera:=true)")
+        wrench = with_start(b.wrench, True)
+        pose_a = np.array(pose, float)
+        rec = Record(scenario=scenario, pose_t=(pose_a[:, 0] - t0) / NS, pose_xz=pose_a[:, 1:],
+                     profile_t=np.array([(f[0] - t0) / NS for f in frames]),
+                     profiles=tuple(f[1] for f in frames), name=name)
+        if len(wrench) >= 2:
+            w = np.array(wrench, float)
+            rec = Record(**{**rec.__dict__, "wrench_t": (w[:, 0] - t0) / NS,
+                            "wrench_xz": w[:, 1:]})
+        return rec
+
+
+def scenario_from_simulator(node: Node, executor, simulator: str, timeout: float) -> CellParams:
+    """The nominal cell (effects off) from the running simulator's cell parameters."""
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.parameter import parameter_value_to_python
+    names = [fi.name for fi in iter_fields(CellParams)]
+    client = node.create_client(GetParameters, f"{simulator}/get_parameters")
+    end = time.monotonic() + timeout
+    while not client.service_is_ready():
+        if time.monotonic() > end:
+            raise RecordCellError(f"no {simulator}/get_parameters service within {timeout:g} s: "
+                                  f"is the simulator running (or give --params FILE)?")
+        executor.spin_once(timeout_sec=0.05)
+    future = client.call_async(GetParameters.Request(names=names))
+    while not future.done():
+        if time.monotonic() > end:
+            raise RecordCellError(f"{simulator}/get_parameters did not answer")
+        executor.spin_once(timeout_sec=0.05)
+    flat = {}
+    for n, v in zip(names, future.result().values):
+        value = parameter_value_to_python(v)
+        flat[n] = (tuple(float(x) for x in value)
+                   if not isinstance(value, (str, bytes)) and hasattr(value, "__len__")
+                   else value)
+    return nominal(cell_from_flat(flat, f"{simulator}'s parameters"))
+
+
+def record_cell(out: Path, *, namespace: str = "", scenario: CellParams | None = None,
+                duration: float | None = None, idle_timeout: float = 5.0,
+                timeout: float = 3600.0, force: bool = False,
+                progress: Callable[[str], None] | None = None,
+                start_stamp: float | None = None, start: bool = False) -> tuple[Path, Record]:
+    """Record one run of the cell in ``namespace`` and write it to ``out``.
+
+    Stops when the planner is done (or holds after an abort) and the record covers
+    ``movement.process_time``, when ``duration`` [s] of process time is recorded, when
+    the cell has been silent ``idle_timeout`` [s] of wall time after the start, after
+    ``timeout`` [s], or on Ctrl-C; then writes what it has.  ``start``: once a pose and a
+    camera frame have arrived (so the record has the state before the start), call the
+    planner's ``~/start`` (a cell whose planner has ``autostart: false``).
+    """
+    args = ["record_cell", "--ros-args"]
+    if namespace:
+        args += ["-r", f"__ns:={namespace}"]
+    context = Context()
+    rclpy.init(args=args, context=context)
+    node = CellRecorder(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    say = progress or (lambda _msg: None)
+    try:
+        cell = scenario if scenario is not None else scenario_from_simulator(
+            node, executor, f"{namespace.rstrip('/')}/simulator", 60.0)
+        end_time = duration if duration is not None else cell.movement.process_time
+        say(f"record-cell: waiting for the process start on "
+            f"{T.TOOL_COMMAND.in_namespace(namespace or '/')}")
+        if start:
+            _start_planner(node, executor, f"{namespace.rstrip('/')}/planner", timeout, say)
+        t_wall = time.monotonic()
+        t_first = None
+        next_report = 0.0
+        try:
+            while time.monotonic() - t_wall < timeout and context.ok():
+                executor.spin_once(timeout_sec=0.05)
+                t = node.recorded_time()
+                if node.buf.start_ns is not None and t >= next_report:
+                    if t_first is None:
+                        t_first = time.monotonic()
+                    elapsed = time.monotonic() - t_first
+                    eta = (f", ETA {elapsed * (end_time - t) / t:4.0f} s"
+                           if 0 < t < end_time else "")
+                    say(f"  recorded {t:6.1f} / {end_time:g} s of process time{eta} "
+                        f"({len(node.buf.profile)} frames), planner {node.buf.planner_state}")
+                    next_report += 10.0
+                done = node.buf.planner_state in ("done", "holding") and node.buf.ran
+                if t >= end_time and (done or duration is not None):
+                    break
+                if (node.buf.start_ns is not None
+                        and time.monotonic() - node.last_rx > idle_timeout):
+                    say(f"record-cell: the cell has been silent for {idle_timeout:g} s: done")
+                    break
+        except KeyboardInterrupt:
+            say("record-cell: interrupted: writing what was recorded")
+        rec = node.record(cell, out.name)
+        start = start_stamp if start_stamp is not None else node.buf.start_ns / NS
+        path = write_record(rec, out, start_stamp=start, force=force)
+        return path, rec
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def _start_planner(node: CellRecorder, executor, planner: str, timeout: float, say) -> None:
+    from std_srvs.srv import Trigger
+    end = time.monotonic() + timeout
+    client = node.create_client(Trigger, f"{planner}/start")
+    while not (node.buf.pose and node.buf.profile and client.service_is_ready()):
+        if time.monotonic() > end:
+            raise RecordCellError(f"no tool/pose and camera frame, or no {planner}/start "
+                                  f"service, within {timeout:g} s: is the cell running?")
+        executor.spin_once(timeout_sec=0.05)
+    future = client.call_async(Trigger.Request())
+    while not future.done():
+        if time.monotonic() > end:
+            raise RecordCellError(f"{planner}/start did not answer")
+        executor.spin_once(timeout_sec=0.05)
+    reply = future.result()
+    if not reply.success:
+        raise RecordCellError(f"{planner}/start refused: {reply.message}")
+    say(f"record-cell: started the planner ({reply.message})")
+
+
+# -- replay ----------------------------------------------------------------------------------
+def replay(record_dir: Path, *, namespace: str = "", rate: float = 1.0, clock: bool = True,
+           progress: Callable[[str], None] | None = None,
+           wait_for_subscribers: float = 0.0) -> dict:
+    """Publish every message of a record's bag in stamp order, paced on the stamps.
+
+    ``rate`` scales the pace (2: twice as fast); ``clock`` publishes ``clock`` (the
+    root ``/clock`` in the root namespace) with each message's stamp first. Topics keep
+    their names, moved into ``namespace``. Returns counts per topic.
+    """
+    from rosbags.rosbag2 import Reader
+
+    from ..records import read_record
+    read_record(record_dir)                       # a valid record, or RecordError
+    args = ["replay", "--ros-args"] + (["-r", f"__ns:={namespace}"] if namespace else [])
+    context = Context()
+    rclpy.init(args=args, context=context)
+    node = Node("replay", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    say = progress or (lambda _msg: None)
+    counts: dict[str, int] = {}
+    try:
+        with Reader(record_dir) as reader:
+            pubs = {}
+            for c in reader.connections:
+                topic = T.ALL.get(c.topic)
+                qos = topic.qos if topic is not None else T.STATE_QOS
+                pubs[c.id] = node.create_publisher(get_message(c.msgtype), c.topic.lstrip("/"),
+                                                   qos)
+            clock_pub = node.create_publisher(T.CLOCK.type, T.CLOCK.name, T.CLOCK.qos) \
+                if clock else None
+            if wait_for_subscribers > 0:
+                end = time.monotonic() + wait_for_subscribers
+                while (time.monotonic() < end and not all(
+                        p.get_subscription_count() > 0 for p in pubs.values())):
+                    executor.spin_once(timeout_sec=0.05)
+            t_first = None
+            wall0 = time.monotonic()
+            for conn, stamp, raw in reader.messages():
+                if t_first is None:
+                    t_first = stamp
+                    say(f"replay: {record_dir} from stamp {stamp / NS:.3f} s at x{rate:g}")
+                due = wall0 + (stamp - t_first) / NS / rate
+                while True:
+                    left = due - time.monotonic()
+                    if left <= 0:
+                        break
+                    executor.spin_once(timeout_sec=min(left, 0.05))
+                if clock_pub is not None:
+                    clock_pub.publish(m.clock_msg(stamp))
+                pubs[conn.id].publish(bytes(raw))      # the bag's CDR, as recorded
+                counts[conn.topic] = counts.get(conn.topic, 0) + 1
+        return {"record": str(record_dir), "messages": counts,
+                "wall_time_s": time.monotonic() - wall0 if counts else 0.0}
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def get_message(msgtype: str) -> type:
+    """The rclpy message class of ``pkg/msg/Name``."""
+    import importlib
+    pkg, kind, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)

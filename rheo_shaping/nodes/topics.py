@@ -1,0 +1,101 @@
+"""Every topic of the cell in one place: name, message type and QoS (docs/ros.md).
+
+The names are **relative** (no leading ``/``): in the root namespace they are
+the contract's names of INTERFACES.md (``sheet/profile`` is ``/sheet/profile``),
+and the whole cell moves with the nodes' namespace (``--ros-args -r
+__ns:=/cell2`` gives ``/cell2/sheet/profile``).  Services are private
+(``~/reset``: ``/cell2/simulator/reset``).
+
+``/clock`` is the one exception ROS itself makes: rclpy's time source
+subscribes to the absolute ``/clock``.  The simulator publishes the relative
+``clock`` (so two simulated cells in one domain do not share a clock); in a
+namespace, planner and monitor follow their own simulator with the remap
+``-r /clock:=clock`` (launch/cell.launch.py and ``rheo-shaping cell
+--namespace`` add it).
+
+Nodes, the cell runner, the recorder and the tests all take their names and
+QoS from here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseArray, PoseStamped, WrenchStamped
+from rclpy.duration import Duration
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import MarkerArray
+
+
+def _qos(depth: int, durability: DurabilityPolicy = DurabilityPolicy.VOLATILE,
+         deadline_s: float | None = None) -> QoSProfile:
+    kwargs = {} if deadline_s is None else {"deadline": Duration(seconds=deadline_s)}
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE, durability=durability,
+                      history=HistoryPolicy.KEEP_LAST, **kwargs)
+
+
+#: State topics: reliable, volatile, a queue of 100 states: a reader that a busy machine
+#: deschedules for 0.5 s of a 200 Hz stream (10x faster than real time) loses none.
+STATE_QOS = _qos(100)
+#: /tool/command: reliable with room for a whole batch of set-points.
+COMMAND_QOS = _qos(1000)
+#: The plan, the abort and the planner's state: late joiners get the last one.
+LATCHED_QOS = _qos(1, DurabilityPolicy.TRANSIENT_LOCAL)
+#: /shaping/ready: only fresh beats mean anything.
+HEARTBEAT_QOS = _qos(1)
+#: /clock: the latest value only.
+CLOCK_QOS = _qos(1)
+#: /sheet/markers: the newest picture only.
+MARKER_QOS = _qos(1)
+
+
+def tension_qos(deadline_s: float) -> QoSProfile:
+    """QoS of the tension topics with a deadline [s] (offered by the simulator,
+    requested by the monitor: ``max_data_age``)."""
+    return _qos(100, deadline_s=deadline_s)
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One topic: relative ``name``, message ``type``, ``qos`` (without a deadline)."""
+
+    name: str
+    type: type
+    qos: QoSProfile
+
+    @property
+    def contract(self) -> str:
+        """The name in the root namespace (INTERFACES.md), e.g. ``/sheet/profile``."""
+        return "/" + self.name
+
+    def in_namespace(self, namespace: str) -> str:
+        """The fully qualified name in ``namespace`` (``/cell2`` -> ``/cell2/sheet/profile``)."""
+        ns = "/" + namespace.strip("/")
+        return (ns.rstrip("/") + "/" + self.name) if ns != "/" else self.contract
+
+
+PROFILE = Topic("sheet/profile", PoseArray, STATE_QOS)
+MEASURED_PROFILE = Topic("sheet/measured_profile", PoseArray, STATE_QOS)
+TENSIONS = Topic("sheet/tensions", Float64MultiArray, STATE_QOS)
+CONTACT_TENSION = Topic("sheet/contact_tension", Float64, STATE_QOS)
+TOOL_POSE = Topic("tool/pose", PoseStamped, STATE_QOS)
+TOOL_WRENCH = Topic("tool/wrench", WrenchStamped, STATE_QOS)
+MARKERS = Topic("sheet/markers", MarkerArray, MARKER_QOS)
+CLOCK = Topic("clock", Clock, CLOCK_QOS)
+TOOL_COMMAND = Topic("tool/command", PoseStamped, COMMAND_QOS)
+PLANNED_TRAJECTORY = Topic("tool/planned_trajectory", JointTrajectory, LATCHED_QOS)
+ABORT = Topic("shaping/abort", String, LATCHED_QOS)
+READY = Topic("shaping/ready", Bool, HEARTBEAT_QOS)
+PLANNER_STATE = Topic("shaping/planner_state", String, LATCHED_QOS)
+DIAGNOSTICS = Topic("diagnostics", DiagnosticArray, STATE_QOS)
+
+#: Every topic of the cell, by its contract name.
+ALL: dict[str, Topic] = {t.contract: t for t in (
+    PROFILE, MEASURED_PROFILE, TENSIONS, CONTACT_TENSION, TOOL_POSE, TOOL_WRENCH, MARKERS, CLOCK,
+    TOOL_COMMAND, PLANNED_TRAJECTORY, ABORT, READY, PLANNER_STATE, DIAGNOSTICS)}
+
+#: The remap that makes a namespaced planner or monitor follow its own simulator's clock.
+CLOCK_REMAP = ("-r", "/clock:=clock")

@@ -1,0 +1,36 @@
+"""Every rheo-shaping command: --version, --quiet and --json (issue 15)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import rheo_shaping
+from rheo_shaping.cli import build_parser, main
+
+
+def _subparsers():
+    parser = build_parser()
+    action = next(a for a in parser._actions if a.dest == "command")
+    return action.choices
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"rheo-shaping {rheo_shaping.__version__}"
+
+
+@pytest.mark.parametrize("name", sorted(_subparsers()))
+def test_every_command_has_quiet_and_json(name):
+    options = {o for a in _subparsers()[name]._actions for o in a.option_strings}
+    assert "--quiet" in options and "--json" in options, (name, sorted(options))
+
+
+def test_quiet_prints_nothing_and_json_still_prints(tmp_path, capsys):
+    assert main(["simulate", "--movement", "2", "--quiet"]) == 0
+    assert capsys.readouterr().out == ""
+    assert main(["simulate", "--movement", "2", "--quiet", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["movement"] == 2
