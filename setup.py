@@ -37,9 +37,9 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'simulator = rheo_shaping.nodes.simulator:main',
-            'planner = rheo_shaping.nodes.planner:main',
-            'monitor = rheo_shaping.nodes.monitor:main',
+            'simulator = rheo_shaping.nodes.entry:simulator',
+            'planner = rheo_shaping.nodes.entry:planner',
+            'monitor = rheo_shaping.nodes.entry:monitor',
             'rheo-shaping = rheo_shaping.cli:main',
         ],
     },

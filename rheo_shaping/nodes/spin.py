@@ -9,6 +9,7 @@ rcl refuses: no traceback for a user's file.
 """
 from __future__ import annotations
 
+import signal
 import sys
 from typing import Callable, Iterable
 
@@ -32,6 +33,10 @@ def params_files(argv: Iterable[str]) -> list[str]:
         elif in_ros and a == "--params-file" and i + 1 < len(args):
             out.append(args[i + 1])
     return out
+
+
+def _sigterm_as_interrupt(signum, frame) -> None:  # noqa: ARG001
+    raise KeyboardInterrupt
 
 
 def _fatal(name: str, message: str) -> int:
@@ -59,8 +64,17 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
         except ConfigError as exc:
             return _fatal(name, str(exc))
     set_command_line(args)            # -p NAME:=VALUE beats the params file (ros_params)
+    # the compiled sheet step, loaded (or compiled on a user's first run) while a signal
+    # still ends the process at once (nodes/entry.py): nothing of ROS exists yet
+    from ..sheet import warm_up
+    warm_up()
     try:
+        # from here on rclpy's handlers (installed by init, chaining to these) stop the node
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
         rclpy.init(args=args)
+    except KeyboardInterrupt:
+        return 0
     except Exception as exc:          # noqa: BLE001  rcl refuses the arguments (RCLError)
         return _fatal(name, f"ROS refused the command line: {str(exc).strip()}")
     try:
@@ -74,6 +88,13 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
         # line on; the simulator then settles the sheet): a clean stop too.
         rclpy.logging.get_logger(name).info("interrupted while starting")
         rclpy.try_shutdown()
+        return 0
+    except Exception:                 # noqa: BLE001
+        # rclpy's handler shut the context down while the node was being built: rcl then
+        # refuses the next timer or publisher ("the given context is not valid")
+        if rclpy.ok():
+            raise
+        rclpy.logging.get_logger(name).info("interrupted while starting")
         return 0
     try:
         rclpy.spin(node)

@@ -32,9 +32,9 @@ JAZZY_KEYS = set(MODULE_KEYS.values()) | {"rviz2", "python3-pytest"}
 EXEC_DEPENDS = set(MODULE_KEYS.values()) | {"rviz2"}
 TEST_DEPENDS = {"python3-pytest"}
 CONSOLE_SCRIPTS = {
-    "simulator": "rheo_shaping.nodes.simulator:main",
-    "planner": "rheo_shaping.nodes.planner:main",
-    "monitor": "rheo_shaping.nodes.monitor:main",
+    "simulator": "rheo_shaping.nodes.entry:simulator",
+    "planner": "rheo_shaping.nodes.entry:planner",
+    "monitor": "rheo_shaping.nodes.entry:monitor",
     "rheo-shaping": "rheo_shaping.cli:main",
 }
 

@@ -1,0 +1,48 @@
+"""Entry points of the node executables (``simulator``, ``planner``, ``monitor``).
+
+A signal must end a node cleanly at any moment of its start-up, with exit code 0 and
+no traceback.  Before ``rclpy.init`` nothing of ROS exists yet, so SIGINT and SIGTERM
+end the process at once (:func:`_early_exit`); this covers the imports (numpy, scipy,
+numba) and the loading or first compilation of the sheet kernel
+(:func:`rheo_shaping.sheet.warm_up`), which therefore happen here, before ROS.  From
+``rclpy.init`` on, rclpy's own handler shuts the context down and
+:func:`rheo_shaping.nodes.spin.run_node` ends the node cleanly.  This module imports
+nothing heavy, so its handlers are in place within milliseconds of the start.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+
+
+def _early_exit(signum, frame) -> None:  # noqa: ARG001 - a signal handler's signature
+    os.write(2, b"interrupted while starting\n")
+    os._exit(0)
+
+
+def _run(module: str) -> int:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, _early_exit)
+    import importlib
+    node = importlib.import_module(f"rheo_shaping.nodes.{module}")
+    return node.main()
+
+
+def simulator() -> int:
+    return _run("simulator")
+
+
+def planner() -> int:
+    return _run("planner")
+
+
+def monitor() -> int:
+    return _run("monitor")
+
+
+if __name__ == "__main__":  # pragma: no cover - python -m rheo_shaping.nodes.entry NODE ...
+    name = sys.argv.pop(1) if len(sys.argv) > 1 else ""
+    if name not in ("simulator", "planner", "monitor"):
+        sys.exit("usage: python -m rheo_shaping.nodes.entry simulator|planner|monitor [--ros-args ...]")
+    sys.exit(_run(name))
