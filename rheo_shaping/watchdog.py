@@ -19,6 +19,22 @@ from dataclasses import dataclass, field
 
 
 @dataclass
+class StallGuard:
+    """Whether the checker itself stood still: more than ``limit`` [s] since its previous
+    check (steady-clock nanoseconds [ns])."""
+
+    limit: float
+    _last: int | None = field(default=None, init=False)
+
+    def check(self, now_ns: int) -> bool:
+        """Record a check at ``now_ns``; True when the previous one was over ``limit`` ago."""
+        now_ns = int(now_ns)
+        stalled = self._last is not None and (now_ns - self._last) / 1e9 > self.limit
+        self._last = now_ns
+        return stalled
+
+
+@dataclass
 class Freshness:
     """Age bookkeeping of one stream; times are steady-clock nanoseconds [ns].
 
@@ -27,11 +43,12 @@ class Freshness:
 
     timeout: float
     _last_rx: int | None = field(default=None, init=False)
-    _last_check: int | None = field(default=None, init=False)
+    _guard: StallGuard = field(init=False)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.timeout) and self.timeout > 0.0):
             raise ValueError(f"timeout = {self.timeout!r} s is invalid: expected a finite value > 0")
+        self._guard = StallGuard(0.5 * self.timeout)
 
     def received(self, now_ns: int) -> None:
         """A sample arrived at ``now_ns``."""
@@ -50,10 +67,7 @@ class Freshness:
 
         Lost: a sample is older than ``timeout`` and the previous check was at most
         ``timeout / 2`` ago.  Before the first sample the stream is lost."""
-        now_ns = int(now_ns)
-        stalled = (self._last_check is not None
-                   and (now_ns - self._last_check) / 1e9 > 0.5 * self.timeout)
-        self._last_check = now_ns
+        stalled = self._guard.check(now_ns)
         if self._last_rx is None:
             return True
         return self.age(now_ns) > self.timeout and not stalled

@@ -43,6 +43,7 @@ from ..node_params import MonitorNodeParams
 from ..params import CellParams
 from ..abort_budget import abort_horizon, configured_speed_threshold
 from ..schema import ParameterError
+from ..watchdog import StallGuard
 from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
@@ -72,6 +73,7 @@ class MonitorNode(Node):
         self._subscribe(s.max_data_age)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self._clear()
+        self._watchdog_guard = StallGuard(0.5 * s.max_data_age)
         self._watchdog = self.create_timer(s.period, self._on_watchdog, clock=self._steady)
         self._diag_timer = self.create_timer(s.diagnostics_period, self._publish_diagnostics,
                                              clock=self._steady)
@@ -127,6 +129,7 @@ class MonitorNode(Node):
 
     def _on_parameters(self, names: set[str]) -> None:
         if "max_data_age" in names:
+            self._watchdog_guard = StallGuard(0.5 * self.settings.max_data_age)
             for sub in self._subs:
                 self.destroy_subscription(sub)
             self._subscribe(self.settings.max_data_age)
@@ -335,7 +338,10 @@ class MonitorNode(Node):
             self._check_future(now)
         ages = {t: self._age(t, now) for t in TENSION_TOPICS}
         stale = [t for t, a in ages.items() if a > s.max_data_age]
-        if self.state == "ready" and stale:
+        # this process stood still for over max_data_age / 2 (a busy machine): samples may
+        # wait unread behind this timer, so they are judged at the next tick, not now
+        stalled = self._watchdog_guard.check(now)
+        if self.state == "ready" and stale and not stalled:
             t = stale[0]
             self._abort(f"stale data: no {t} for "
                         + (f"{ages[t]:.3f} s" if math.isfinite(ages[t]) else "ever")

@@ -50,6 +50,7 @@ from ..planning import MotionLimits, Plan, Waypoint, plan_waypoints
 from ..scenarios import movement_limits, movement_scenario, scenario_plan
 from ..schema import ParameterError
 from ..stopping import TrajectoryStreamer
+from ..watchdog import StallGuard
 from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
@@ -96,6 +97,7 @@ class PlannerNode(Node):
         self._last_cmd_ns: int | None = None
         self._ready = False
         self._ready_rx: int | None = None
+        self._supervise_guard: StallGuard | None = None
         self._state = ""
         self._command_timer = self.create_timer(1.0 / self.settings.control_rate, self._stream)
         self.create_timer(0.05, self._supervise, clock=self._steady)
@@ -311,6 +313,12 @@ class PlannerNode(Node):
     # -- supervision (steady clock) -------------------------------------------------
     def _supervise(self) -> None:
         ok, why = self._monitor_ok()
+        # this process stood still for over monitor_timeout / 2 (a busy machine): heartbeats
+        # may wait unread behind this timer, so a lost monitor is judged at the next tick
+        guard = self._supervise_guard
+        if guard is None or guard.limit != 0.5 * self.settings.monitor_timeout:
+            guard = self._supervise_guard = StallGuard(0.5 * self.settings.monitor_timeout)
+        stalled = guard.check(self._steady.now().nanoseconds)
         if self.streamer is None:
             if self.aborted or not (self.settings.autostart or self._start_requested):
                 self._update_state()
@@ -332,7 +340,7 @@ class PlannerNode(Node):
                 self._set_state("waiting_for_clock")
             else:
                 self._start(now)
-        elif self.streamer.state == "running" and not ok:
+        elif self.streamer.state == "running" and not ok and not stalled:
             self._abort(f"planner: monitor lost ({why})")
         self._update_state()
 

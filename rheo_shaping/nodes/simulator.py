@@ -47,6 +47,7 @@ from ..scenarios import movement_scenario
 from ..sheet import ConvergenceError
 from ..simulation import Simulation
 from ..tools import tool_shape
+from ..watchdog import Freshness
 from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
@@ -102,7 +103,7 @@ class SimulatorNode(Node):
             f"{mode}, step {self._dt_ns / NS:g} s every {self.settings.step_period:g} s")
 
     def _publisher(self, topic: T.Topic, qos=None):
-        return self.create_publisher(topic.type, topic.name, qos or topic.qos)
+        return self.create_publisher(topic.type, topic.name, T.writer_qos(qos or topic.qos))
 
     # -- parameters -------------------------------------------------------------------
     @property
@@ -152,8 +153,7 @@ class SimulatorNode(Node):
         self._cake_outline = Cake(cell.cake.height, cell.cake.fillet_radius,
                                   cell.cake.radius).outline(48)
         self._cmds: list[tuple[int, float, float]] = []
-        self._last_cmd_rx = None
-        self._last_live_check = None
+        self._commands_fresh = Freshness(self.settings.command_timeout)
         self._offset_ns = None     # process time 0 on the node/simulated clock, once started
         self._broken = ""
         self.peak = (-math.inf, 0, 0.0)          # F_max [N], link, process time [s]
@@ -193,7 +193,7 @@ class SimulatorNode(Node):
             # A set-point for a time already commanded replaces what followed (newest wins).
             self._cmds = [c for c in self._cmds if c[0] < t]
         self._cmds.append((t, x, z))
-        self._last_cmd_rx = self._steady.now().nanoseconds
+        self._commands_fresh.received(self._steady.now().nanoseconds)
         if not self.started:
             # Process time 0 is the first set-point's time, even when the planner's clock was
             # a little behind this node's physics: the settled sheet waited at t = 0, and the
@@ -208,19 +208,9 @@ class SimulatorNode(Node):
             self._try_step()
 
     def _stream_live(self) -> bool:
-        """Whether set-points still stream: one arrived within command_timeout (wall).
-
-        A gap during which this node itself did not run (a busy machine descheduled the
-        process: no check for half the timeout) is no evidence that the stream died: the
-        set-point may wait, unread, behind this timer; the stream gets one more tick."""
-        if self._last_cmd_rx is None:
-            return False
-        now = self._steady.now().nanoseconds
-        timeout = self.settings.command_timeout
-        stalled = (self._last_live_check is not None
-                   and (now - self._last_live_check) / NS > 0.5 * timeout)
-        self._last_live_check = now
-        return (now - self._last_cmd_rx) / NS < timeout or stalled
+        """Whether set-points still stream: one arrived within command_timeout (wall), judged
+        fairly after a stall of this node's own process (:class:`Freshness`)."""
+        return not self._commands_fresh.stale(self._steady.now().nanoseconds)
 
     def _tool_at_sim(self, t_ns: float) -> np.ndarray:
         """Set-point at simulated/node time ``t_ns``: linear between stamps, then hold."""

@@ -18,6 +18,7 @@ QoS from here.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -37,9 +38,19 @@ def _qos(depth: int, durability: DurabilityPolicy = DurabilityPolicy.VOLATILE,
                       history=HistoryPolicy.KEEP_LAST, **kwargs)
 
 
-#: State topics: reliable, volatile, a queue of 100 states: a reader that a busy machine
-#: deschedules for 0.5 s of a 200 Hz stream (10x faster than real time) loses none.
-STATE_QOS = _qos(100)
+#: State topics: reliable, volatile, a short queue (what a subscriber keeps unread).
+STATE_QOS = _qos(10)
+#: History a publisher of state keeps for its slower readers: one that a busy machine
+#: deschedules for 0.5 s of a 200 Hz stream (10x faster than real time) loses nothing it
+#: asked to keep (each reader still keeps only its own queue, e.g. the monitor's 10).
+WRITER_DEPTH = 100
+
+
+def writer_qos(qos: QoSProfile) -> QoSProfile:
+    """``qos`` with a publisher's history of at least :data:`WRITER_DEPTH` samples."""
+    out = copy.copy(qos)
+    out.depth = max(qos.depth, WRITER_DEPTH)
+    return out
 #: /tool/command: reliable with room for a whole batch of set-points.
 COMMAND_QOS = _qos(1000)
 #: The plan, the abort and the planner's state: late joiners get the last one.
@@ -55,7 +66,7 @@ MARKER_QOS = _qos(1)
 def tension_qos(deadline_s: float) -> QoSProfile:
     """QoS of the tension topics with a deadline [s] (offered by the simulator,
     requested by the monitor: ``max_data_age``)."""
-    return _qos(100, deadline_s=deadline_s)
+    return _qos(10, deadline_s=deadline_s)
 
 
 @dataclass(frozen=True)
