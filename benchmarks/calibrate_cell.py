@@ -2,7 +2,7 @@
 
 The paper fixes the material (k1, c1, c2, F_break), the sphere mass and
 diameter, the tool speed (1e-3 m/s), the stops (30 s; 2 x 15 s) and the
-process time (120 s).  It leaves the geometry open (PAPER-FACTS.md, last
+process time (120 s).  It leaves the geometry open (docs/paper.md, last
 section).  This script chooses a FEW of those open numbers so that the
 simulated study matches the paper; the material and the tool speed are never
 touched.

@@ -1,4 +1,4 @@
-"""The monitor's abort threshold budget (SAFETY-NOTES lesson 4), from the core.
+"""The monitor's abort threshold budget (safety principle 4, docs/safety-principles.md), from the core.
 
 With r the largest tension rate the cell can reach, t_detect the time from a
 tension sample to the planner's reaction and t_stop the tool's jerk-limited

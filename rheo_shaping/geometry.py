@@ -1,6 +1,6 @@
 """2-D rigid obstacles in frame ``cake``; their signed distance is the compiled step's own.
 
-Frame ``cake`` (docs: ``INTERFACES.md``): x horizontal, outward from the cake's
+Frame ``cake`` (docs/interfaces.md): x horizontal, outward from the cake's
 side wall (the wall is x = 0, the cake fills x <= 0 up to its height), z up
 from the workplane z = 0.  SI units (m).
 

@@ -12,7 +12,7 @@ section prefix): they live in the node's own section of the params file
         real_time_factor: 20.0
 
 No ROS imports here.  The defaults are explained in ``docs/ros.md``; the
-monitor's ``abort_ratio`` is justified by SAFETY-NOTES lesson 4 with the
+monitor's ``abort_ratio`` is justified by safety principle 4 with the
 numbers of :mod:`rheo_shaping.abort_budget`.
 """
 from __future__ import annotations
@@ -120,7 +120,7 @@ class PlannerNodeParams:
         1, "processes used by optimise_d (1: in the node's process)", "", 1, 64)
 
 
-#: ``abort_ratio`` value meaning: compute it with SAFETY-NOTES lesson 4 for the
+#: ``abort_ratio`` value meaning: compute it with safety principle 4 for the
 #: cell's configured speed (rheo_shaping.abort_budget; docs/ros.md "Abort threshold").
 AUTO_ABORT_RATIO = 0.0
 
@@ -131,7 +131,7 @@ class MonitorNodeParams:
 
     abort_ratio: float = param(
         AUTO_ABORT_RATIO, "abort when a link tension reaches abort_ratio x material.F_break; 0: "
-        "the largest ratio SAFETY-NOTES lesson 4 allows at the cell's configured speed, "
+        "the largest ratio safety principle 4 allows at the cell's configured speed, "
         "(F_break - r (detect_time + stop_time) - 3 noise_sigma) / F_break with r the largest "
         "tension rate of movements 1-4 computed by the core at start", "", 0.0, 1.0)
     noise_sigma: float = param(

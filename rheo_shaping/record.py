@@ -1,4 +1,4 @@
-"""A recorded run of a shaping cell, in memory (INTERFACES.md, "Recorded runs").
+"""A recorded run of a shaping cell, in memory (docs/interfaces.md, "Recorded runs").
 
 This is what the diagnosis reads; :mod:`rheo_shaping.records` reads and
 writes it as a rosbag2 (MCAP) directory with ``scenario.yaml``, and imports

@@ -1,4 +1,4 @@
-"""Recorded runs on disk: rosbag2 (MCAP) directories with ``scenario.yaml`` (INTERFACES.md).
+"""Recorded runs on disk: rosbag2 (MCAP) directories with ``scenario.yaml`` (docs/interfaces.md).
 
 Read and written with the ``rosbags`` library (pure Python, no ROS install):
 

@@ -78,7 +78,7 @@ def build_chain(params: CellParams) -> tuple[ChainConstants, np.ndarray]:
     x0 = drape.points(np.arange(1, n + 1) * drape.length / (n + 1))
     nodes = np.vstack((drape.top_bond, x0, drape.bottom_bond))
     link_rest = np.hypot(*np.diff(nodes, axis=0).T)   # unstretched at t = 0
-    scale = m.specimen_length / link_rest              # k L0 / l (PAPER-FACTS, scaling)
+    scale = m.specimen_length / link_rest              # k L0 / l (docs/paper.md, scaling)
     constants = ChainConstants(
         anchor_top=drape.top_bond, anchor_bottom=drape.bottom_bond,
         rest_length=link_rest, k1=m.k1 * scale, c1=(m.c1 + eff.kelvin_c1) * scale, c2=m.c2 * scale,

@@ -1,6 +1,6 @@
 """Planned, jerk-limited stops (IEC 60204-1 category 2) and the online streamer.
 
-SAFETY-NOTES lessons 3-5: an abort latches, the stop is planned (ruckig from
+Safety principles 3-5 (docs/safety-principles.md): an abort latches, the stop is planned (ruckig from
 the current state to rest within the limits, then hold), and the monitor
 budgets its threshold with the stopping time.  No ROS imports here.
 

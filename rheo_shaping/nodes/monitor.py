@@ -6,24 +6,24 @@ It aborts (``/shaping/abort``, std_msgs/String, reliable + transient local,
 the reason in ``data``) when
 
 * a tension reaches ``abort_ratio x material.F_break`` (``abort_ratio`` 0, the
-  default: the largest ratio SAFETY-NOTES lesson 4 allows at the cell's
+  default: the largest ratio safety principle 4 allows at the cell's
   configured speed, from tension rates the core computes at start);
 * the trend of the largest tension (least squares over ``trend_window``)
   predicts that threshold within ``detect_time + stop_time`` (the tool's
   reaction and jerk-limited stopping time);
-* a tension is NaN or infinite (SAFETY-NOTES lesson 2);
-* a header stamp is zero or lies in the future (lesson 2; on simulated time
+* a tension is NaN or infinite (safety principle 2);
+* a header stamp is zero or lies in the future (safety principle 2; on simulated time
   only if it is still ahead of the node's clock ``max_data_age`` later);
 * the tension data go stale: no sample for ``max_data_age`` on the steady
-  clock (a watchdog timer that does not depend on /clock, lesson 1), a QoS
+  clock (a watchdog timer that does not depend on /clock, safety principle 1), a QoS
   deadline missed, or stamps older than ``max_stamp_age`` on the node clock;
   no data within ``startup_timeout`` of the start is a fault too.
 
-The abort latches (lesson 3) until ``~/reset`` (std_srvs/Trigger), which also
+The abort latches (safety principle 3) until ``~/reset`` (std_srvs/Trigger), which also
 clears the transient-local abort (the publisher is re-created).  The monitor
 publishes a heartbeat ``/shaping/ready`` (std_msgs/Bool) every ``period``:
 true while it has fresh, valid data and has not aborted; the planner moves only
-then (the interlock, lesson 6).  ``/diagnostics``: OK / WARN / ERROR (STALE
+then (the interlock, safety principle 6).  ``/diagnostics``: OK / WARN / ERROR (STALE
 while waiting for data) with tension, safety factor and data age.
 """
 from __future__ import annotations
@@ -102,7 +102,7 @@ class MonitorNode(Node):
         return abort_horizon(self.cell, self.settings.detect_time, self.settings.stop_time)
 
     def _set_ratio(self) -> None:
-        """``abort_ratio``, or with 0 the lesson-4 bound at the configured speed (core runs)."""
+        """``abort_ratio``, or with 0 the principle-4 bound at the configured speed (core runs)."""
         s = self.settings
         if s.abort_ratio > 0:
             self.ratio, self.budget = s.abort_ratio, None
@@ -116,14 +116,14 @@ class MonitorNode(Node):
         Fb = cell.material.F_break
         if F_abort <= 0:
             raise ParameterError(
-                f"abort_ratio 0: no threshold meets SAFETY-NOTES lesson 4 at movement.speed "
+                f"abort_ratio 0: no threshold meets safety principle 4 at movement.speed "
                 f"{cell.movement.speed:g} m/s (r = {r:.3f} N/s, detect_time + stop_time = "
                 f"{self.horizon:.3f} s): lower the speed or set abort_ratio")
         self.ratio = F_abort / Fb
         self.budget = {"r": r, "horizon": self.horizon, "sigma": s.noise_sigma,
                        "rows": [(row.movement, row.F_max, row.r) for row in rows]}
         self.get_logger().info(
-            f"abort_ratio 0: lesson 4 at {cell.movement.speed * 1e3:g} mm/s: r = {r:.3f} N/s "
+            f"abort_ratio 0: safety principle 4 at {cell.movement.speed * 1e3:g} mm/s: r = {r:.3f} N/s "
             f"(movements 1-4, core), F_abort = {Fb:g} - {r:.3f} x {self.horizon:.3f} - "
             f"3 x {s.noise_sigma:g} = {F_abort:.4f} N, ratio {self.ratio:.3f}")
 

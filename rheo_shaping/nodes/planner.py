@@ -7,7 +7,7 @@ straight lines by phase synchronisation, dwells between.  It is the same plan
 the offline run (``rheo-shaping simulate``) uses.  With ``optimise_d`` the node
 first picks movement 4's d with the core model (:func:`rheo_shaping.optimise.best_d`).
 
-Interlock (SAFETY-NOTES lesson 6).  With ``wait_for_monitor`` the planner
+Interlock (safety principle 6, docs/safety-principles.md).  With ``wait_for_monitor`` the planner
 starts only while the monitor's ``/shaping/ready`` heartbeat says ready and is
 younger than ``monitor_timeout`` (steady clock); a heartbeat that stops or
 turns false while the tool moves is treated as an abort.
@@ -20,7 +20,7 @@ jumps by more than one period, every set-point in between is published, plus
 one at the clock's time).  The whole plan is published once on
 ``/tool/planned_trajectory`` (transient local; header stamp = t0).
 
-Abort (lessons 3 and 5).  ``/shaping/abort`` (transient local) makes the
+Abort (safety principles 3 and 5).  ``/shaping/abort`` (transient local) makes the
 streamer stop at once from the exact current state with ruckig (target: rest,
 within the plan's acceleration and jerk limits), then retract slowly to
 ``tool.home`` (``retract_*`` limits) and hold.  The abort latches: the old
@@ -239,7 +239,7 @@ class PlannerNode(Node):
         """Why autostart is unsafe: the tool is neither at home nor at the plan's start.
 
         A planner (re)started while the tool stands somewhere in a run must not
-        run a plan from its beginning on its own (SAFETY-NOTES lesson 3): it
+        run a plan from its beginning on its own (safety principle 3): it
         waits for ~/start, which plans an approach from where the tool is.
         """
         if self._tool_pose is None or self._hold is not None:

@@ -1,7 +1,7 @@
 """The ``simulator`` node: the sheet model of the cell under the streamed tool set-point.
 
 It runs the core (:class:`rheo_shaping.simulation.Simulation`) and publishes
-the cell's state (INTERFACES.md): ``/sheet/profile``, ``/sheet/tensions``,
+the cell's state (docs/interfaces.md): ``/sheet/profile``, ``/sheet/tensions``,
 ``/sheet/contact_tension``, ``/tool/pose``, ``/tool/wrench``, and
 ``/sheet/markers`` for RViz; its own status on ``/diagnostics``.
 

@@ -1,7 +1,7 @@
 """Every topic of the cell in one place: name, message type and QoS (docs/ros.md).
 
 The names are **relative** (no leading ``/``): in the root namespace they are
-the contract's names of INTERFACES.md (``sheet/profile`` is ``/sheet/profile``),
+the contract's names of docs/interfaces.md (``sheet/profile`` is ``/sheet/profile``),
 and the whole cell moves with the nodes' namespace (``--ros-args -r
 __ns:=/cell2`` gives ``/cell2/sheet/profile``).  Services are private
 (``~/reset``: ``/cell2/simulator/reset``).
@@ -79,7 +79,7 @@ class Topic:
 
     @property
     def contract(self) -> str:
-        """The name in the root namespace (INTERFACES.md), e.g. ``/sheet/profile``."""
+        """The name in the root namespace (docs/interfaces.md), e.g. ``/sheet/profile``."""
         return "/" + self.name
 
     def in_namespace(self, namespace: str) -> str:

@@ -1,4 +1,4 @@
-"""The monitor node in-process, fed by a fake cell over DDS (SAFETY-NOTES lessons 1-3)."""
+"""The monitor node in-process, fed by a fake cell over DDS (safety principles 1-3)."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""The core behind the nodes' settings: the abort budget (SAFETY-NOTES lesson 4), the choice
+"""The core behind the nodes' settings: the abort budget (safety principle 4), the choice
 of d (paper Fig. 18), params files with node sections, and docs/ros.md's tables."""
 from __future__ import annotations
 

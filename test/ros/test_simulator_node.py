@@ -1,4 +1,4 @@
-"""The simulator node in-process: topics and their contract (INTERFACES.md), /clock,
+"""The simulator node in-process: topics and their contract (docs/interfaces.md), /clock,
 following the set-points, lockstep, reset."""
 from __future__ import annotations
 
