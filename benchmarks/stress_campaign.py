@@ -1,0 +1,274 @@
+#!/usr/bin/env python3
+"""The abort campaign under load and loss: does the monitor still stop every tear, and
+only tears, on a busy computer and a lossy network?
+
+Conditions (``--conditions``, any of):
+
+* ``idle``: the campaign as ``abort_campaign.py`` runs it (three nodes in one process);
+* ``cpu``: the same while a CPU hog keeps both cores busy (``stress-ng --cpu N`` when
+  installed, else one Python busy loop per core), started and stopped by this script;
+* ``loss``: the three nodes as three processes in a network namespace of their own
+  (``ip netns``), DDS forced onto UDP (``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``; Fast DDS
+  otherwise uses shared memory between processes on one host), and a random drop of
+  ``--loss`` percent of the incoming UDP packets on the namespace's loopback (nftables,
+  input hook, ``numgen random mod 100 < loss drop``). The namespace is made and removed
+  here; its traffic never leaves it. Needs root, iproute2 and nftables.
+
+In the process mode the figures come from the nodes' own logs (the simulator's F_max
+over the whole process, which includes everything after an abort; the planner's stop
+and rest times; the monitor's threshold and abort reason), never from a lossy observer;
+the threshold crossing comes from the offline run of the same plan, which the closed
+loop follows until the abort. A false abort under loss is reported with its reason,
+so that aborts on data that really went stale can be told from wrong ones.
+
+Bounded: ``--runs`` per condition and seed, each run under a timeout; the hog and the
+namespace are removed on exit, also on Ctrl-C.
+
+    sudo .venv/bin/python benchmarks/stress_campaign.py [--runs 300] [--seeds 1,2]
+        [--conditions idle,cpu,loss] [--loss 5] [--jobs 2] [--json] [--save FILE]
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+import abort_campaign as campaign  # noqa: E402
+
+BIN = Path(sys.executable).parent
+NUM = r"([-+0-9.eE]+|inf|nan)"
+
+
+# -- the CPU hog ----------------------------------------------------------------------------
+@contextlib.contextmanager
+def cpu_hog(cores: int):
+    """Keep ``cores`` cores busy for the duration of the block."""
+    if shutil.which("stress-ng"):
+        procs = [subprocess.Popen(["stress-ng", "--cpu", str(cores), "--timeout", "86400s"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                  start_new_session=True)]
+    else:
+        loop = "import time\nend = time.monotonic() + 86400\nwhile time.monotonic() < end: pass"
+        procs = [subprocess.Popen([sys.executable, "-c", loop], start_new_session=True)
+                 for _ in range(cores)]
+    try:
+        yield
+    finally:
+        for p in procs:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+
+
+# -- the lossy namespace ------------------------------------------------------------------
+def _sh(*cmd: str) -> None:
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+
+
+@contextlib.contextmanager
+def lossy_namespace(loss_percent: int):
+    """A network namespace with only a loopback that drops ``loss_percent`` % of incoming
+    UDP packets; yields the command prefix that runs a program inside it."""
+    name = f"rheo-loss-{os.getpid()}"
+    _sh("ip", "netns", "add", name)
+    try:
+        inside = ["ip", "netns", "exec", name]
+        _sh(*inside, "ip", "link", "set", "lo", "up")
+        _sh(*inside, "nft", "add", "table", "inet", "rheo")
+        _sh(*inside, "nft", "add", "chain", "inet", "rheo", "input",
+            "{ type filter hook input priority 0; }")
+        rule = ["meta", "l4proto", "udp"]
+        if 0 < loss_percent < 100:
+            rule += ["numgen", "random", "mod", "100", "lt", str(int(loss_percent))]
+        if loss_percent > 0:
+            _sh(*inside, "nft", "add", "rule", "inet", "rheo", "input", *rule, "drop")
+        yield inside
+    finally:
+        subprocess.run(["ip", "netns", "del", name], capture_output=True)
+
+
+# -- one case with three node processes ---------------------------------------------------
+def run_case_processes(index: int, cell, prefix: list[str], domain: int,
+                       timeout: float) -> dict:
+    """Offline run, then the cell as three processes (inside ``prefix``); figures from logs."""
+    import numpy as np
+
+    from rheo_shaping.clearance import plan_clearance
+    from rheo_shaping.config import dump_cell
+    from rheo_shaping.scenarios import movement_scenario, scenario_plan
+    from rheo_shaping.simulation import run_scenario
+    import yaml
+
+    mv = cell.movement
+    row = {"case": index, "movement": mv.number, "speed_factor": mv.speed / 1e-3,
+           "k1": cell.material.k1, "c2": cell.material.c2, "F_break": cell.material.F_break,
+           "d": mv.d if mv.number == 4 else None}
+    try:
+        plan = scenario_plan(cell, movement_scenario(cell))
+        if plan_clearance(cell, plan.plan).gap < cell.sheet.thickness:
+            return {**row, "failed": "plan refused by the clearance check"}
+        offline = run_scenario(cell, plan)
+    except (RuntimeError, ValueError) as exc:
+        return {**row, "failed": f"offline: {exc}"}
+    row["F_max_offline"] = float(offline.F_max)
+    row["would_tear"] = bool(offline.F_max >= cell.material.F_break)
+    rtf = campaign.RTF
+    with tempfile.TemporaryDirectory(prefix="rheo-stress-") as tmp:
+        params = Path(tmp) / "cell.yaml"
+        data = yaml.safe_load(dump_cell(cell))
+        data["/**/simulator"] = {"ros__parameters": {
+            "real_time_factor": rtf, "step_period": 0.2 / rtf, "publish_period": 0.0,
+            "publish_markers": False, "camera": False}}
+        data["/**/planner"] = {"ros__parameters": {"use_sim_time": True, "autostart": True}}
+        data["/**/monitor"] = {"ros__parameters": {"use_sim_time": True}}
+        params.write_text(yaml.safe_dump(data, sort_keys=False))
+        env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                   FASTDDS_BUILTIN_TRANSPORTS="UDPv4", RCUTILS_LOGGING_BUFFERED_STREAM="0")
+        logs = {n: Path(tmp) / f"{n}.log" for n in ("simulator", "planner", "monitor")}
+        procs = {}
+        for n, log in logs.items():
+            procs[n] = subprocess.Popen([*prefix, str(BIN / n), "--ros-args", "--params-file",
+                                         str(params)], stdout=open(log, "w"),
+                                        stderr=subprocess.STDOUT, env=env, stdin=subprocess.DEVNULL,
+                                        start_new_session=True)
+        t0 = time.monotonic()
+        done = False
+        while time.monotonic() - t0 < timeout:
+            sim_log = logs["simulator"].read_text(errors="replace")
+            if "process time" in sim_log and "reached: F_max" in sim_log:
+                done = True
+                break
+            if any(p.poll() is not None for p in procs.values()):
+                break
+            time.sleep(0.2)                      # polling the logs of processes we wait for
+        for p in procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        for p in procs.values():
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
+        text = {n: log.read_text(errors="replace") for n, log in logs.items()}
+    if not done:
+        return {**row, "failed": "closed loop: no process end within the timeout",
+                "log_tail": {n: t[-600:] for n, t in text.items()}}
+    m = re.search(rf"reached: F_max = {NUM} N", text["simulator"])
+    largest = float(m.group(1))
+    m = re.search(rf"monitor up: abort at {NUM} N", text["monitor"])
+    thr = float(m.group(1)) if m else math.nan
+    start = re.search(rf"process starts at {NUM} s", text["simulator"])
+    stop = re.search(rf"stopping from \w+ at {NUM} s, at rest in {NUM} s", text["planner"])
+    aborted = "ABORT" in text["planner"] or "ABORT" in text["monitor"]
+    reason = ""
+    m = re.search(r"ABORT \((.*?)\)(?::|$)", text["planner"], re.M)
+    if m:
+        reason = m.group(1)
+    abort_t = rest_t = None
+    if stop and start:
+        abort_t = float(stop.group(1)) - float(start.group(1))
+        rest_t = abort_t + float(stop.group(2))
+    largest_offline = offline.tension.max(axis=1)           # the plan's run without a monitor
+    crossed = offline.t[largest_offline >= thr]
+    t_cross = float(crossed[0]) if crossed.size else None
+    row.update({
+        "threshold_N": thr, "aborted": aborted, "aborted_before_threshold": False,
+        "reason": reason, "largest_N": largest, "finished": True, "wall_time_s": None,
+        "false_abort": bool(aborted and offline.F_max < thr),
+        "missed": bool(offline.F_max >= thr and not aborted),
+        "cross_to_abort_s": (abort_t - t_cross) if (abort_t is not None and t_cross is not None) else None,
+        "cross_to_rest_s": (rest_t - t_cross) if (rest_t is not None and t_cross is not None) else None,
+        "abort_to_rest_s": (rest_t - abort_t) if (rest_t is not None and abort_t is not None) else None,
+        "max_tension_after_abort_N": largest if aborted else None,
+    })
+    row["tore"] = bool(largest >= cell.material.F_break)
+    return row
+
+
+# -- main -----------------------------------------------------------------------------------
+def run_condition(condition: str, seed: int, args) -> dict:
+    import random
+
+    from rheo_shaping.params import CellParams
+    rng = random.Random(seed)
+    cells = [campaign.sample_cell(CellParams(), rng) for _ in range(args.runs)]
+    t0 = time.monotonic()
+    if condition in ("idle", "cpu"):
+        from rheo_shaping.parallel import executor_from_spec, run_tasks
+        shared = {"domain": args.domain, "trend": False}
+        hog = cpu_hog(os.cpu_count() or 2) if condition == "cpu" else contextlib.nullcontext()
+        with hog, executor_from_spec(None, jobs=args.jobs) as ex:
+            rows = run_tasks(ex, campaign._campaign_task, shared, list(enumerate(cells)),
+                             chunks_per_worker=8)
+    else:
+        rows = []
+        with lossy_namespace(args.loss) as prefix:
+            for i, cell in enumerate(cells):
+                rows.append(run_case_processes(i, cell, prefix, args.domain, args.timeout))
+                print(f"  loss case {i + 1}/{len(cells)}", file=sys.stderr, flush=True)
+    summary = campaign.summarise(rows, time.monotonic() - t0)
+    summary.update(condition=condition, seed=seed)
+    if condition == "loss":
+        summary["loss_percent"] = args.loss
+        summary["false_abort_reasons"] = sorted({r.get("reason", "") for r in rows
+                                                 if r.get("false_abort")})
+    return {"summary": summary, "runs": rows}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=300, help="runs per condition and seed")
+    ap.add_argument("--seeds", default="1,2", help="comma-separated seeds (default 1,2)")
+    ap.add_argument("--conditions", default="idle,cpu,loss")
+    ap.add_argument("--loss", type=int, default=5, help="percent of UDP packets dropped (loss)")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--domain", type=int, default=120, help="first ROS domain id to claim")
+    ap.add_argument("--timeout", type=float, default=120.0, help="wall time per loss run [s]")
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--save", metavar="FILE", help="write every run to FILE (JSON); never overwritten")
+    args = ap.parse_args(argv)
+    conditions = [c for c in args.conditions.split(",") if c]
+    bad = [c for c in conditions if c not in ("idle", "cpu", "loss")]
+    if bad or args.runs < 1 or not (0 <= args.loss <= 100):
+        print(f"stress_campaign: error: conditions from idle,cpu,loss (got {bad}), --runs >= 1, "
+              f"--loss in [0, 100]", file=sys.stderr)
+        return 2
+    if "loss" in conditions and (os.geteuid() != 0 or not shutil.which("nft")):
+        print("stress_campaign: error: the loss condition needs root and nftables (nft)",
+              file=sys.stderr)
+        return 2
+    if args.save and Path(args.save).exists():
+        print(f"stress_campaign: error: {args.save} exists: not overwritten", file=sys.stderr)
+        return 2
+    seeds = [int(s) for s in args.seeds.split(",") if s]
+    results = [run_condition(c, s, args) for c in conditions for s in seeds]
+    if args.save:
+        Path(args.save).write_text(json.dumps(results, indent=1))
+    keys = ("condition", "seed", "runs", "failed", "would_tear", "tears", "aborts", "false_aborts",
+            "missed", "cross_to_rest_p99_s", "max_tension_after_abort_N", "wall_time_s")
+    table = [{k: r["summary"].get(k) for k in keys} | (
+        {"false_abort_reasons": r["summary"]["false_abort_reasons"]}
+        if "false_abort_reasons" in r["summary"] else {}) for r in results]
+    if args.json:
+        print(json.dumps(table))
+    else:
+        for row in table:
+            print(row)
+    return 0 if all(r["summary"]["tears"] == 0 for r in results) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
