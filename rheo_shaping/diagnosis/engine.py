@@ -68,6 +68,7 @@ PROBES: dict = {
 GRID = 41          # magnitudes tried per curve effect on the linearised model
 CHECKED = 2        # single effects checked by simulation
 PAIRED = 3         # pairs among this many best single effects
+REFINE_STEPS = 3   # chord steps of each checked candidate (each simulated)
 
 
 @dataclass
@@ -87,6 +88,7 @@ class Candidate_:
     baseline_u: np.ndarray | None = None
     interval: dict = field(default_factory=dict)
     chain_free: bool = False        # the measurement chain's hypothesis (chain beyond tolerance)
+    z_raw: np.ndarray | None = field(default=None, repr=False)   # fit records' z at the last run
 
     @property
     def candidate(self) -> Candidate:
@@ -337,7 +339,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             effects.sort(key=lambda c: (c.p, c.J))
             chain_c.p = min(1.0, stats.chi2_sf(chain_c.LR, chain_c.k) * (m + 1))
             _check(effects[:CHECKED] + [chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
-                   parts_B, n_eff, J_base_h, m, chain_free)
+                   parts_B, n_eff, J_base_h, m, chain_free, (A_sheet, responses, REFINE_STEPS))
         elif gap_left:
             _check([chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
                    parts_B, n_eff, J_base_h, 1, chain_free)
@@ -370,7 +372,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 pairs.sort(key=lambda c: (c.p, c.J))
                 if pairs:
                     _check(pairs[:1], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
-                           parts_B, n_eff, J_base_h, m)
+                           parts_B, n_eff, J_base_h, m, chain_free, (A_sheet, responses, REFINE_STEPS))
                     bp = pairs[0]
                     bp.adequate = bp.checked and _adequate(bp, J_base_h, bool(hold_d))
                     # a pair must beat each of its parts significantly
@@ -560,34 +562,109 @@ def _fit_pair(a: Candidate_, b: Candidate_, responses, zB_raw, solver: Solver, l
 
 
 def _check(cands, run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit, parts_B, n_eff,
-           J_base_h, m, chain_free=None) -> None:
-    """Simulate the candidates at their fitted values (fit and holdout records)."""
-    tasks = []
+           J_base_h, m, chain_free=None, refine=None) -> None:
+    """Simulate the candidates at their fitted values (fit and holdout records).
+
+    With ``refine = (A_sheet, responses, steps)``, each effect candidate then takes up to
+    ``steps`` chord steps (the baseline's Jacobian and the effect's probe response, from the
+    simulated point), each simulated and kept only when it lowers J on the fit records.
+    """
+    points = []
     for c in cands:
-        u_new = u_s + c.baseline_u[:n_s]
+        points.append((c, np.clip(u_s + c.baseline_u[:n_s], -1, 1), c.values))
+    _simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
+                     chain_free, first=True)
+    if refine is None:
+        return
+    A_sheet, responses, steps = refine
+    for _ in range(steps):
+        points = []
+        for c in cands:
+            if c.chain_free or not math.isfinite(c.J) or c.z_raw is None:
+                continue
+            step = _chord(c, A_sheet, G, responses, n_s)
+            if step is not None:
+                points.append((c, *step))
+        if not points:
+            break
+        _simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff,
+                         m, chain_free, first=False)
+
+
+def _simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
+                     chain_free, first: bool) -> None:
+    tasks = []
+    for c, u_sheet, vals in points:
+        cand = tuple((n, vals[n]) for n in c.names)
         for d in list(fit_d) + list(hold_d):
-            try:
-                tasks.append(Task(d, apply(base_params(d, np.clip(u_new, -1, 1)), c.candidate)))
-            except (ParameterError, ValueError):
-                tasks.append(Task(d, apply(base_params(d, u_s), c.candidate)))
+            tasks.append(Task(d, apply(base_params(d, u_sheet), cand)))
     outs = run(tasks)
     nd = len(fit_d) + len(hold_d)
-    for i, c in enumerate(cands):
+    for i, (c, u_sheet, vals) in enumerate(points):
         o = outs[i * nd:(i + 1) * nd]
         if not _ok(o):
-            c.checked, c.J, c.p = True, math.inf, 1.0
+            if first:
+                c.checked, c.J, c.p = True, math.inf, 1.0
             continue
+        z_raw = G.z(o[:len(fit_d)])
         if c.chain_free:
-            uc, J, zc = chain_fit(G.z(o[:len(fit_d)]), -chain_free, chain_free)
+            uc, J, zc = chain_fit(z_raw, -chain_free, chain_free)
         else:
-            uc, J, zc = chain_fit(G.z(o[:len(fit_d)]))
-        c.J, c.J_parts = J, G.stack.J_parts(zc)
+            uc, J, zc = chain_fit(z_raw)
+        if not first and not J < c.J:
+            continue
+        for n in c.names:
+            if n in c.interval:
+                c.interval[n] = [(lo + vals[n][k] - c.values[n][k], hi + vals[n][k] - c.values[n][k])
+                                 for k, (lo, hi) in enumerate(c.interval[n])]
+        c.J, c.J_parts, c.z_raw, c.values = J, G.stack.J_parts(zc), z_raw, dict(vals)
         c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
         c.p = min(1.0, stats.chi2_sf(c.LR, c.k) * m)
         if H is not None:
             c.J_holdout = H.J(H.z(o[len(fit_d):]) + H.chain @ uc)
-        c.baseline_u = np.r_[np.clip(u_s + c.baseline_u[:n_s], -1, 1), uc]
+        c.baseline_u = np.r_[u_sheet, uc]
         c.checked = True
+
+
+def _chord(c, A_sheet, G, responses, n_s):
+    """The next point (sheet u, values) of candidate ``c``: one linearised step from its run."""
+    cols, lo_e, hi_e, slots = [], [], [], []
+    for name in c.names:
+        kind, vals, top = PROBES[name]
+        resp = [(v, d) for v, d in responses[name] if d is not None]
+        e = EFFECTS[name]
+        cur = c.values[name]
+        if kind == "linear":
+            for v, d in resp:
+                k = int(np.argmax(np.abs(v)))
+                cols.append(d / v[k])
+                lo_e.append(e.bounds[k][0] - cur[k])
+                hi_e.append(e.bounds[k][1] - cur[k])
+                slots.append((name, k, False))
+        else:
+            mags = [(_magnitude(name, v[0]), d) for v, d in resp]
+            if len(mags) < 2:
+                return None
+            (m1, d1), (m2, d2) = mags
+            a = _magnitude(name, cur[0])
+            cols.append(d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1))
+            lo_e.append(-a)
+            hi_e.append(_magnitude(name, top) - a)
+            slots.append((name, 0, True))
+    u_cur = c.baseline_u[:n_s]
+    A = np.hstack((A_sheet, G.chain))
+    lim = np.ones(G.chain.shape[1])
+    du, _ = Solver(A).solve(c.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
+                            np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
+    u_new = np.clip(u_cur + du[:n_s], -1, 1)
+    vals = {n: list(v) for n, v in c.values.items()}
+    for (name, k, is_curve), x in zip(slots, du[A.shape[1]:]):
+        if is_curve:
+            a = _magnitude(name, vals[name][0]) + x
+            vals[name][0] = (1.0 - a) if name == "power_law" else a
+        else:
+            vals[name][k] = vals[name][k] + x
+    return u_new, {n: tuple(float(x) for x in v) for n, v in vals.items()}
 
 
 def _adequate(c: Candidate_, J_base_h: float, has_holdout: bool) -> bool:

@@ -72,13 +72,14 @@ def test_phases_follow_the_movement():
 
 def test_balanced_misfit_and_chain_columns_are_exact():
     """J of the stacked vector is (J_p + J_f) / 2; a vision offset and a load-cell bias are
-    linear in the residuals, so the chain's columns recover them exactly (no noise)."""
+    linear in the residuals to first order: the chain's columns recover them (no noise)."""
     ms = MeasurementParams(profile_noise=0.0, pose_noise=0.0, wrench_noise=0.0)
     rec, _ = synthesize_record(cell(4, n_masses=15, process_time=40.0), ms, seed=4)
     off, bias = np.array([4e-4, -3e-4]), np.array([0.0, 0.02])
+    clean = RecordData.of(rec)
     rec = replace(rec, profiles=tuple(f + off for f in rec.profiles), wrench_xz=rec.wrench_xz + bias)
     data = RecordData.of(rec)
-    (o,) = run_batch([Task(data, rec.scenario)])
+    o, oc = run_batch([Task(data, rec.scenario), Task(clean, rec.scenario)])
     st = Stack([data.point_frame], [True], 1e-4, 1e-2)
     st.set_force_count([o])
     z = st.vec([o])
@@ -91,7 +92,10 @@ def test_balanced_misfit_and_chain_columns_are_exact():
     fitted = u * np.array([k.tolerance for k in CHAIN])
     assert fitted[0] == pytest.approx(off[0], abs=2e-5) and fitted[1] == pytest.approx(off[1], abs=2e-5)
     assert fitted[3] == pytest.approx(bias[1], abs=1e-4) and abs(fitted[2]) < 1e-4
-    assert J < 1e-3 * (z @ z)
+    zc = st.vec([oc])
+    assert z @ z > 10 * (zc @ zc)
+    # what is left is below a tenth of the noise variance (foot points move along the bends)
+    assert J < 0.1
 
 
 def test_effective_sample_size():
