@@ -148,6 +148,7 @@ def test_an_effect_outside_the_library_is_unexplained_with_a_signature():
     assert case["truth"][0][0] == "friction_mould"
     rec = case["records"]
     d = diagnose(rec[:2], rec[2:], library=("tool_offset", "mass_error"), jobs=2)
+    assert d.p_gap <= stats.ALPHA
     assert d.verdict == "unexplained"
     sig = d.signature
     assert {"observables", "where", "when", "trend", "proportional_to", "causes"} <= set(sig)
