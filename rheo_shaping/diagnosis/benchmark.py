@@ -149,7 +149,8 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
 def score_case(case: dict, diag) -> dict:
     names = [n for n, _ in case["truth"]]
     verdict = diag.verdict
-    named = verdict.split("+") if verdict not in ("none", "unexplained") else []
+    named = (verdict.split("+") if verdict not in ("none", "unexplained", "measurement chain")
+             else [])
     vf = diag.verdict_fit
     row = {"index": case["index"], "kind": case["kind"], "movements": case["movements"],
            "truth": {n: list(v) for n, v in case["truth"]}, "sensor": case["sensor"],

@@ -475,7 +475,16 @@ def _fit_linear(name, resp, zB_raw, solver: Solver, lo, hi, G: _Group, n_eff, pa
         z = solver.residual(zB_raw, u, E)
         c = Candidate_((name,), {name: tuple(vals_fit)}, J, G.stack.J_parts(z), k=len(cols),
                        baseline_u=u[:solver.A.shape[1]])
-        c.interval = {name: [(v, v) for v in vals_fit]}
+        # 95 % interval: the value whose LR drop is 3.84 (effective sample size), the baseline
+        # refitted (the column with the baseline's columns projected out)
+        e_perp = E - solver.Q @ (solver.Q.T @ E)
+        ntot = sum(n_eff.values())
+        ivs = [(v, v) for v in vals_fit]
+        for (k, _), col in zip(cols, e_perp.T):
+            h = float(col @ col)
+            half = math.sqrt(3.84 * J / (ntot * h)) if h > 0 else math.inf
+            ivs[k] = (vals_fit[k] - half, vals_fit[k] + half)
+        c.interval = {name: ivs}
     else:
         mags = [(_magnitude(name, v[0]), d) for v, d in resp]
         if len(mags) < 2:

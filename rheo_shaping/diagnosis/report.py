@@ -87,7 +87,8 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
                  f"{diag.p_gap:.3g}.")
     vf = diag.verdict_fit
     if vf:
-        lines.append(f"Strength: likelihood ratio {vf.LR:.1f} on {vf.k} parameter(s), p = {vf.p:.3g} "
+        pv = f"{vf.p:.3g}" if vf.p > 0 else "< 1e-300"
+        lines.append(f"Strength: likelihood ratio {vf.LR:.1f} on {vf.k} parameter(s), p = {pv} "
                      f"(Bonferroni over the candidates); what it leaves: J - 1 = {vf.J - 1:.4f} "
                      f"(fit), {_fmt(vf.J_holdout - 1 if math.isfinite(vf.J_holdout) else None, 1, 4)} "
                      "(holdout).")
@@ -96,7 +97,8 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
             e = EFFECTS[n]
             for k, v in enumerate(vals):
                 lo, hi = vf.interval[n][k]
-                lines.append(f"- {n}.{e.fit[k]} = {v:.4g} {e.unit[k]} (interval {lo:.4g} .. {hi:.4g})")
+                lines.append(f"- {n}.{e.fit[k]} = {v:.4g} {e.unit[k]} (95 % interval {lo:.4g} .. "
+                             f"{hi:.4g})")
     elif diag.verdict == "none":
         lines.append("The calibrated baseline agrees with the records as well as it does on "
                      "effect-free records: no effect is named.")
