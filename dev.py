@@ -302,15 +302,16 @@ _PYTEST_EXIT = {0: "passed", 1: "tests failed", 2: "interrupted", 3: "internal e
 
 
 def cmd_test(args: list[str], verbose: bool) -> int:
+    t_all = time.monotonic()
     ensure_venvs([CORE, FULL], verbose)
+    t_setup = time.monotonic() - t_all
     env = ros_env()
     if sys.stdout.isatty():
         env.setdefault("PY_COLORS", "1")  # pytest's colours survive our pipe
     opts, core_paths, ros_paths = _split_pytest_args(args)
     explicit = bool(core_paths or ros_paths)
-    results: list[tuple[str, bool, str]] = []
+    results: list[tuple[str, bool, str]] = [("setup", True, f"venvs ready; {t_setup:.0f} s")]
     totals = {"passed": 0, "failed": 0, "skipped": 0}
-    t_all = time.monotonic()
 
     def pytest_stage(stage: str, venv: Venv, paths: list[str]) -> None:
         t0 = time.monotonic()

@@ -38,7 +38,9 @@ Runs that fail (solver error, planner refusal, timeout) are counted in
     .venv/bin/python benchmarks/abort_campaign.py [--runs 300] [--seed 1] [--jobs 2] [--json]
         [--save benchmarks/results/abort_campaign.json]
 
-Needs the full venv (rclpy). Each worker process uses its own ROS domain.
+Needs the full venv (rclpy). Each case claims a ROS domain of its own on the
+machine it runs on (a lock file per domain id), so cases can run on a local
+process pool or on a Dask cluster (``--executor dask://HOST:PORT``).
 """
 from __future__ import annotations
 
@@ -50,7 +52,7 @@ import random
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
+import contextlib
 from dataclasses import replace
 from pathlib import Path
 
@@ -80,11 +82,31 @@ def sample_cell(base: CellParams, rng: random.Random) -> CellParams:
                    material=replace(m, k1=m.k1 * rng.uniform(0.8, 1.2), c2=m.c2 * rng.uniform(0.8, 1.2)))
 
 
-def _init_worker(domain: "object") -> None:
-    with domain.get_lock():
-        os.environ["ROS_DOMAIN_ID"] = str(domain.value)
-        domain.value += 1
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+@contextlib.contextmanager
+def claimed_domain(first: int, count: int = 100):
+    """Hold a ROS_DOMAIN_ID in [first, first + count) that no other case on this machine
+    holds (flock on a file per id) and point this process's next rclpy context at it."""
+    import fcntl
+    lock_dir = Path(tempfile.gettempdir()) / "rheo_shaping-ros-domains"
+    lock_dir.mkdir(exist_ok=True)
+    for i in range(first, first + count):
+        with open(lock_dir / f"{i % 233}.lock", "w") as fh:
+            try:
+                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                continue
+            os.environ["ROS_DOMAIN_ID"] = str(i % 233)
+            os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+            yield i % 233
+            return
+    raise RuntimeError(f"no free ROS domain in {first}..{first + count - 1}")
+
+
+def _campaign_task(shared: dict, item: tuple) -> dict:
+    """One case on whatever worker runs it: a domain of its own, then :func:`run_case`."""
+    index, cell = item
+    with claimed_domain(shared["domain"]):
+        return run_case(index, cell, shared["trend"])
 
 
 def run_case(index: int, cell: CellParams, trend: bool = False) -> dict:
@@ -204,7 +226,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=300, help="number of randomised runs (default 300)")
     ap.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)")
-    ap.add_argument("--domain", type=int, default=60, help="first ROS domain id of the workers (default 60)")
+    ap.add_argument("--executor", metavar="SPEC", default=None,
+                    help="local (default), local:N, serial or dask://HOST:PORT (rheo_shaping.parallel)")
+    ap.add_argument("--domain", type=int, default=60,
+                    help="first ROS domain id the cases may claim (default 60)")
     ap.add_argument("--trend", choices=("on", "off"), default="off",
                     help="the monitor's trend prediction (default off, the monitor's default)")
     ap.add_argument("--indices", metavar="I,J,...", help="run only these case numbers of the seeded draw")
@@ -217,22 +242,24 @@ def main(argv: list[str] | None = None) -> int:
     if args.save and Path(args.save).exists():
         print(f"abort_campaign: error: {args.save} exists: not overwritten", file=sys.stderr)
         return 2
-    from multiprocessing import get_context
-
     from tqdm import tqdm
+
+    from rheo_shaping.parallel import executor_from_spec, run_tasks
 
     rng = random.Random(args.seed)
     base = CellParams()
     cells = [sample_cell(base, rng) for _ in range(args.runs)]
     chosen = range(args.runs) if not args.indices else sorted({int(x) for x in args.indices.split(",")})
-    ctx = get_context("spawn")
-    domain = ctx.Value("i", args.domain)
     t0 = time.monotonic()
-    rows = []
-    with ProcessPoolExecutor(args.jobs, mp_context=ctx, initializer=_init_worker, initargs=(domain,)) as pool:
-        futures = [pool.submit(run_case, i, cells[i], args.trend == "on") for i in chosen]
-        for f in tqdm(futures, desc="abort campaign", unit="run", file=sys.stderr):
-            rows.append(f.result())
+    shared = {"domain": args.domain, "trend": args.trend == "on"}
+    try:
+        with executor_from_spec(args.executor, jobs=args.jobs) as ex, \
+                tqdm(total=len(chosen), desc="abort campaign", unit="run", file=sys.stderr) as bar:
+            rows = run_tasks(ex, _campaign_task, shared, [(i, cells[i]) for i in chosen],
+                             bar.update, chunks_per_worker=8)
+    except ValueError as exc:
+        print(f"abort_campaign: error: {exc}", file=sys.stderr)
+        return 2
     summary = summarise(rows, time.monotonic() - t0)
     summary.update(seed=args.seed, trend_abort=args.trend == "on")
     if args.save:

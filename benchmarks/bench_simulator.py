@@ -10,17 +10,24 @@ Measures, on this machine:
   settle (the inertial pre-sag, cached per cell in ``simulation._SETTLED``) is
   timed separately, with the cache cleared; the cycle is timed with the settle
   cached.  Medians of ``--repeats`` runs.
-* ``scaling``: the same cycle for N = 25 ... 400: wall seconds per simulated
+* ``scaling``: the same cycle for N = 25 ... 1000: wall seconds per simulated
   second (and CPU seconds), steps, Newton iterations, energy evaluations and
-  banded solves per step, settle time.  Sizes run in a process pool
-  (``--jobs``, a fresh process per size, so two sizes share the two cores).
+  banded solves per step (the compiled kernel's counters, ``SheetModel.stats``),
+  settle time.  Sizes run in a process pool (``--jobs``, a fresh process per
+  size, so two sizes share the two cores).
 * ``peak_memory_mb``: for N = 25 and the largest N, the peak RSS during the
   timed cycles (VmHWM reset before them; the interpreter with numpy and scipy
   loaded included) and the tracemalloc peak of one more cycle (N = 25; the
   largest N with ``--trace-largest``).
 * ``profile``: cProfile of the N = 25 cycle (settle cached): top functions by
-  own and cumulative time, call counts, and per-call costs measured without
-  the profiler (``micro``).
+  own and cumulative time (the compiled kernel is one call), the kernel's work
+  per step, and per-call costs measured without the profiler (``micro``).
+* ``effects``: the default cell's cycle (N = 63) with each effect of
+  :mod:`rheo_shaping.effects` alone at the top of its realistic range, timed
+  interleaved with the nominal cycle: the ratio of the two.
+* ``cold_start``: ``rheo-shaping simulate --json`` in a fresh process, first
+  with an empty compile cache (a temporary ``NUMBA_CACHE_DIR``), then with the
+  cache it filled.
 * ``mujoco_ratio``: MuJoCo's wall time over ours on a shared elastic problem,
   both run until their largest node error against the exact discrete
   equilibrium (``analytic.elastic_chain_equilibrium``) is <= 1e-6 m.  Chain
@@ -43,7 +50,8 @@ Wall times include whatever else runs on the machine: the load average is
 recorded, and CPU times (``time.process_time``) are given beside them.
 
 ``--json`` prints one JSON object (progress bars go to stderr); ``--quick``
-runs fewer repeats, sizes up to 200 and a smaller MuJoCo grid.
+runs fewer repeats, sizes up to 200 and a smaller MuJoCo grid; ``--no-effects``,
+``--no-cold-start`` and ``--no-mujoco`` skip those parts.
 """
 from __future__ import annotations
 
@@ -80,7 +88,6 @@ try:
 except ImportError:                                   # run from a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import rheo_shaping.sheet as sheet_mod
 import rheo_shaping.simulation as simulation
 from rheo_shaping.analytic import elastic_chain_equilibrium
 from rheo_shaping.params import CellParams
@@ -88,7 +95,7 @@ from rheo_shaping.scenarios import movement_scenario, scenario_plan
 from rheo_shaping.sheet import ChainConstants, SheetModel
 from rheo_shaping.simulation import Simulation, run_scenario
 
-SIZES = (25, 50, 100, 200, 400)
+SIZES = (25, 50, 63, 100, 200, 400, 1000)
 MB = 1024.0 * 1024.0
 
 
@@ -173,47 +180,29 @@ def _reset_peak_rss() -> bool:
 
 
 @contextlib.contextmanager
-def counting():
-    """Count the solver's work during a run (class-level wrappers, removed afterwards)."""
+def counting(*given):
+    """Count the solver's work during a run: the kernel's counters (SheetModel.stats) of every
+    model made inside the block and of the ``given`` models, summed."""
+    from rheo_shaping import kernel as K
     c = collections.Counter()
-    saved = []
+    models: list = [(m, m.stats.copy()) for m in given]
+    init = SheetModel.__init__
 
-    def patch(owner, name, wrapper):
-        saved.append((owner, name, owner.__dict__[name]))
-        setattr(owner, name, wrapper(owner.__dict__[name]))
+    def tracked(self, *a, **k):
+        init(self, *a, **k)
+        models.append((self, self.stats.copy()))
 
-    def counter(key):
-        def wrap(f):
-            def w(*a, **k):
-                c[key] += 1
-                return f(*a, **k)
-            return w
-        return wrap
-
-    def minimise(f):
-        def w(self, *a, **k):
-            c["minimise"] += 1
-            try:
-                out = f(self, *a, **k)
-            except sheet_mod.ConvergenceError:
-                c["failed_minimise"] += 1
-                c["newton"] += self.max_newton
-                raise
-            c["newton"] += out[1]
-            return out
-        return w
-
-    patch(SheetModel, "_minimise", minimise)
-    patch(SheetModel, "_evaluate", counter("evaluate"))
-    patch(SheetModel, "_newton_step", counter("newton_step"))
-    patch(SheetModel, "_curvature", counter("curvature"))
-    patch(sheet_mod, "_solve", counter("banded_solve"))
-    patch(sheet_mod, "_positive_definite", counter("banded_factor_check"))
+    SheetModel.__init__ = tracked
     try:
         yield c
     finally:
-        for owner, name, f in reversed(saved):
-            setattr(owner, name, f)
+        SheetModel.__init__ = init
+        total = sum((m.stats - s0 for m, s0 in models), np.zeros(5, dtype=np.int64))
+        c["newton"] = int(total[K.ST_NEWTON])
+        c["evaluate"] = int(total[K.ST_EVAL])
+        c["banded_solve"] = int(total[K.ST_SOLVE])
+        c["substeps"] = int(total[K.ST_SUBSTEPS])
+        c["failed_minimise"] = int(total[K.ST_FAILED])
 
 
 def cell_fingerprint() -> str:
@@ -235,7 +224,7 @@ def size_job(n: int, repeats: int, t_end: float | None, trace: bool = False) -> 
         with (counting() if k == 0 else contextlib.nullcontext()) as cnt:
             w, loop, cpu, r = time_cycle(p, plan, t_end)
         if k == 0:
-            c = cnt
+            c = cnt.copy()
         walls.append(w)
         loops.append(loop)
         cpus.append(cpu)
@@ -257,8 +246,7 @@ def size_job(n: int, repeats: int, t_end: float | None, trace: bool = False) -> 
         "newton_iterations_mean": c["newton"] / steps,
         "evaluations_per_step": c["evaluate"] / steps,
         "banded_solves_per_step": c["banded_solve"] / steps,
-        "curvature_calls_per_step": c["curvature"] / steps,
-        "retried_steps": c["minimise"] - steps, "failed_newton": c["failed_minimise"],
+        "retried_steps": c["substeps"] - steps, "failed_newton": c["failed_minimise"],
         "F_max_N": r.F_max, "delta_m": r.delta,
         "tracemalloc_peak_mb": peak,
         "rss_before_cycles_mb": rss_before,
@@ -303,35 +291,33 @@ def profile_cycle(n: int = 25, top: int = 12) -> dict:
         return sum(tt for k, _, tt, _ in rows if pred(k))
 
     steps = int(r.t.size - 1)
-    geo_own = own(lambda k: k[0].endswith("geometry.py"))
-    # f2py's LAPACK wrappers are not profiled as calls: their time is the own time of the
-    # thin wrappers _solve (dpbsv) and _positive_definite (dpbtrf)
-    lapack = own(lambda k: k[0].endswith("sheet.py") and k[2] in ("_solve", "_positive_definite"))
-    numpy_c = own(lambda k: k[0] == "~" and ("numpy" in k[2] or "method" in k[2]))
+    kernel = own(lambda k: k[0] == "~" and "advance_path" in k[2]) + \
+        own(lambda k: k[0].endswith("dispatcher.py"))
+    kernel = max(kernel, sum(ct for k, _, _, ct in rows if k[2] == "run_path"))
+    schedule = sum(ct for k, _, _, ct in rows if k[2] == "schedule")
+    with counting() as cnt:
+        run_scenario(p, plan)
     return {
         "n": n, "profiled_wall_s": total, "steps": steps,
         "by_own_time": table(2), "by_cumulative_time": table(3),
         "calls_per_step": {
-            "_evaluate": calls("_evaluate") / steps,
-            "_newton_step": calls("_newton_step") / steps,
-            "_solve (dpbsv)": calls("_solve") / steps,
-            "_positive_definite (dpbtrf)": calls("_positive_definite") / steps,
-            "_curvature": calls("_curvature") / steps,
-            "signed_distance": calls("signed_distance") / steps,
+            "Newton iterations": cnt["newton"] / steps,
+            "energy evaluations": cnt["evaluate"] / steps,
+            "banded solves": cnt["banded_solve"] / steps,
+            "kernel calls (run_path)": calls("run_path") / steps,
         },
         "own_time_pct": {
-            "geometry.py (signed distances)": round(100 * geo_own / total, 1),
-            "LAPACK banded factor/solve": round(100 * lapack / total, 1),
-            "numpy C calls (ufunc reduce, einsum, ...)": round(100 * numpy_c / total, 1),
+            "compiled kernel (SheetModel.run_path)": round(100 * kernel / total, 1),
+            "step schedule (tool path sampling)": round(100 * schedule / total, 1),
         },
     }
 
 
 def micro(n: int = 25, number: int = 2000) -> dict:
     """Per-call CPU costs [us] without the profiler, on the N = 25 cycle's state one step
-    before the tool pushes hardest.  Uses SheetModel internals; returns an error note if
-    they have changed."""
+    before the tool pushes hardest: one step as a Python call, its compiled parts."""
     try:
+        from rheo_shaping import kernel as K
         p, plan = cycle(n)
         r = run_scenario(p, plan)
         k = max(int(np.argmax(np.hypot(r.tool_force[:, 0], r.tool_force[:, 1]))) - 1, 0)
@@ -340,42 +326,40 @@ def micro(n: int = 25, number: int = 2000) -> dict:
         if t > 0.0:
             sim.advance_to(t, plan.position(t), tool_at=plan.position)
         m, s = sim.model, sim.state
-        from rheo_shaping.material import elongation_step, step_coefficients
-        c = m.c
         dt = p.solver.dt
         tool = plan.position(min(t + dt, float(r.t[-1])))
-        free = c.rest_length + s.e1 + s.p
-        F0, S = step_coefficients(c.k1, c.c1, c.c2, s.e1, dt)
-        L_star = free - F0 / S
-        inertia = c.mass / dt ** 2
-        offsets = [tool if ob.moving else None for ob in m.obstacles]
-        args = (s.x, inertia, S, L_star, offsets)
-        x = s.x.copy()
-        e, g, ab, geo = m._evaluate(x, *args)
-        spd = ab if sheet_mod._positive_definite(ab) else sheet_mod._without_curvature(ab, geo.curv)
         f = lambda fn: 1e6 * min(timeit.repeat(fn, timer=time.process_time, number=number,  # noqa: E731
                                                repeat=3)) / number
         shapes = {ob.name: ob for ob in m.obstacles}
+        dts, tools = np.full(20, dt / 20), np.repeat(tool[None], 20, axis=0)
+        x = s.x.copy()
         res = {
             "state_t_s": t, "contacts": {ob.name: int(np.count_nonzero(np.abs(s.contact[i]).sum(1)))
                                          for i, ob in enumerate(m.obstacles)},
-            "step_us": f(lambda: m.step(s, dt, tool)) if number else None,
-            "_evaluate_us": f(lambda: m._evaluate(x, *args)),
-            "_geometry_us": f(lambda: m._geometry(x, offsets)),
-            "_newton_step_us": f(lambda: m._newton_step(g, ab, geo)),
-            "_solve_dpbsv_us": f(lambda: sheet_mod._solve(spd, g)),
-            "_positive_definite_dpbtrf_us": f(lambda: sheet_mod._positive_definite(ab)),
+            "step_us": f(lambda: m.step(s, dt, tool)),
+            "run_path_per_step_us": f(lambda: m.run_path(s, dts, tools)) / 20,
             "cake_signed_distance_us": f(lambda: shapes["cake"].shape.signed_distance(x)),
             "tool_signed_distance_us": f(lambda: shapes["tool"].shape.signed_distance(x, tool)),
-            "workplane_signed_distance_us": f(lambda: shapes["workplane"].shape.signed_distance(x)),
-            "step_coefficients_us": f(lambda: step_coefficients(c.k1, c.c1, c.c2, s.e1, dt)),
-            "elongation_step_us": f(lambda: elongation_step(c.k1, c.c1, c.c2, s.e1, s.p, L_star - free, dt)),
+            "band_cholesky_us": f(lambda: K.band_cholesky(*_spd_band(2 * n))),
             "tool_path_sample_us": f(lambda: plan.position(t)),
             "state_copy_us": f(lambda: s.copy()),
         }
         return {k: (round(v, 2) if isinstance(v, float) else v) for k, v in res.items()}
     except Exception as exc:  # pragma: no cover - internals changed
         return {"error": f"{type(exc).__name__}: {exc}"}
+
+
+_BANDS: dict = {}
+
+
+def _spd_band(m: int, kd: int = 3):
+    """A banded SPD test matrix (m unknowns, half bandwidth kd) and its factor buffer."""
+    if m not in _BANDS:
+        band = np.zeros((m, 5))
+        band[:, 0] = 4.0
+        band[:-1, 1] = band[:-2, 2] = band[:-3, 3] = -0.5
+        _BANDS[m] = (band, kd, np.zeros((m, 6)))
+    return _BANDS[m]
 
 
 # ----------------------------------------------------------------------- MuJoCo
@@ -403,6 +387,7 @@ def ours_elastic_runner(c, x0, schedule, dynamic=False, force_tol=1e-9, max_newt
         for dt in schedule:
             st = model.step(st, dt, dynamic=dynamic)
         return st
+    run.model = model
     return run
 
 
@@ -414,7 +399,7 @@ def _timed(fn) -> tuple[float, float]:
 
 def ours_elastic(c, exact, x0, schedule, repeats=15, **kw) -> dict:
     run = ours_elastic_runner(c, x0, schedule, **kw)
-    with counting() as cnt:
+    with counting(run.model) as cnt:
         st = run()
     t = [_timed(run) for _ in range(repeats)]
     return {"schedule_s": list(schedule), "error_m": _err(st.x, exact),
@@ -503,7 +488,7 @@ def mujoco_compare(quick: bool = False, tol: float = 1e-6, repeats: int = 21) ->
         mujoco.mj_step(model, d, k)
 
     ours_run = ours_elastic_runner(c, x0, [1e3])
-    with counting() as cnt:
+    with counting(ours_run.model) as cnt:
         st = ours_run()
     # interleaved, so that both see the same machine load
     t_ours, t_mj = [], []
@@ -540,6 +525,62 @@ def mujoco_compare(quick: bool = False, tol: float = 1e-6, repeats: int = 21) ->
         "mujoco_ratio": mj_wall / ours["wall_s"],
         "mujoco_ratio_cpu": mj_cpu / ours["cpu_s"],
     }
+
+
+# ---------------------------------------------------------------- effects, cold start
+def effects_table(repeats: int = 3) -> dict:
+    """Cycle cost of the default cell (N = 63) with each effect alone at the top of its
+    realistic range (rheo_shaping.effects), against the nominal cycle timed beside it."""
+    from rheo_shaping.effects import EFFECTS
+    p0, plan = cycle(CellParams().sheet.n_masses)
+    rows = []
+    for name, e in EFFECTS.items():
+        p = e.apply(p0, [hi for _, hi in e.realistic])
+        settle_wall, _ = time_settle(p, plan)
+        time_cycle(p, plan)                                  # settle cached
+        nominal, on = [], []
+        for _ in range(repeats):                             # interleaved: same machine load
+            nominal.append(time_cycle(p0, plan)[0])
+            w, _, _, r = time_cycle(p, plan)
+            on.append(w)
+        with counting() as cnt:
+            run_scenario(p, plan)
+        steps = int(r.t.size - 1)
+        rows.append({"effect": name, "values": [hi for _, hi in e.realistic],
+                     "cycle_s": statistics.median(on), "nominal_cycle_s": statistics.median(nominal),
+                     "ratio": statistics.median(on) / statistics.median(nominal),
+                     "settle_s": settle_wall, "steps": steps,
+                     "newton_per_step": cnt["newton"] / steps,
+                     "retried_steps": cnt["substeps"] - steps,
+                     "F_max_N": r.F_max})
+    return {"n": p0.sheet.n_masses, "repeats": repeats, "rows": rows,
+            "max_ratio": max(r["ratio"] for r in rows)}
+
+
+def cold_start(repeats: int = 3) -> dict:
+    """Wall time [s] of ``rheo-shaping simulate --json`` as a user starts it (a fresh
+    process), first with an empty compile cache, then with the cache it filled."""
+    import shutil
+    import subprocess
+    import tempfile
+    exe = Path(sys.executable).parent / "rheo-shaping"
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "rheo_shaping.cli"]
+    cmd += ["simulate", "--json"]
+    tmp = tempfile.mkdtemp(prefix="rheo-bench-cache-")
+    env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+
+    def timed() -> float:
+        t0 = time.perf_counter()
+        subprocess.run(cmd, env=env, check=True, capture_output=True, timeout=900)
+        return time.perf_counter() - t0
+
+    try:
+        first = timed()
+        warm = [timed() for _ in range(repeats)]
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {"command": " ".join(cmd[-3:] if exe.exists() else cmd), "empty_cache_s": first,
+            "cached_s": statistics.median(warm), "cached_runs_s": warm}
 
 
 # ------------------------------------------------------------------------- main
@@ -607,7 +648,14 @@ def run(args) -> dict:
     if stale:
         out["warning"] = (f"the default cell changed during the run (params.py edited): main process "
                           f"{out['cell_fingerprint']}, workers {stale}")
-    # 4. MuJoCo on the shared elastic problem (single core)
+    # 4. each effect alone, and the cold start of the CLI
+    if not args.no_effects:
+        with pin():
+            out["effects"] = effects_table(repeats=2 if args.quick else 3)
+    if not args.no_cold_start:
+        with pin():
+            out["cold_start"] = cold_start(repeats=2 if args.quick else 3)
+    # 5. MuJoCo on the shared elastic problem (single core)
     if not args.no_mujoco:
         with pin():
             mj = mujoco_compare(quick=args.quick)
@@ -684,6 +732,22 @@ def print_report(o: dict) -> None:
         f"{v['peak_rss_during_cycles'] if v['peak_rss_during_cycles'] is None else round(v['peak_rss_during_cycles'], 1)} "
         f"(RSS before {v['rss_before_cycles']:.1f}, process ru_maxrss {v['ru_maxrss']:.1f})"
         for k, v in o["peak_memory_mb"].items()))
+    ef = o.get("effects")
+    if ef:
+        print(f"\neach effect alone at the top of its realistic range, default cell N = {ef['n']} "
+              f"(cycle with the settle cached; medians of {ef['repeats']}, interleaved with the nominal):")
+        print(f"  {'effect':<15} {'values':<22} {'cycle s':>8} {'nominal s':>9} {'ratio':>6} "
+              f"{'settle s':>8} {'newton/st':>9} {'F_max N':>8}")
+        for r in ef["rows"]:
+            vals = ", ".join(f"{v:g}" for v in r["values"])
+            print(f"  {r['effect']:<15} {vals:<22} {r['cycle_s']:8.4f} {r['nominal_cycle_s']:9.4f} "
+                  f"{r['ratio']:6.2f} {r['settle_s']:8.4f} {r['newton_per_step']:9.2f} {r['F_max_N']:8.4f}")
+        print(f"  largest ratio {ef['max_ratio']:.2f}")
+    cs = o.get("cold_start")
+    if cs:
+        print(f"\ncold start, `{cs['command']}` in a fresh process: empty compile cache "
+              f"{cs['empty_cache_s']:.2f} s, cache filled {cs['cached_s']:.2f} s (runs "
+              + ", ".join(f"{x:.2f}" for x in cs["cached_runs_s"]) + ")")
     mj = o.get("mujoco")
     if mj:
         if "error" in mj:
@@ -718,7 +782,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the tables")
     ap.add_argument("--quick", action="store_true", help="fewer repeats, sizes up to 200, small MuJoCo grid")
     ap.add_argument("--repeats", type=int, default=None, help="timed repeats at N <= 100 (default 5, quick 3)")
-    ap.add_argument("--sizes", type=int, nargs="+", default=None, help="N of the scaling table (default 25 50 100 200 400)")
+    ap.add_argument("--sizes", type=int, nargs="+", default=None, help="N of the scaling table (default 25 50 63 100 200 400 1000)")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="processes for the scaling sweep")
     ap.add_argument("--t-end", type=float, default=None,
                     help="shorten the simulated window [s] for N >= --shorten-from (default: whole 120 s)")
@@ -728,6 +792,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--trace-largest", action="store_true",
                     help="also run the largest N under tracemalloc (doubles its cost)")
     ap.add_argument("--no-mujoco", action="store_true", help="skip the MuJoCo comparison")
+    ap.add_argument("--no-effects", action="store_true", help="skip the effects cost table")
+    ap.add_argument("--no-cold-start", action="store_true", help="skip the CLI cold-start timing")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
     if args.repeats is None:

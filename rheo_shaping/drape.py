@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
-from scipy.optimize import brentq
 
 
 @dataclass(frozen=True)
@@ -73,7 +74,7 @@ class Drape:
         # catenary z = a cosh((x - x0)/a) + z0 through p0, p1 with arc length L
         target = np.sqrt(L * L - dz * dz)
         # sinh overflows past 710: the bracket starts at dx/(2a) = 700
-        a = brentq(lambda a: 2 * a * np.sinh(dx / (2 * a)) - target, dx / 1400.0, dx * 1e6, xtol=1e-15)
+        a = _catenary_parameter(dx, target)
         # x0 from the height difference: dz = a (cosh(u1) - cosh(u0)), u = (x - x0)/a
         m = np.arctanh(dz / L)          # (u0 + u1)/2
         u0 = m - dx / (2 * a)
@@ -83,6 +84,24 @@ class Drape:
         x = x0 + a * u
         z = p0[1] + a * (np.cosh(u) - np.cosh(u0))
         return np.c_[x, z]
+
+
+def _catenary_parameter(dx: float, target: float) -> float:
+    """The a [m] with 2 a sinh(dx / (2 a)) = target [m] (> dx > 0): bisection in log a
+    to round-off (the left side falls monotonically in a); no scipy import at start-up."""
+    f = lambda a: 2.0 * a * math.sinh(dx / (2.0 * a)) - target  # noqa: E731
+    lo, hi = dx / 1400.0, dx * 1e6       # sinh overflows past 710: start at dx/(2a) = 700
+    if not (f(lo) > 0.0 > f(hi)):
+        raise ValueError(f"catenary: no parameter for span {dx!r} m and length {target!r} m")
+    for _ in range(200):
+        mid = math.sqrt(lo * hi)
+        if not lo < mid < hi:
+            break
+        if f(mid) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return hi if abs(f(hi)) < abs(f(lo)) else lo
 
 
 def make_drape(cake_height: float, fillet_radius: float, sphere_radius: float,

@@ -1,4 +1,4 @@
-"""2-D rigid obstacles in frame ``cake`` with a fast vectorised signed distance.
+"""2-D rigid obstacles in frame ``cake``; their signed distance is the compiled step's own.
 
 Frame ``cake`` (docs: ``INTERFACES.md``): x horizontal, outward from the cake's
 side wall (the wall is x = 0, the cake fills x <= 0 up to its height), z up
@@ -15,9 +15,10 @@ Every shape offers
 * ``contains(points, offset=(0, 0)) -> bool (M,)``: ``d <= 0``.
 * ``outline(n_points) -> (K, 2)``: boundary points for plots and RViz markers.
 
-The sheet solver calls ``signed_distance`` every Newton iteration for 25-400
-points, so each call is a handful of numpy operations on (M,) or (M, K)
-arrays (K the number of polygon edges); nothing loops over points.
+Every shape also gives ``kernel_description() -> (kind, radius, vertices)``,
+the small array description the compiled sheet step evaluates
+(:func:`rheo_shaping.kernel.shape_eval`, which also gives the curvature of the
+distance's level sets); ``signed_distance`` calls that same compiled function.
 
 Shapes:
 
@@ -47,9 +48,6 @@ __all__ = [
     "tool_from_params",
 ]
 
-_EYE2 = np.eye(2)
-_UP = np.array([0.0, 1.0])
-_TINY = 1e-300
 
 
 def _as_points(points: Any) -> np.ndarray:
@@ -60,6 +58,21 @@ def _as_points(points: Any) -> np.ndarray:
             return p.reshape(1, 2)
         raise ValueError(f"points: shape {p.shape}, expected (M, 2) [m]")
     return p
+
+
+def _distance(shape: Any, points: Any, offset: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """(d (M,) [m], n (M, 2)) of ``shape`` at ``points`` from the compiled step's own shape
+    evaluation (:func:`rheo_shaping.kernel.shape_eval`): one implementation for both."""
+    from . import kernel
+    p = np.ascontiguousarray(_as_points(points))
+    ox, oz = (float(v) for v in offset)
+    kind, rad, verts = shape.kernel_description()
+    table = shape.__dict__.get("_table")
+    if table is None:
+        table = kernel.shape_table(verts)
+        object.__setattr__(shape, "_table", table)
+    d, n, _ = kernel.shape_eval_many(kind, len(verts), table, rad, p, ox, oz)
+    return d, n
 
 
 def _check_finite(name: str, value: float, *, positive: bool = False, non_negative: bool = False) -> float:
@@ -152,17 +165,16 @@ class Cake:
 
     def signed_distance(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance ``d`` (M,) [m] and outward unit normal ``n`` (M, 2)."""
-        q = _as_points(points) - (self._centre + np.asarray(offset, dtype=float))
-        qp = np.maximum(q, 0.0)
-        dist = np.sqrt(np.einsum("ij,ij->i", qp, qp))
-        out = dist > 0.0
-        n = np.where(out[:, None], qp / np.maximum(dist, _TINY)[:, None], _EYE2[q.argmax(axis=1)])
-        d = np.where(out, dist, q.max(axis=1)) - self.fillet_radius
-        return d, n
+        return _distance(self, points, offset)
 
     def contains(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
         """True for points inside or on the boundary."""
         return self.signed_distance(points, offset)[0] <= 0.0
+
+    def kernel_description(self) -> tuple[int, float, np.ndarray]:
+        """(kind 0, fillet radius [m], quadrant corner (1, 2) [m]) for the compiled step
+        (rheo_shaping.kernel.shape_eval): the quadrant grown by the fillet radius."""
+        return 0, float(self.fillet_radius), self._centre.reshape(1, 2).copy()
 
     def outline(self, n_points: int = 64, closed: bool = False) -> np.ndarray:
         """Boundary points (K, 2) [m] from (-top_length, height) along the top,
@@ -202,14 +214,15 @@ class Workplane:
 
     def signed_distance(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance ``d = z - offset_z`` (M,) [m] and normal (0, 1) (M, 2)."""
-        p = _as_points(points)
-        n = np.zeros_like(p)
-        n[:, 1] = 1.0
-        return p[:, 1] - float(offset[1]), n
+        return _distance(self, points, offset)
 
     def contains(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
         """True for points on or below the plane."""
         return self.signed_distance(points, offset)[0] <= 0.0
+
+    def kernel_description(self) -> tuple[int, float, np.ndarray]:
+        """(kind 1, 0, no vertices) for the compiled step: the half-plane z <= 0."""
+        return 1, 0.0, np.zeros((0, 2))
 
     def outline(self, n_points: int = 2) -> np.ndarray:
         """Points (n_points, 2) [m] along z = 0 from x_min to x_max."""
@@ -236,14 +249,7 @@ class RoundedConvexPolygon:
     radius: float = 0.0
     _v: np.ndarray = field(init=False, repr=False, compare=False)
     _e: np.ndarray = field(init=False, repr=False, compare=False)
-    _e_inv_len2: np.ndarray = field(init=False, repr=False, compare=False)
     _nrm: np.ndarray = field(init=False, repr=False, compare=False)
-    _vx: np.ndarray = field(init=False, repr=False, compare=False)
-    _vz: np.ndarray = field(init=False, repr=False, compare=False)
-    _ex: np.ndarray = field(init=False, repr=False, compare=False)
-    _ez: np.ndarray = field(init=False, repr=False, compare=False)
-    _nx: np.ndarray = field(init=False, repr=False, compare=False)
-    _nz: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         try:
@@ -291,15 +297,9 @@ class RoundedConvexPolygon:
         object.__setattr__(self, "radius", r)
         object.__setattr__(self, "_v", v)
         object.__setattr__(self, "_e", e)
-        with np.errstate(divide="ignore"):
-            object.__setattr__(self, "_e_inv_len2", np.where(len2 > 0.0, 1.0 / np.where(len2 > 0, len2, 1.0), 0.0))
         ln = np.sqrt(len2)
         nrm = np.column_stack((e[:, 1], -e[:, 0])) / np.where(ln > 0, ln, 1.0)[:, None]
         object.__setattr__(self, "_nrm", nrm)
-        # per-component copies: (M, K) broadcasting is cheaper than (M, K, 2) einsums
-        for name, arr in (("_vx", v[:, 0]), ("_vz", v[:, 1]), ("_ex", e[:, 0]), ("_ez", e[:, 1]),
-                          ("_nx", nrm[:, 0]), ("_nz", nrm[:, 1])):
-            object.__setattr__(self, name, np.ascontiguousarray(arr))
 
     # constructors --------------------------------------------------------
 
@@ -348,38 +348,16 @@ class RoundedConvexPolygon:
         boundary point and ``n`` points from that point; inside, ``d + radius``
         is the largest signed edge-line distance and ``n`` that edge's normal.
         """
-        p = _as_points(points)
-        ox, oz = float(offset[0]), float(offset[1])
-        if self._v.shape[0] == 1:
-            rel = p - (self._v[0] + (ox, oz))
-            dist = np.sqrt(np.einsum("ij,ij->i", rel, rel))
-            pos = dist > 0.0
-            n = np.where(pos[:, None], rel / np.maximum(dist, _TINY)[:, None], _UP)
-            return dist - self.radius, n
-        # (M, K) arrays: point relative to vertex k, closest point of edge k
-        rx = (p[:, 0:1] - ox) - self._vx
-        rz = (p[:, 1:2] - oz) - self._vz
-        t = np.minimum(np.maximum((rx * self._ex + rz * self._ez) * self._e_inv_len2, 0.0), 1.0)
-        dx = rx - t * self._ex
-        dz = rz - t * self._ez
-        dist2 = dx * dx + dz * dz
-        m = np.arange(p.shape[0])
-        j = dist2.argmin(axis=1)
-        dist = np.sqrt(dist2[m, j])
-        radial = np.column_stack((dx[m, j], dz[m, j])) / np.maximum(dist, _TINY)[:, None]
-        if self._v.shape[0] == 2:                                                  # capsule: no interior
-            n = np.where((dist > 0.0)[:, None], radial, self._nrm[0])
-            return dist - self.radius, n
-        s = rx * self._nx + rz * self._nz                                         # signed edge-line distances
-        i = s.argmax(axis=1)
-        smax = s[m, i]
-        out = smax > 0.0
-        n = np.where(out[:, None], radial, self._nrm[i])
-        return np.where(out, dist, smax) - self.radius, n
+        return _distance(self, points, offset)
 
     def contains(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
         """True for points inside or on the boundary."""
         return self.signed_distance(points, offset)[0] <= 0.0
+
+    def kernel_description(self) -> tuple[int, float, np.ndarray]:
+        """(kind 2, radius [m], vertices (K, 2) [m], CCW) for the compiled step
+        (rheo_shaping.kernel.shape_eval): the polygon grown by the disc."""
+        return 2, float(self.radius), self._v.copy()
 
     def outline(self, n_points: int = 64, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
         """Closed boundary (n_points, 2) [m], counter-clockwise, last point not

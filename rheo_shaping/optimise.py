@@ -10,12 +10,13 @@ residual gap Delta stays within the quality limit.  No ROS imports here.
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
+from .parallel import executor_from_spec, run_tasks
 from .params import CellParams
 from .scenarios import movement_scenario, scenario_plan
 from .simulation import run_scenario
@@ -61,35 +62,24 @@ def run_d(params: CellParams, d: float) -> DRun:
     return DRun(float(d), float(result.F_max), float(result.delta))
 
 
-def _run_d_args(args: tuple[CellParams, float]) -> DRun:
-    return run_d(*args)
-
-
 def best_d(params: CellParams, d_candidates: Iterable[float], delta_limit: float,
-           workers: int = 1, progress: Callable[[DRun], None] | None = None) -> DChoice:
+           workers: int = 1, progress: Callable[[int], None] | None = None,
+           executor: Executor | None = None) -> DChoice:
     """The d [m] with the smallest F_max among runs with Delta <= ``delta_limit`` [m].
 
-    ``workers`` > 1 runs the candidates in a process pool (spawned processes,
-    safe in a ROS node).  Raises ``ValueError`` when no candidate meets the limit.
+    The candidates run on ``executor`` when given (:mod:`rheo_shaping.parallel`), else on
+    a local pool of ``workers`` processes (spawned when the caller has threads, so safe
+    in a ROS node), or here when ``workers`` is 1.  ``progress(k)``: k more runs done.
+    Raises ``ValueError`` when no candidate meets the limit.
     """
     ds: Sequence[float] = [float(d) for d in d_candidates]
     if not ds:
         raise ValueError("no d values to try")
-    if workers > 1 and len(ds) > 1:
-        import multiprocessing
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=min(workers, len(ds)), mp_context=ctx) as pool:
-            runs = []
-            for run in pool.map(_run_d_args, [(params, d) for d in ds]):
-                runs.append(run)
-                if progress is not None:
-                    progress(run)
+    if executor is not None:
+        runs = run_tasks(executor, run_d, params, ds, progress)
     else:
-        runs = []
-        for d in ds:
-            runs.append(run_d(params, d))
-            if progress is not None:
-                progress(runs[-1])
+        with executor_from_spec(None, jobs=max(1, min(workers, len(ds)))) as pool:
+            runs = run_tasks(pool, run_d, params, ds, progress)
     ok = [r for r in runs if math.isfinite(r.F_max) and r.delta <= delta_limit]
     if not ok:
         finite = [r for r in runs if math.isfinite(r.delta)]

@@ -11,9 +11,10 @@
 * Test case 1 (Sec. 4.2): the sheet sagging under gravity only, its profile
   at t = settle time (1 s) against the undeformed drape at t = 0.
 
-Every run is independent, so a caller can hand a ``mapper`` (``pool.map``
-of a process pool) to run them in parallel; the worker functions are
-module-level so they pickle.  :func:`reproduce` gathers it all in a
+Every run is independent, so a caller can hand any
+:class:`concurrent.futures.Executor` (:mod:`rheo_shaping.parallel`: a local
+process pool, a Dask cluster) to run them in parallel; the worker functions
+are module-level so they pickle.  :func:`reproduce` gathers it all in a
 :class:`Study`, and :meth:`Study.to_json` is the ``--json`` object of
 ``rheo-shaping reproduce``.
 """
@@ -21,10 +22,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from concurrent.futures import Executor
 from typing import Callable, Sequence
 
 import numpy as np
 
+from .parallel import run_tasks
 from .params import CellParams
 from .scenarios import ScenarioPlan, movement_scenario, scenario_plan
 from .simulation import RunResult, Simulation, run_scenario
@@ -219,12 +222,21 @@ class Sweep:
         return float(abs(self.peak1[i] - self.peak2[i]) / self.F_max[i])
 
 
-def sweep_point(args: tuple[CellParams, float]) -> dict:
-    """One point of the sweep (module-level: pickles into a process pool)."""
-    params, d = args
+def sweep_point(params: CellParams, d: float) -> dict:
+    """One point of the sweep: movement 4 at ``d`` [m] (module-level: pickles to a worker)."""
     run = run_movement(params, 4, d=d)
     peaks = [f for _, f in run.peaks] + [0.0, 0.0]
     return {"d": float(d), "F_max": run.F_max, "peak1": peaks[0], "peak2": peaks[1], "delta": run.delta}
+
+
+def _sweep(d: np.ndarray, rows: Sequence[dict]) -> "Sweep":
+    rows = sorted(rows, key=lambda r: r["d"])
+    d = np.array([r["d"] for r in rows])
+    F = np.array([r["F_max"] for r in rows])
+    d_opt, F_opt, interior, i = parabolic_minimum(d, F)
+    return Sweep(d=d, F_max=F, peak1=np.array([r["peak1"] for r in rows]),
+                 peak2=np.array([r["peak2"] for r in rows]), delta=np.array([r["delta"] for r in rows]),
+                 d_opt=d_opt, F_opt=F_opt, interior=interior, i_min=i)
 
 
 def parabolic_minimum(x: np.ndarray, y: np.ndarray) -> tuple[float, float, bool, int]:
@@ -242,20 +254,12 @@ def parabolic_minimum(x: np.ndarray, y: np.ndarray) -> tuple[float, float, bool,
 
 
 def d_sweep(params: CellParams, d_values: Sequence[float] = DEFAULT_D_VALUES,
-            mapper: Callable = map, progress: Callable[[dict], None] | None = None) -> Sweep:
-    """Fig. 18 on the cell: movement 4 at every d of ``d_values`` [m]."""
-    rows = []
-    for row in mapper(sweep_point, [(params, float(d)) for d in d_values]):
-        rows.append(row)
-        if progress is not None:
-            progress(row)
-    rows.sort(key=lambda r: r["d"])
-    d = np.array([r["d"] for r in rows])
-    F = np.array([r["F_max"] for r in rows])
-    d_opt, F_opt, interior, i = parabolic_minimum(d, F)
-    return Sweep(d=d, F_max=F, peak1=np.array([r["peak1"] for r in rows]),
-                 peak2=np.array([r["peak2"] for r in rows]), delta=np.array([r["delta"] for r in rows]),
-                 d_opt=d_opt, F_opt=F_opt, interior=interior, i_min=i)
+            executor: Executor | None = None,
+            progress: Callable[[int], None] | None = None) -> Sweep:
+    """Fig. 18 on the cell: movement 4 at every d of ``d_values`` [m] (on ``executor``)."""
+    rows = run_tasks(executor, _study_task, params, [("d", float(d)) for d in d_values],
+                     progress)
+    return _sweep(np.asarray(d_values, float), rows)
 
 
 # ------------------------------------------------------------------ test case 1
@@ -287,9 +291,13 @@ def sag_test(params: CellParams) -> SagTest:
 
 
 # ------------------------------------------------------------------------ study
-def _movement_job(args) -> MovementRun:
-    params, key, number, speed, dwell = args
-    return run_movement(params, number, speed=speed, dwell=dwell, label=key)
+def _study_task(params: CellParams, job: tuple):
+    """One run of the study: ("d", d) for the sweep or ("movement", label, number, speed,
+    dwell) (module-level: pickles to a worker)."""
+    if job[0] == "d":
+        return sweep_point(params, job[1])
+    _, label, number, speed, dwell = job
+    return run_movement(params, number, speed=speed, dwell=dwell, label=label)
 
 
 @dataclass
@@ -348,17 +356,20 @@ class Study:
 
 
 def reproduce(params: CellParams | None = None, d_values: Sequence[float] = DEFAULT_D_VALUES,
-              mapper: Callable = map, progress: Callable[[dict], None] | None = None) -> Study:
+              executor: Executor | None = None,
+              progress: Callable[[int], None] | None = None) -> Study:
     """The whole study on ``params`` (default: the default cell).
 
-    ``mapper`` runs the independent simulations (``map`` or a pool's ``map``);
-    ``progress`` is called once per finished point of the d sweep.
+    The independent simulations (movements 1-4, the half-speed variant, the d
+    sweep) run on ``executor`` (default: one after the other here);
+    ``progress(k)`` is called as k more of the ``len(d_values) + 5`` runs finish.
     """
     params = CellParams() if params is None else params
-    jobs = [(params, str(n), n, None, None) for n in (1, 2, 3, 4)]
-    jobs.append((params, "half_speed", 1, HALF_SPEED, 0.0))
-    runs = list(mapper(_movement_job, jobs))
+    jobs = [("movement", str(n), n, None, None) for n in (1, 2, 3, 4)]
+    jobs.append(("movement", "half_speed", 1, HALF_SPEED, 0.0))
+    jobs += [("d", float(d)) for d in d_values]
+    runs = run_tasks(executor, _study_task, params, jobs, progress)
     movements = {r.label: r for r in runs[:4]}
-    sweep = d_sweep(params, d_values, mapper, progress)
+    sweep = _sweep(np.asarray(d_values, float), runs[5:])
     return Study(params=params, movements=movements, half_speed=runs[4], sweep=sweep,
                  sag=sag_test(params))

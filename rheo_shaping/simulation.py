@@ -17,6 +17,7 @@ steps.
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import Callable, Protocol
@@ -27,7 +28,7 @@ from .drape import make_drape
 from .geometry import Cake, Workplane
 from .metrics import PeakTension, contact_tension, peak_tension, residual_gap, safety_factor
 from .params import CellParams
-from .sheet import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState
+from .sheet import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState, StepRecord
 from .tools import tool_shape
 
 #: Order of the obstacles in :attr:`SheetState.contact`.
@@ -113,41 +114,80 @@ class Simulation:
         sp = self.params.solver
         return min(sp.dt if tool_moving else sp.dt_still, t_end - t)
 
+    def schedule(self, t_end: float, tool_end,
+                 tool_at: Callable[[float], np.ndarray] | None = None, start=None):
+        """The steps from the current state to ``t_end`` [s]: (dt (K,) [s], tool pose at the
+        end of each step (K, 2) [m]).  The tool moves linearly from its last pose to
+        ``tool_end`` (or follows ``tool_at(t)``); steps of at most ``solver.dt`` while it
+        moves (``solver.dt_still`` while it stands) and ``solver.max_tool_step`` of travel.
+        The schedule depends on the tool path only, not on the sheet: ``start`` (t [s],
+        pose (2,) [m]) plans from there instead of from the current state."""
+        t0 = self.state.t if start is None else float(start[0])
+        if t_end < t0 - 1e-12:
+            raise ValueError(f"t_end = {t_end!r} s is before the sheet's time {t0!r} s")
+        p0 = (self.state.tool if start is None else np.asarray(start[1], dtype=float)).copy()
+        p1 = np.asarray(tool_end, dtype=float)
+        if tool_at is None:
+            span = max(t_end - t0, 1e-300)
+            tool_at = lambda t: p0 + (p1 - p0) * min(max((t - t0) / span, 0.0), 1.0)  # noqa: E731
+        max_step = self.params.solver.max_tool_step
+        dts: list[float] = []
+        poses: list = []
+        t, prev = t0, p0
+        while t < t_end - 1e-12:
+            dt = self.next_dt(t, t_end, tool_moving=True)
+            pose = tool_at(t + dt)
+            travel = math.hypot(pose[0] - prev[0], pose[1] - prev[1])
+            if travel < 1e-12 * max_step:
+                dt = self.next_dt(t, t_end, tool_moving=False)
+                pose = tool_at(t + dt)
+                travel = math.hypot(pose[0] - prev[0], pose[1] - prev[1])
+            if travel > max_step:
+                dt *= max_step / travel
+                pose = tool_at(t + dt)
+            if t_end - (t + dt) < 1e-9:
+                dt, pose = t_end - t, tool_at(t_end)
+            dts.append(dt)
+            poses.append(pose)
+            t, prev = t + dt, pose
+        return np.array(dts, dtype=float), np.array(poses, dtype=float).reshape(-1, 2)
+
+    def advance_record(self, t_end: float, tool_end,
+                       tool_at: Callable[[float], np.ndarray] | None = None) -> StepRecord:
+        """Advance to ``t_end`` [s] like :meth:`advance_to`, all steps in the compiled kernel;
+        returns every step's state as arrays."""
+        return self.advance_path(*self.schedule(t_end, tool_end, tool_at))
+
+    def advance_path(self, dts: np.ndarray, tools: np.ndarray) -> StepRecord:
+        """Steps of ``dts`` (K,) [s] with the tool at ``tools`` (K, 2) [m] at their ends (a
+        :meth:`schedule`), in the compiled kernel; every step's state as arrays.  A failed
+        step raises ConvergenceError after the sheet kept the steps before it."""
+        rec = self.model.run_path(self.state, dts, tools)
+        if len(rec):
+            self.state = rec.state(len(rec) - 1)
+            self.steps += len(rec)
+        if rec.error is not None:
+            raise rec.error
+        return rec
+
     def advance_to(self, t_end: float, tool_end, on_step: Callable[[SheetState], None] | None = None,
                    tool_at: Callable[[float], np.ndarray] | None = None) -> SheetState:
         """Advance to time ``t_end`` [s], the tool ending at ``tool_end`` (x, z) [m].
 
         Between the current time and ``t_end`` the tool moves linearly from its
         last pose (or follows ``tool_at(t)`` when given).  ``on_step`` is called
-        with every sub-step's state.
+        with every sub-step's state (``self.state`` is that state during the call).
         """
-        t0 = self.state.t
-        if t_end < t0 - 1e-12:
-            raise ValueError(f"t_end = {t_end!r} s is before the sheet's time {t0!r} s")
-        p0 = self.state.tool.copy()
-        p1 = np.asarray(tool_end, dtype=float)
-        if tool_at is None:
-            span = max(t_end - t0, 1e-300)
-            tool_at = lambda t: p0 + (p1 - p0) * min(max((t - t0) / span, 0.0), 1.0)  # noqa: E731
-        max_step = self.params.solver.max_tool_step
-        while self.state.t < t_end - 1e-12:
-            t = self.state.t
-            dt = self.next_dt(t, t_end, tool_moving=True)
-            pose = tool_at(t + dt)
-            travel = float(np.hypot(*(pose - self.state.tool)))
-            if travel < 1e-12 * max_step:
-                dt = self.next_dt(t, t_end, tool_moving=False)
-                pose = tool_at(t + dt)
-                travel = float(np.hypot(*(pose - self.state.tool)))
-            if travel > max_step:
-                dt *= max_step / travel
-                pose = tool_at(t + dt)
-            if t_end - (t + dt) < 1e-9:
-                dt, pose = t_end - t, tool_at(t_end)
-            self.state = self.model.step(self.state, dt, pose)
+        if on_step is None:
+            self.advance_record(t_end, tool_end, tool_at)
+            return self.state
+        rec = self.model.run_path(self.state, *self.schedule(t_end, tool_end, tool_at))
+        for k in range(len(rec)):
+            self.state = rec.state(k)
             self.steps += 1
-            if on_step is not None:
-                on_step(self.state)
+            on_step(self.state)
+        if rec.error is not None:
+            raise rec.error
         return self.state
 
     # ------------------------------------------------------------ outputs
@@ -185,10 +225,11 @@ def settle(model: SheetModel, x0: np.ndarray, duration: float, dt: float, tool=(
     """
     state = model.initial_state(x0, tool)
     n = int(np.ceil(duration / dt - 1e-9))
+    if on_step is None:                       # all n steps in the compiled kernel
+        return model.run_steps(state, duration / n, n, tool, dynamic=True)
     for _ in range(n):
         state = model.step(state, duration / n, tool, dynamic=True)
-        if on_step is not None:
-            on_step(state)
+        on_step(state)
     return state
 
 
@@ -248,22 +289,38 @@ def run_scenario(params: CellParams, path: ToolPath, t_end: float | None = None,
     """Run the cell over a tool path from t = 0 to ``t_end`` (default: process time)."""
     t_end = params.movement.process_time if t_end is None else float(t_end)
     sim = Simulation(params, tool_start=path.position(0.0))
-    rec: list[SheetState] = [sim.state]
+    s0 = sim.state
     knots = [k for k in np.asarray(path.knots(), float) if 0.0 < k < t_end] + [t_end]
     wall = time.perf_counter()
-    for k in knots:
-        sim.advance_to(k, path.position(k), on_step=rec.append, tool_at=path.position)
-        if progress is not None:
+    if progress is None:          # the whole path in one kernel call
+        parts, t, pose = [], s0.t, s0.tool
+        for k in knots:
+            dts, poses = sim.schedule(k, path.position(k), path.position, (t, pose))
+            parts.append((dts, poses))
+            for dt in dts:        # the clock as the steps keep it
+                t = t + dt
+            if len(dts):
+                pose = poses[-1]
+        recs = [sim.advance_path(np.concatenate([d for d, _ in parts]),
+                                 np.concatenate([q for _, q in parts]))]
+    else:
+        recs = []
+        for k in knots:
+            recs.append(sim.advance_record(k, path.position(k), tool_at=path.position))
             progress(sim.state.t)
     wall = time.perf_counter() - wall
-    t = np.array([s.t for s in rec])
-    tension = np.array([s.tension for s in rec])
-    contact = np.array([s.contact for s in rec])
+
+    def series(name: str, first) -> np.ndarray:
+        return np.concatenate([np.asarray(first)[None]] + [getattr(r, name) for r in recs])
+
+    t = series("t", s0.t)
+    tension = series("tension", s0.tension)
+    contact = series("contact", s0.contact)
     peak = peak_tension(t, tension)
     return RunResult(
-        t=t, x=np.array([s.x for s in rec]), tension=tension,
-        elastic=np.array([s.e1 for s in rec]), plastic=np.array([s.p for s in rec]),
-        tool=np.array([s.tool for s in rec]), tool_force=-contact[:, TOOL].sum(axis=1),
+        t=t, x=series("x", s0.x), tension=tension,
+        elastic=series("e1", s0.e1), plastic=series("p", s0.p),
+        tool=series("tool", s0.tool), tool_force=-contact[:, TOOL].sum(axis=1),
         mould_force=contact[:, CAKE] + contact[:, WORKPLANE], tool_contact=contact[:, TOOL],
         rest_length=sim.constants.rest_length, peak=peak,
         SF=safety_factor(params.material.F_break, peak.value), delta=sim.delta(),

@@ -4,19 +4,20 @@ Runs movements 1-4 (Table 2), the movement-4 sweep over d (Fig. 18), movement
 1 at half speed without the stop (Fig. 19) and test case 1 (sagging under
 gravity), prints the paper's Table 2 beside ours, and with ``--out DIR``
 writes the figures as PNG files there.  The independent runs go to a pool of
-``--jobs`` worker processes; the sweep shows a progress bar on stderr.
+``--jobs`` worker processes, or wherever ``--executor`` says (a Dask cluster:
+``dask://HOST:PORT``); a progress bar on stderr counts them.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
 
 from . import UserError
-from .common import add_params_argument, cell_from_args
+from .common import (add_executor_arguments, add_params_argument, cell_from_args, executor_from_args,
+                     executor_label)
 
 
 def add_parser(sub) -> None:
@@ -29,8 +30,7 @@ def add_parser(sub) -> None:
                    "(created if missing; an existing folder must be empty unless --force)")
     p.add_argument("--force", action="store_true", help="write into a folder that already holds files")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the tables")
-    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, metavar="N",
-                   help="worker processes (default: all cores, here %(default)s)")
+    add_executor_arguments(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -58,15 +58,14 @@ class _Progress:
         if not quiet:
             try:
                 from tqdm import tqdm
-                self.bar = tqdm(total=total, desc="d sweep (movement 4)", unit="run", file=sys.stderr,
-                                leave=False)
+                self.bar = tqdm(total=total, desc="movements 1-4, half speed, d sweep",
+                                unit="run", file=sys.stderr, leave=False)
             except ImportError:      # pragma: no cover - tqdm is a core requirement
                 self.bar = None
 
-    def __call__(self, row: dict) -> None:
+    def __call__(self, done: int) -> None:
         if self.bar is not None:
-            self.bar.set_postfix_str(f"d = {row['d'] * 1e3:.0f} mm, F_max = {row['F_max']:.3f} N")
-            self.bar.update(1)
+            self.bar.update(done)
 
     def close(self) -> None:
         if self.bar is not None:
@@ -153,21 +152,15 @@ def table_lines(study) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from ..reproduce import DEFAULT_D_VALUES, reproduce
-    if args.jobs < 1:
-        raise UserError(f"--jobs {args.jobs}: expected at least 1")
     params = cell_from_args(args)
     out = _out_dir(args.out, args.force)
     wall = time.perf_counter()
-    progress = _Progress(len(DEFAULT_D_VALUES), args.quiet)
-    try:
-        if args.jobs == 1:
-            study = reproduce(params, mapper=map, progress=progress)
-        else:
-            from concurrent.futures import ProcessPoolExecutor
-            with ProcessPoolExecutor(args.jobs) as pool:
-                study = reproduce(params, mapper=pool.map, progress=progress)
-    finally:
-        progress.close()
+    with executor_from_args(args) as executor:
+        progress = _Progress(len(DEFAULT_D_VALUES) + 5, args.quiet)
+        try:
+            study = reproduce(params, executor=executor, progress=progress)
+        finally:
+            progress.close()
     files = write_figures(study, out) if out is not None else []
     wall = time.perf_counter() - wall
     if args.json:
@@ -183,5 +176,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"figures in {out}:")
         for f in files:
             print(f"  {f}")
-    print(f"\nwall time {wall:.1f} s ({args.jobs} worker process{'es' if args.jobs > 1 else ''})")
+    print(f"\nwall time {wall:.1f} s ({executor_label(args)})")
     return 0

@@ -19,7 +19,8 @@ from typing import Callable, Sequence
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor  # noqa: F401
+from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 
 from .monitor import MonitorNode
@@ -92,7 +93,7 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
         planner = PlannerNode(context=context,
                               parameter_overrides=[*sim_time, *common, *extra.get("planner", ())])
         nodes.append(planner)
-        executor = SingleThreadedExecutor(context=context)
+        executor = EventsExecutor(context=context)
         for node in nodes:
             executor.add_node(node)
         cell = planner.cell_used

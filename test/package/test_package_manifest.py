@@ -11,7 +11,7 @@ REPO = Path(__file__).resolve().parents[2]
 EXEC_DEPENDS = {
     "rclpy", "std_msgs", "geometry_msgs", "trajectory_msgs", "visualization_msgs",
     "diagnostic_msgs", "rosgraph_msgs", "std_srvs",
-    "python3-numpy", "python3-scipy", "python3-yaml", "python3-matplotlib", "ruckig",
+    "python3-numpy", "python3-scipy", "python3-numba", "python3-yaml", "python3-matplotlib", "ruckig",
 }
 TEST_DEPENDS = {"python3-pytest"}
 CONSOLE_SCRIPTS = {

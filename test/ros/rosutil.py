@@ -76,12 +76,15 @@ def ros():
 
 
 class Recorder:
-    """Subscribes to topics and keeps every message with its arrival index."""
+    """Subscribes to topics and keeps every message with its arrival index and its
+    rmw message info (``infos[topic][i]``: ``source_timestamp`` [ns, the publisher's system
+    clock], ``publication_sequence_number``, ...), which tells one sender from another."""
 
     def __init__(self, node, topics: dict, qos=None):
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         self.node = node
         self.msgs: dict[str, list] = {t: [] for t in topics}
+        self.infos: dict[str, list] = {t: [] for t in topics}
         self.order: list[tuple[str, int]] = []
         self.subs = []
         for topic, spec in topics.items():
@@ -91,11 +94,23 @@ class Recorder:
                                               else DurabilityPolicy.VOLATILE))
             self.subs.append(node.create_subscription(msg_type, topic, self._cb(topic), q))
 
+    def add(self, topic: str, msg_type, qos) -> None:
+        """Record one more topic, with a QoS of its own."""
+        self.msgs[topic], self.infos[topic] = [], []
+        self.subs.append(self.node.create_subscription(msg_type, topic, self._cb(topic), qos))
+
     def _cb(self, topic):
-        def cb(msg):
+        def cb(msg, info):
             self.order.append((topic, len(self.msgs[topic])))
             self.msgs[topic].append(msg)
+            self.infos[topic].append(info)
         return cb
+
+    def published_after(self, topic, wall_ns: int) -> list:
+        """Messages on ``topic`` whose publisher sent them after ``wall_ns`` (time.time_ns()):
+        a message still in flight from before then is not among them."""
+        return [msg for msg, info in zip(self.msgs[topic], self.infos[topic])
+                if info["source_timestamp"] > wall_ns]
 
     def __getitem__(self, topic):
         return self.msgs[topic]

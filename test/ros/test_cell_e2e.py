@@ -42,7 +42,7 @@ from rheo_shaping.params import CellParams  # noqa: E402
 from rheo_shaping.scenarios import movement_scenario, scenario_plan  # noqa: E402
 from rheo_shaping.planning import MotionLimits  # noqa: E402
 from rheo_shaping.simulation import build_chain, run_scenario  # noqa: E402
-from rheo_shaping.stopping import stopping_time  # noqa: E402
+from rheo_shaping.stopping import stop_from_state, stopping_time  # noqa: E402
 
 from rosutil import REPO, Recorder, motion_bounds, wait_for_publishers  # noqa: E402
 
@@ -252,22 +252,25 @@ def test_aggressive_plan_is_aborted_before_the_sheet_tears(ros, procs, tmp_path,
     Fb = cell.material.F_break
     F_abort = ratio * Fb
     params = write_params(tmp_path / "aggressive.yaml", cell,
+                          # lockstep that waits out a busy machine (a planner descheduled for
+                          # up to 1 s wall): the tool then follows every set-point exactly, and
+                          # the monitor's watchdog is set beyond that wait
                           simulator={"real_time_factor": 10.0, "step_period": 0.005,
-                                     "publish_period": 0.0},
+                                     "publish_period": 0.0, "command_timeout": 1.0},
                           # The planner's clearance check would refuse this plan (its end of
                           # travel pinches the sheet): off, to test the monitor on its own.
                           planner={"autostart": False, "retract_speed": 0.01,
                                    "retract_accel": 0.01, "retract_jerk": 0.1,
                                    "clearance_factor": 0.0},
-                          monitor={"trend_abort": trend})
+                          monitor={"trend_abort": trend, "max_data_age": 2.0})
     c = Cell(ros, procs, params)
     c.start()
     c.wait(lambda: c.rec["/shaping/abort"], 120.0, "the monitor's abort")
     reason = c.rec["/shaping/abort"][0].data
     c.wait(lambda: c.state() == "holding", 120.0, "the planner holding after the retract")
-    c.wait(lambda: len(c.rec["/tool/command"]) and c.commands()[1][-1] @ [1, 0] > 0
-           and np.allclose(c.commands()[1][-1], cell.tool.home, atol=1e-9), 30.0,
-           "the set-points at home")
+    c.wait(lambda: c.rec.last("/tool/command") is not None
+           and np.allclose(m.pose_xz(c.rec.last("/tool/command")), cell.tool.home, atol=1e-9),
+           30.0, "the set-points at home")
     samples = c.tension_samples()
     t0 = c.t0()
     t, p = c.commands()
@@ -286,11 +289,16 @@ def test_aggressive_plan_is_aborted_before_the_sheet_tears(ros, procs, tmp_path,
     t_abort = int(round(float(found.group(1)) * NS))
     t_rest = t_abort + int(round(float(found.group(2)) * NS))
     assert t[k_dev - 1] <= t_abort < t[k_dev] + 1
-    # The set-points come to rest there: the slowest one between stop and retract.
-    speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / (np.diff(t) / NS)
-    window = (t[1:] >= t_abort) & (t[1:] <= t_rest + NS)
-    k_slow = int(np.nonzero(window)[0][np.argmin(speed[window])]) + 1
-    assert abs(t[k_slow] - t_rest) <= 0.025 * NS
+    # The set-points follow ruckig's stop from the plan's exact state at the abort to rest
+    # at t_rest, whichever ticks the planner streamed (the log's 1 us rounding of t_abort
+    # moves the recomputed stop by < speed x 0.5 us = 2.5e-9 m).
+    pos, vel, acc = plan.sample((t_abort - t0) / NS)
+    stop_plan = stop_from_state(pos, vel, acc, plan.limits)
+    assert stop_plan.duration == pytest.approx((t_rest - t_abort) / NS, abs=2e-6)
+    in_stop = (t >= t_abort) & (t <= t_rest)
+    assert in_stop.sum() >= 3
+    on_stop, _, _ = stop_plan.sample_many((t[in_stop] - t_abort) / NS)
+    assert np.abs(p[in_stop] - on_stop).max() <= 1e-8
     mv = cell.movement
     stop = (t >= t_abort - 3 * NS // 50) & (t <= t_rest)
     v, a, j = motion_bounds(t[stop], p[stop])

@@ -78,8 +78,7 @@ def listen(ros):
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
     rec = Recorder(node, {"/shaping/ready": Bool, "/diagnostics": DiagnosticArray})
-    rec.msgs["/shaping/abort"] = []
-    node.create_subscription(String, "/shaping/abort", rec._cb("/shaping/abort"), latched)
+    rec.add("/shaping/abort", String, latched)
     return node, rec
 
 

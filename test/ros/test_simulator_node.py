@@ -40,9 +40,7 @@ def listen(ros, clock=False):
     topics = dict(TOPICS)
     rec = Recorder(node, topics)
     if clock:
-        rec.msgs["/clock"] = []
-        node.create_subscription(Clock, "/clock", rec._cb("/clock"),
-                                 QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+        rec.add("/clock", Clock, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
     wait_for_publishers(ros, node, list(topics))
     return node, rec
 
