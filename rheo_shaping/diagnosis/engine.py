@@ -68,7 +68,7 @@ PROBES: dict = {
 GRID = 41          # magnitudes tried per curve effect on the linearised model
 CHECKED = 2        # single effects checked by simulation
 PAIRED = 3         # pairs among this many best single effects
-REFINE_STEPS = 3   # chord steps of each checked candidate (each simulated)
+REFINE_STEPS = 8   # chord (secant) steps of each checked candidate (each simulated)
 
 
 @dataclass
@@ -89,6 +89,8 @@ class Candidate_:
     interval: dict = field(default_factory=dict)
     chain_free: bool = False        # the measurement chain's hypothesis (chain beyond tolerance)
     z_raw: np.ndarray | None = field(default=None, repr=False)   # fit records' z at the last run
+    prev: tuple | None = field(default=None, repr=False)         # (z_raw, u_sheet, values) before
+    damp: float = 1.0                                            # step factor (halved on a miss)
 
     @property
     def candidate(self) -> Candidate:
@@ -621,7 +623,10 @@ def _simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, p
         else:
             uc, J, zc = chain_fit(z_raw)
         if not first and not J < c.J:
+            c.damp *= 0.5
             continue
+        if not first:
+            c.prev = (c.z_raw, c.baseline_u[:len(u_sheet)].copy(), dict(c.values))
         for n in c.names:
             if n in c.interval:
                 c.interval[n] = [(lo + vals[n][k] - c.values[n][k], hi + vals[n][k] - c.values[n][k])
@@ -656,7 +661,15 @@ def _chord(c, A_sheet, G, responses, n_s):
                 return None
             (m1, d1), (m2, d2) = mags
             a = _magnitude(name, cur[0])
-            cols.append(d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1))
+            col = d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1)
+            if c.prev is not None and len(c.names) == 1:
+                # secant: the response between the last two simulated points, the baseline's
+                # linear part removed
+                z_p, u_p, v_p = c.prev
+                da = a - _magnitude(name, v_p[name][0])
+                if abs(da) > 1e-12:
+                    col = (c.z_raw - z_p - A_sheet @ (c.baseline_u[:n_s] - u_p)) / da
+            cols.append(col)
             lo_e.append(-a)
             hi_e.append(_magnitude(name, top) - a)
             slots.append((name, 0, True))
@@ -665,6 +678,7 @@ def _chord(c, A_sheet, G, responses, n_s):
     lim = np.ones(G.chain.shape[1])
     du, _ = Solver(A).solve(c.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
                             np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
+    du = du * c.damp
     u_new = np.clip(u_cur + du[:n_s], -1, 1)
     vals = {n: list(v) for n, v in c.values.items()}
     for (name, k, is_curve), x in zip(slots, du[A.shape[1]:]):

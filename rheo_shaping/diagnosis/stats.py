@@ -17,10 +17,10 @@ Tests.
   baseline's excess misfit J - 1 is compared with its distribution on
   effect-free records from a model that differs from the diagnosis's in
   numerics (finer chain, smaller step, softer contact) and in the written
-  scenario (values perturbed within tolerance), ``NULL_FIT`` (mean, sd, n;
-  a Student-t predictive distribution).  p_gap is its upper tail; a name
-  needs p_gap <= ALPHA, which caps the false-name rate at ALPHA on records
-  like the calibration's, by construction.
+  scenario (values perturbed within tolerance): the conformal p-value
+  (1 + #{null >= x}) / (n + 1) against the stored null sample.  A name needs
+  p_gap <= ALPHA, which caps the false-name rate at ALPHA on records
+  exchangeable with the calibration's, by construction.
 * Effect test: likelihood ratio LR = sum_o n_eff_o ln(J_base,o / J_eff,o)
   against chi^2 with the effect's parameter count; p Bonferroni-corrected
   over the candidates tried.
@@ -29,37 +29,45 @@ Tests.
 """
 from __future__ import annotations
 
+import json
 import math
+from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
 ALPHA = 0.05
-#: Excess misfit J - 1 of the calibrated baseline on effect-free records: mean, standard
-#: deviation and count, on the fit records and on the holdout records.  Measured by
-#: ``benchmarks/diagnosis_null.py`` (effect-free cases of ``diagnose-benchmark`` with their own
-#: seed: true chain 63 masses, half steps, softer contact; diagnosis N = 31; 70 s records; the
-#: default measurement model).  Another cell, record length or sensor: measure it again.
-NULL_FIT = (0.0244, 0.0182, 12)
-NULL_HOLD = (0.0164, 0.0152, 12)
+#: Excess misfit J - 1 of the calibrated baseline on effect-free records, fit and holdout
+#: records: ``rheo_shaping/data/diagnosis_null.json``, measured by
+#: ``benchmarks/diagnosis_null.py`` (200 effect-free cases of ``diagnose-benchmark`` with their
+#: own seed: true chain 63 masses, half steps, softer contact; diagnosis N = 31; 70 s records;
+#: the default measurement model).  Another cell, record length or sensor: measure it again.
+NULL_FILE = Path(__file__).resolve().parent.parent / "data" / "diagnosis_null.json"
 
 
-def _null(holdout: bool):
-    return NULL_HOLD if holdout else NULL_FIT
+@lru_cache(maxsize=1)
+def _null_sample() -> dict:
+    data = json.loads(NULL_FILE.read_text())
+    return {"fit": np.sort(np.asarray(data["fit"], float)),
+            "holdout": np.sort(np.asarray(data["holdout"], float))}
 
 
-def null_quantile(holdout: bool = False, level: float = 0.95) -> float:
-    """Excess J - 1 a new effect-free record stays below with probability ``level``
-    (Student-t prediction bound from the calibration sample)."""
-    from scipy.stats import t
-    mu, sd, n = _null(holdout)
-    return float(mu + t.ppf(level, n - 1) * sd * math.sqrt(1.0 + 1.0 / n))
+def null_quantile(holdout: bool = False, level: float = 1.0 - ALPHA) -> float:
+    """Excess J - 1 below which a new effect-free record's p-value exceeds ``1 - level``.
+
+    The smallest x with (1 + #{null >= x}) / (n + 1) <= 1 - level is just above the
+    k-th largest null value, k = floor((1 - level) (n + 1)) (conformal bound).
+    """
+    x = _null_sample()["holdout" if holdout else "fit"]
+    k = int(math.floor((1.0 - level) * (x.size + 1)))
+    return float(x[-k]) if k >= 1 else math.inf
 
 
 def gap_p_value(excess: float, holdout: bool = False) -> float:
-    """Probability that an effect-free record leaves at least this excess misfit."""
-    from scipy.stats import t
-    mu, sd, n = _null(holdout)
-    return float(t.sf((excess - mu) / (sd * math.sqrt(1.0 + 1.0 / n)), n - 1))
+    """Conformal p-value (1 + #{null >= excess}) / (n + 1): for an effect-free record
+    exchangeable with the calibration records, P(p <= a) <= a for every a."""
+    x = _null_sample()["holdout" if holdout else "fit"]
+    return float((1 + np.count_nonzero(x >= excess)) / (x.size + 1))
 
 
 def _g(rho: float) -> float:
