@@ -18,10 +18,12 @@ def add_parser(sub) -> None:
     p = sub.add_parser(
         "diagnose", help="diagnose the sim-to-real gap of recorded runs",
         description="Compare recorded runs (record directories: rosbag2 MCAP + scenario.yaml, "
-                    "docs/records.md) with their nominal model: where the gap is (place, phase, "
-                    "observable), which unmodelled effect explains it (every effect of the library "
-                    "fitted to RECORD..., checked on --holdout), and how far the gap shrinks. "
-                    "Method: docs/diagnosis.md.")
+                    "docs/records.md) with their model: first a baseline calibrated within what a "
+                    "careful user knows (material, mass, bonds, sag, cake, vision and load cell), "
+                    "then which side of the sensors, then which unmodelled effect explains what the "
+                    "baseline cannot (every effect of the library fitted to RECORD..., checked on "
+                    "--holdout, with its p-value), else 'unexplained' with the residual's "
+                    "signature; and how far the gap shrinks. Method: docs/diagnosis.md.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="record directories to fit")
     p.add_argument("--holdout", nargs="+", default=[], metavar="RECORD", help="record directories held out")
     p.add_argument("--effects", metavar="NAMES", help="comma-separated candidate effects (default: all: "

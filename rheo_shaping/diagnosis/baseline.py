@@ -33,9 +33,12 @@ class Knob:
 
 
 SHEET: tuple[Knob, ...] = (
-    Knob("material.k1", 0.10, "N/m", True, description="spring k1 (identification interval +-10 %)"),
-    Knob("material.c2", 0.15, "N s/m", True, description="dashpot c2 (identification interval +-15 %)"),
-    Knob("sheet.mass_per_length", 0.03, "kg/m", True, description="mass per length (weighed, +-3 %)"),
+    Knob("material.k1", 0.10, "N/m", True,
+         description="spring k1 (identification interval +-10 %)"),
+    Knob("material.c2", 0.15, "N s/m", True,
+         description="dashpot c2 (identification interval +-15 %)"),
+    Knob("sheet.mass_per_length", 0.03, "kg/m", True,
+         description="mass per length (weighed, +-3 %)"),
     Knob("sheet.top_bond_x", 1e-3, "m", description="bond on the cake top (ruler, +-1 mm)"),
     Knob("sheet.bottom_bond_x", 1e-3, "m", description="bond on the workplane (ruler, +-1 mm)"),
     Knob("sheet.excess_length", 1e-3, "m", description="initial sag: rest length beyond the taut "
@@ -68,8 +71,10 @@ def step_of(params: CellParams, knob: Knob, base: CellParams | None = None) -> f
     return knob.tolerance * abs(written(ref, knob.name)) if knob.relative else knob.tolerance
 
 
-def with_sheet(params: CellParams, u: dict[str, float], base: CellParams | None = None) -> CellParams:
-    """``params`` with each sheet knob moved by ``u[name]`` tolerances from ``base`` (default itself)."""
+def with_sheet(params: CellParams, u: dict[str, float],
+               base: CellParams | None = None) -> CellParams:
+    """``params`` with each sheet knob moved by ``u[name]`` tolerances from ``base`` (default:
+    itself)."""
     ref = params if base is None else base
     out = params
     for knob in SHEET:

@@ -87,9 +87,11 @@ def measure_chain(run, path, truth: CellParams, ms: MeasurementParams, rng: np.r
     wrench = rec.wrench_xz
     if rec.has_wrench:
         t = rec.wrench_t - chain.get("load_cell.lag", 0.0)
-        f = np.c_[np.interp(t, run.t, run.tool_force[:, 0]), np.interp(t, run.t, run.tool_force[:, 1])]
+        f = np.c_[np.interp(t, run.t, run.tool_force[:, 0]),
+                  np.interp(t, run.t, run.tool_force[:, 1])]
         wrench = ((1.0 + chain.get("load_cell.gain", 0.0)) * f
-                  + np.array([chain.get("load_cell.bias_x", 0.0), chain.get("load_cell.bias_z", 0.0)])
+                  + np.array([chain.get("load_cell.bias_x", 0.0),
+                              chain.get("load_cell.bias_z", 0.0)])
                   + rng.normal(0.0, ms.wrench_noise, f.shape))
     return replace(rec, profiles=profiles, wrench_xz=wrench)
 
@@ -200,7 +202,8 @@ def summarise(rows: list[dict], wall: float) -> dict:
         sel = [r for r in sel if r.get(key) is not None]
         return (sum(bool(r[key]) for r in sel) / len(sel)) if sel else None
 
-    by = {k: [r for r in rows if r["kind"] == k] for k in ("single", "none", "sensor", "out_of_library")}
+    by = {k: [r for r in rows if r["kind"] == k]
+          for k in ("single", "none", "sensor", "out_of_library")}
     single = by["single"]
     moved = [r for r in single if r["p_gap"] is not None and r["p_gap"] <= 0.05]
     errs = [r["param_rel_error"] for r in single if "param_rel_error" in r]

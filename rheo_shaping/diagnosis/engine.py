@@ -77,7 +77,7 @@ class Candidate_:
 
     names: tuple[str, ...]
     values: dict                    # name -> tuple of values
-    J: float                        # fit records, balanced misfit (checked by simulation if checked)
+    J: float                        # fit records, balanced misfit (simulated once checked)
     J_parts: dict = field(default_factory=dict)
     J_holdout: float = math.nan
     LR: float = math.nan
@@ -155,7 +155,8 @@ class Diagnosis:
         vf = self.verdict_fit
         return {"verdict": self.verdict,
                 "verdict_params": {n: list(v) for n, v in vf.values.items()} if vf else None,
-                "verdict_interval": ({n: [list(iv) for iv in ivs] for n, ivs in vf.interval.items()}
+                "verdict_interval": ({n: [list(iv) for iv in ivs]
+                                      for n, ivs in vf.interval.items()}
                                      if vf else None),
                 "verdict_p": _num(vf.p) if vf else None,
                 "p_gap": self.p_gap, "side": self.side, "baseline": self.baseline,
@@ -182,7 +183,8 @@ class _Group:
 
     def __init__(self, data: list[RecordData], sp: float, sf: float, nominal: list[Outcome]):
         self.data = data
-        self.stack = Stack([d.point_frame for d in data], [d.record.has_wrench for d in data], sp, sf)
+        self.stack = Stack([d.point_frame for d in data], [d.record.has_wrench for d in data],
+                           sp, sf)
         self.stack.set_force_count(nominal)
         self.chain = self.stack.chain_columns(nominal) if data else np.zeros((0, len(CHAIN)))
 
@@ -217,11 +219,13 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         if bad:
             raise ValueError(f"the nominal model of record '{bad[0]}' does not run: "
                              f"{next(o.error for o in nominal if not o.ok)}")
-        sp = float(np.nanmedian([noise_level(o.profile, d.point_frame) for d, o in zip(data, nominal)]))
+        sp = float(np.nanmedian([noise_level(o.profile, d.point_frame)
+                                 for d, o in zip(data, nominal)]))
         sfs = [noise_level(o.force[:, k]) for o in nominal if o.force is not None for k in (0, 1)]
         sf = float(np.nanmedian(sfs)) if sfs else math.nan
         if not (sp > 0):
-            raise ValueError("the records' profile noise cannot be estimated (too few points per frame)")
+            raise ValueError("the records' profile noise cannot be estimated "
+                             "(too few points per frame)")
         sf = sf if sf > 0 else 1.0
         G = _Group(fit_d, sp, sf, nominal[:nf])
         H = _Group(hold_d, sp, sf, nominal[nf:]) if hold_d else None
@@ -340,7 +344,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 c.p = min(1.0, stats.chi2_sf(c.LR, c.k) * m)
             effects.sort(key=lambda c: (c.p, c.J))
             chain_c.p = min(1.0, stats.chi2_sf(chain_c.LR, chain_c.k) * (m + 1))
-            _check(effects[:CHECKED] + [chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
+            _check(effects[:CHECKED] + [chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params,
+                   chain_fit,
                    parts_B, n_eff, J_base_h, m, chain_free, (A_sheet, responses, REFINE_STEPS))
         elif gap_left:
             _check([chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
@@ -366,7 +371,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 top = sorted(effects, key=lambda c: (c.p, c.J))[:PAIRED]
                 for i, a in enumerate(top):
                     for b in top[i + 1:]:
-                        pc = _fit_pair(a, b, responses, zB_raw, Solver(A), np.r_[-1 - u_s, -chain_lim],
+                        pc = _fit_pair(a, b, responses, zB_raw, Solver(A),
+                                       np.r_[-1 - u_s, -chain_lim],
                                        np.r_[1 - u_s, chain_lim], G, n_eff, parts_B)
                         if pc is not None:
                             pc.p = min(1.0, stats.chi2_sf(pc.LR, pc.k) * m)
@@ -374,18 +380,21 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 pairs.sort(key=lambda c: (c.p, c.J))
                 if pairs:
                     _check(pairs[:1], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
-                           parts_B, n_eff, J_base_h, m, chain_free, (A_sheet, responses, REFINE_STEPS))
+                           parts_B, n_eff, J_base_h, m, chain_free,
+                           (A_sheet, responses, REFINE_STEPS))
                     bp = pairs[0]
                     bp.adequate = bp.checked and _adequate(bp, J_base_h, bool(hold_d))
                     # a pair must beat each of its parts significantly
                     if bp.checked and bp.p <= stats.ALPHA and bp.adequate:
                         verdict_fit = bp
-        if verdict_fit is not None and verdict_fit.J_parts and chain_ok and chain_c.J < verdict_fit.J:
+        if (verdict_fit is not None and verdict_fit.J_parts and chain_ok
+                and chain_c.J < verdict_fit.J):
             verdict_fit = None
         chain_side = chain_ok and verdict_fit is None
         verdict = ("none" if not gap_left else "+".join(verdict_fit.names) if verdict_fit
                    else "measurement chain" if chain_side else "unexplained")
-        side = {"side": ("measurement chain" if chain_side else "sheet" if gap_left else "neither"),
+        side = {"side": ("measurement chain" if chain_side else "sheet" if gap_left
+                         else "neither"),
                 "chain_outside": outside if chain_side else [],
                 "chain_candidate": {"J": chain_c.J, "J_holdout": _num(chain_c.J_holdout),
                                     "p": _num(chain_c.p), "adequate": chain_c.adequate,
@@ -425,11 +434,13 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                      [d.record.name for d in hold_d], runs, corrected=corrected)
     diag.where = where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf)
     diag.gap_before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
-    diag.gap_baseline = gap.figures(data, base_res, fit_idx, hold_idx, sp, sf, before=diag.gap_before)
-    diag.gap_after = gap.figures(data, after_res, fit_idx, hold_idx, sp, sf, before=diag.gap_before)
+    before = diag.gap_before
+    diag.gap_baseline = gap.figures(data, base_res, fit_idx, hold_idx, sp, sf, before=before)
+    diag.gap_after = gap.figures(data, after_res, fit_idx, hold_idx, sp, sf, before=before)
     if verdict not in ("none", "measurement chain"):
         diag.signature = describe(fit_d, base_res[:nf], base_runs[:nf], sp, sf, u_c)
-    diag.residual_maps = [(d, nom_res[i], after_res[i], nominal[i].run) for i, d in enumerate(data)]
+    diag.residual_maps = [(d, nom_res[i], after_res[i], nominal[i].run)
+                          for i, d in enumerate(data)]
     return diag
 
 
@@ -547,8 +558,8 @@ def _fit_pair(a: Candidate_, b: Candidate_, responses, zB_raw, solver: Solver, l
         for (n, _, (mags, _g)), x in zip(curve, combo):
             if x is not None:
                 shift = shift + _curve(mags, x)
-        u, J = solver.solve(zB_raw + shift, lo, hi, E, (np.array(elo), np.array(ehi)) if E is not None
-                            else None)
+        u, J = solver.solve(zB_raw + shift, lo, hi, E,
+                            (np.array(elo), np.array(ehi)) if E is not None else None)
         if best is None or J < best[0]:
             best = (J, u, combo, shift)
     J, u, combo, shift = best
@@ -562,8 +573,8 @@ def _fit_pair(a: Candidate_, b: Candidate_, responses, zB_raw, solver: Solver, l
                 if nn == n:
                     vv[k] = float(x)
             values[n] = tuple(vv)
-    z = zB_raw + shift + solver.A @ u[:solver.A.shape[1]] + (E @ u[solver.A.shape[1]:] if E is not None
-                                                            else 0.0)
+    k0 = solver.A.shape[1]
+    z = zB_raw + shift + solver.A @ u[:k0] + (E @ u[k0:] if E is not None else 0.0)
     names = tuple(sorted((na, nb)))
     c = Candidate_(names, {n: values[n] for n in names}, J, G.stack.J_parts(z),
                    k=a.k + b.k, baseline_u=u[:solver.A.shape[1]])
@@ -629,7 +640,8 @@ def _simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, p
             c.prev = (c.z_raw, c.baseline_u[:len(u_sheet)].copy(), dict(c.values))
         for n in c.names:
             if n in c.interval:
-                c.interval[n] = [(lo + vals[n][k] - c.values[n][k], hi + vals[n][k] - c.values[n][k])
+                c.interval[n] = [(lo + vals[n][k] - c.values[n][k],
+                                  hi + vals[n][k] - c.values[n][k])
                                  for k, (lo, hi) in enumerate(c.interval[n])]
         c.J, c.J_parts, c.z_raw, c.values = J, G.stack.J_parts(zc), z_raw, dict(vals)
         c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)

@@ -123,7 +123,8 @@ class Solver:
         u = _bounded(M, rhs, np.r_[lo, elo], np.r_[hi, ehi])
         return u, max(rest, 0.0) + float(np.sum((M @ u - rhs) ** 2))
 
-    def residual(self, z: np.ndarray, u: np.ndarray, extra: np.ndarray | None = None) -> np.ndarray:
+    def residual(self, z: np.ndarray, u: np.ndarray,
+                 extra: np.ndarray | None = None) -> np.ndarray:
         out = z + self.A @ u[:self.A.shape[1]]
         if extra is not None and extra.shape[1]:
             out = out + extra @ u[self.A.shape[1]:]

@@ -104,9 +104,11 @@ def describe(data, res, runs, sp: float, sf: float, u_chain=None) -> dict:
     after = ft >= 0
     early = fs[after & (ft < 1 / 3)]
     late = fs[after & (ft >= 2 / 3)]
-    ratio = (float(np.mean(late)) + 1e-12) / (float(np.mean(early)) + 1e-12) if early.size and late.size else 1.0
+    ratio = ((float(np.mean(late)) + 1e-12) / (float(np.mean(early)) + 1e-12)
+             if early.size and late.size else 1.0)
     out["trend"] = {"late_over_early": ratio,
-                    "kind": "growing" if ratio > 1.5 else "decaying" if ratio < 0.67 else "constant"}
+                    "kind": ("growing" if ratio > 1.5 else "decaying" if ratio < 0.67
+                             else "constant")}
     out["proportional_to"] = {name: _corr(fs, ff[:, k]) for k, name in
                               enumerate(("tension", "speed", "strain", "position"))}
     # force: lag and gain of the residual against the model force
@@ -163,7 +165,8 @@ def rank_causes(sig: dict) -> list[dict]:
         "strain-dependent material": (0.4 * (trend == "growing") + 0.3 * max(prop["strain"], 0.0)
                                       + 0.3 * late),
         "bending stiffness": 0.5 * before + 0.3 * (band == 0) + 0.2 * (1 - force_share),
-        "mass or gravity load": 0.6 * before + 0.2 * (1 - force_share) + 0.2 * (trend == "constant"),
+        "mass or gravity load": (0.6 * before + 0.2 * (1 - force_share)
+                                 + 0.2 * (trend == "constant")),
         "tool position calibration": (0.4 * max(prop["position"], 0.0) + 0.3 * force_share
                                       + 0.3 * (1 - before)),
         "measurement chain": 0.5 * chain_like * force_share + 0.5 * min(

@@ -1,6 +1,7 @@
 """The sim-to-real diagnosis: exact comparison chain, noise estimate, phases, the balanced misfit
 and its bounded fit, and verdicts on records made without the inverse crime (a finer true chain,
-half steps, softer contact, the written scenario and the measurement chain off within tolerance)."""
+half steps, softer contact, the written scenario and the measurement chain off within
+tolerance)."""
 from __future__ import annotations
 
 import json
@@ -50,7 +51,8 @@ def test_comparison_chain_is_exact_without_noise():
 
 def test_noise_estimate_recovers_the_injected_noise():
     for sigma in (1e-4, 5e-4):
-        rec, _ = synthesize_record(cell(4), MeasurementParams(profile_noise=sigma, wrench_noise=0.02), seed=2)
+        ms = MeasurementParams(profile_noise=sigma, wrench_noise=0.02)
+        rec, _ = synthesize_record(cell(4), ms, seed=2)
         data = RecordData.of(rec)
         res = residuals(data, simulate(rec.scenario, data))
         assert noise_level(res.profile, data.point_frame) == pytest.approx(sigma, rel=0.1)
@@ -67,7 +69,8 @@ def test_phases_follow_the_movement():
     assert "forced deformation" in order and "dwell" in order
     assert order.index("forced deformation") < order.index("dwell")
     t_dwell = rec.profile_t[labels == PHASES.index("dwell")]
-    assert t_dwell.min() > 10.0 and np.ptp(t_dwell) == pytest.approx(30.0, abs=3.0)   # the 30 s stop
+    # the 30 s stop
+    assert t_dwell.min() > 10.0 and np.ptp(t_dwell) == pytest.approx(30.0, abs=3.0)
 
 
 def test_balanced_misfit_and_chain_columns_are_exact():
@@ -77,7 +80,8 @@ def test_balanced_misfit_and_chain_columns_are_exact():
     rec, _ = synthesize_record(cell(4, n_masses=15, process_time=40.0), ms, seed=4)
     off, bias = np.array([4e-4, -3e-4]), np.array([0.0, 0.02])
     clean = RecordData.of(rec)
-    rec = replace(rec, profiles=tuple(f + off for f in rec.profiles), wrench_xz=rec.wrench_xz + bias)
+    rec = replace(rec, profiles=tuple(f + off for f in rec.profiles),
+                  wrench_xz=rec.wrench_xz + bias)
     data = RecordData.of(rec)
     o, oc = run_batch([Task(data, rec.scenario), Task(clean, rec.scenario)])
     st = Stack([data.point_frame], [True], 1e-4, 1e-2)
@@ -90,7 +94,8 @@ def test_balanced_misfit_and_chain_columns_are_exact():
     lim = np.array([k.limit for k in CHAIN])
     u, J = Solver(A).solve(z, -lim, lim)
     fitted = u * np.array([k.tolerance for k in CHAIN])
-    assert fitted[0] == pytest.approx(off[0], abs=2e-5) and fitted[1] == pytest.approx(off[1], abs=2e-5)
+    assert fitted[0] == pytest.approx(off[0], abs=2e-5)
+    assert fitted[1] == pytest.approx(off[1], abs=2e-5)
     assert fitted[3] == pytest.approx(bias[1], abs=1e-4) and abs(fitted[2]) < 1e-4
     zc = st.vec([oc])
     assert z @ z > 10 * (zc @ zc)
@@ -103,7 +108,7 @@ def test_effective_sample_size():
     white = rng.normal(size=4000)
     frames = np.repeat(np.arange(40), 100)
     assert stats.n_eff_profile(white, frames) == pytest.approx(4000, rel=0.1)
-    smooth = np.repeat(rng.normal(size=40), 100)          # one value per frame, white across frames
+    smooth = np.repeat(rng.normal(size=40), 100)   # one value per frame, white across frames
     assert stats.n_eff_profile(smooth, frames) < 0.05 * 4000
     ar = np.zeros(20000)
     for i in range(1, ar.size):
@@ -140,7 +145,8 @@ def test_tool_offset_is_named_with_its_strength_and_shrinks_the_holdout_gap():
         assert abs(v - t) < 0.3e-3
     assert d.gap_after["holdout"]["shrink"] >= 0.7
     out = d.to_json()
-    assert {"verdict", "verdict_p", "p_gap", "side", "baseline", "effects", "gap_baseline"} <= set(out)
+    keys = {"verdict", "verdict_p", "p_gap", "side", "baseline", "effects", "gap_baseline"}
+    assert keys <= set(out)
 
 
 def test_an_effect_outside_the_library_is_unexplained_with_a_signature():
@@ -168,7 +174,7 @@ def test_diagnose_command_and_write_scenario(tmp_path, capsys):
     assert result["verdict"] == "none"
     assert (out / "report.md").exists() and (out / "residual_map.png").stat().st_size > 10_000
     assert "## Baseline" in (out / "report.md").read_text()
-    corrected = load_cell(scen)                     # simulate / reproduce --params / planner read it
+    corrected = load_cell(scen)          # simulate / reproduce --params / planner read it
     assert corrected.sheet.n_masses == N_MASSES
     assert set(result["process"]) == {"nominal", "corrected"}
     assert math.isfinite(result["process"]["corrected"]["F_max"])
