@@ -11,7 +11,7 @@ from pathlib import Path
 from ..effects import EFFECT_NAMES
 from ..records import RecordError, read_record
 from . import UserError
-from .common import output_path
+from .common import add_executor_arguments, executor_from_args, output_path
 
 
 def add_parser(sub) -> None:
@@ -34,7 +34,7 @@ def add_parser(sub) -> None:
                    help="write the calibrated baseline plus the verdict's effect as a params file "
                         "(accepted by simulate, reproduce --params and the planner); the report "
                         "then shows F_max, SF, Delta and d_opt against the nominal cell")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    add_executor_arguments(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -47,8 +47,6 @@ def run(args: argparse.Namespace) -> int:
         if bad or not library:
             raise UserError(f"--effects: unknown effect '{bad[0] if bad else args.effects}': expected some of "
                             + ", ".join(EFFECT_NAMES))
-    if args.jobs is not None and args.jobs < 1:
-        raise UserError(f"--jobs = {args.jobs} is invalid: expected at least 1")
     scen = output_path(args.write_scenario, args.force, "--write-scenario file")
     out = Path(args.out) if args.out else None
     if out is not None:
@@ -67,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
     bar = tqdm(desc="diagnose", unit="sim", file=sys.stderr)
     t0 = time.monotonic()
     try:
-        diag = diagnose(fit, hold, library=library, jobs=args.jobs, progress=bar.update)
+        with executor_from_args(args) as executor:
+            diag = diagnose(fit, hold, library=library, progress=bar.update, executor=executor)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     finally:
