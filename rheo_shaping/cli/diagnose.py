@@ -5,28 +5,36 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from ..effects import EFFECT_NAMES
 from ..records import RecordError, read_record
 from . import UserError
+from .common import add_executor_arguments, executor_from_args, output_path
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "diagnose", help="diagnose the sim-to-real gap of recorded runs",
         description="Compare recorded runs (record directories: rosbag2 MCAP + scenario.yaml, "
-                    "docs/records.md) with their nominal model: where the gap is (place, phase, "
-                    "observable), which unmodelled effect explains it (every effect of the library "
-                    "fitted to RECORD..., checked on --holdout), and how far the gap shrinks. "
-                    "Method: docs/diagnosis.md.")
+                    "docs/records.md) with their model: first a baseline calibrated within what a "
+                    "careful user knows (material, mass, bonds, sag, cake, vision and load cell), "
+                    "then which side of the sensors, then which unmodelled effect explains what the "
+                    "baseline cannot (every effect of the library fitted to RECORD..., checked on "
+                    "--holdout, with its p-value), else 'unexplained' with the residual's "
+                    "signature; and how far the gap shrinks. Method: docs/diagnosis.md.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="record directories to fit")
     p.add_argument("--holdout", nargs="+", default=[], metavar="RECORD", help="record directories held out")
     p.add_argument("--effects", metavar="NAMES", help="comma-separated candidate effects (default: all: "
                    + ", ".join(EFFECT_NAMES) + ")")
     p.add_argument("--out", metavar="DIR", help="write report.md and PNG figures to DIR")
     p.add_argument("--force", action="store_true", help="write into an existing --out directory")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--write-scenario", metavar="FILE",
+                   help="write the calibrated baseline plus the verdict's effect as a params file "
+                        "(accepted by simulate, reproduce --params and the planner); the report "
+                        "then shows F_max, SF, Delta and d_opt against the nominal cell")
+    add_executor_arguments(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -40,8 +48,7 @@ def run(args: argparse.Namespace) -> int:
         if bad or not library:
             raise UserError(f"--effects: unknown effect '{bad[0] if bad else args.effects}': expected some of "
                             + ", ".join(EFFECT_NAMES))
-    if args.jobs is not None and args.jobs < 1:
-        raise UserError(f"--jobs = {args.jobs} is invalid: expected at least 1")
+    scen = output_path(args.write_scenario, args.force, "--write-scenario file")
     out = Path(args.out) if args.out else None
     if out is not None:
         if out.exists() and any(out.iterdir()) and not args.force:
@@ -59,16 +66,29 @@ def run(args: argparse.Namespace) -> int:
     bar = tqdm(desc="diagnose", unit="sim", file=sys.stderr, disable=args.quiet)
     t0 = time.monotonic()
     try:
-        diag = diagnose(fit, hold, library=library, jobs=args.jobs, progress=bar.update)
+        with executor_from_args(args) as executor:
+            diag = diagnose(fit, hold, library=library, progress=bar.update, executor=executor)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     finally:
         bar.close()
     result = diag.to_json()
     result["wall_time_s"] = time.monotonic() - t0
+    process = None
+    if scen is not None:
+        from ..config import dump_cell
+        from ..diagnosis.engine import process_figures
+        scen.write_text("# rheo-shaping diagnose: calibrated baseline + verdict "
+                        f"'{diag.verdict}' of {', '.join(diag.records)}\n" + dump_cell(diag.corrected))
+        nominal = fit[0].scenario
+        process = process_figures(replace(nominal, movement=replace(nominal.movement, number=4)),
+                                  replace(diag.corrected,
+                                          movement=replace(diag.corrected.movement, number=4)))
+        result["scenario"] = str(scen)
+        result["process"] = process
     if out is not None:
         from ..diagnosis.report import write
-        result["report"] = [str(p) for p in write(diag, out)]
+        result["report"] = [str(p) for p in write(diag, out, process)]
     if args.json:
         print(json.dumps(result, default=float))
         return 0
@@ -77,7 +97,14 @@ def run(args: argparse.Namespace) -> int:
         for n, v in diag.verdict_fit.values.items():
             iv = diag.verdict_fit.interval[n]
             print(f"  {n} = " + ", ".join(f"{x:.4g} [{lo:.4g}, {hi:.4g}]" for x, (lo, hi) in zip(v, iv)))
-    print("where (nominal model; systematic RMS in units of the noise):")
+        print(f"  p = {diag.verdict_fit.p:.3g}")
+    print(f"gap test: baseline J - 1 = {diag.J_base - 1:.4f}, p_gap = {diag.p_gap:.3g}; "
+          f"baseline took {100 * diag.baseline_took:.0f} % of the nominal gap; "
+          f"side: {diag.side['side']}")
+    if diag.signature:
+        print("signature: kinds of cause " + ", ".join(
+            f"{c['kind']} {c['score']:.2f}" for c in diag.signature["causes"][:3]))
+    print("where (calibrated baseline; systematic RMS in units of the noise):")
     for w in diag.where[:5]:
         print(f"  {w['rank']}. {w['kind']} {w['name']}: {w['relative']:.2f}")
     for grp in ("fit", "holdout"):

@@ -1,47 +1,76 @@
-"""Validation of the diagnosis on withheld effects (``rheo-shaping diagnose-benchmark``).
+"""Validation of the diagnosis without the inverse crime (``rheo-shaping diagnose-benchmark``).
 
-Each case is a true cell: the default cell with one effect (most cases), two
-effects, or none, at a magnitude drawn from the effect's realistic range
-(``Effect.realistic``; random sign for tool_offset components and
-mass_error), recorded on three runs of different movements (1-4, drawn
-without replacement) with the default measurement model and their own noise
-seeds.  The diagnosis fits the first two and holds out the third; it sees only
-the records (scenario = nominal cell), never the truth.  Out-of-library cases
-have one true effect that is removed from the diagnosis's library.  A drawn
-case whose true run would tear the sheet (F_max >= F_break) or fails to run
-is redrawn (no real record exists of it).
+A case's records come from a TRUE cell that differs from the one the
+diagnosis is told about (the record's ``scenario``) in three ways, as a real
+cell would:
 
-Scores (fractions in 0..1):
+* numerics: the true chain has 2 N + 1 masses against the scenario's N, a
+  step half as long (``solver.dt``, ``dt_still``, ``max_tool_step``,
+  ``dt_settle``), a contact three times softer (:data:`TRUE_NUMERICS`);
+  every step is dynamic (backward Euler with the sheet's inertia);
+* the written scenario: every baseline knob (:data:`baseline.SHEET`) is
+  written off its true value by a draw within +-0.8 of its tolerance;
+* the measurement chain: the vision offset and the load cell's bias, gain
+  and lag are off by draws within +-0.8 of their tolerances.
 
-* ``top1_accuracy``: single in-library cases whose verdict names the true effect;
-* ``param_rel_error_median``: |fitted - true| / |true| of those (vector norm for tool_offset);
-* ``no_effect_false_name_rate``: no-effect cases whose verdict names an effect;
-* ``out_of_library_unexplained_rate``: out-of-library cases answered ``unexplained``;
-* ``holdout_gap_shrink_median``: gap shrink on the holdout record when the verdict is right;
-* ``pair_accuracy``: two-effect cases whose verdict names both.
+On top, by kind (``KINDS_PATTERN``, each case its own seed ``seed * 1000 +
+index``): ``single`` (one library effect at a magnitude drawn from
+``Effect.realistic``), ``none``, ``sensor`` (one chain error beyond its
+tolerance, :data:`SENSOR_ERRORS`; the right answer is no sheet effect and
+the measurement side flagged) and ``out_of_library`` (one effect removed from
+the diagnosis's library).  Three records per case on movements drawn from
+1-4; two fitted, one held out.  A draw whose true run tears the sheet or
+fails is redrawn.
 """
 from __future__ import annotations
 
 import math
 import random
 import time
+from concurrent.futures import Executor
 from dataclasses import replace
 from typing import Callable
 
 import numpy as np
 
 from ..effects import EFFECT_NAMES, EFFECTS
-from ..measurement import MeasurementParams, synthesize_record
+from ..measurement import MeasurementParams, measure
 from ..params import CellParams
+from ..record import Record
+from ..scenarios import movement_scenario, scenario_plan
+from ..simulation import run_scenario
+from .baseline import CHAIN, SHEET, step_of, with_sheet
+from .signature import KIND_OF_EFFECT
 
-KINDS_PATTERN = ("single",) * 6 + ("none", "pair", "out_of_library", "out_of_library")
+KINDS_PATTERN = ("single", "none", "single", "out_of_library", "single", "none", "single",
+                 "sensor", "single", "out_of_library")
+#: How the true cell's numerics differ from the scenario's (factor on the scenario's values).
+TRUE_NUMERICS = {"dt": 0.5, "dt_still": 0.5, "max_tool_step": 0.5, "dt_settle": 0.5,
+                 "contact_stiffness": 1.0 / 3.0}
+#: Chain errors beyond tolerance for ``sensor`` cases: (knob, |value| range in its unit).
+SENSOR_ERRORS = (("vision.dx", (1.5e-3, 3e-3)), ("vision.dz", (1.5e-3, 3e-3)),
+                 ("load_cell.gain", (0.10, 0.25)), ("load_cell.lag", (0.2, 0.5)),
+                 ("load_cell.bias_x", (0.05, 0.1)), ("load_cell.bias_z", (0.05, 0.1)))
+
+
+def base_cell(n_masses: int = 31, process_time: float = 70.0) -> CellParams:
+    """The cell the diagnosis is told about (before the written values are perturbed)."""
+    p = CellParams()
+    return replace(p, sheet=replace(p.sheet, n_masses=n_masses),
+                   movement=replace(p.movement, process_time=process_time))
+
+
+def true_numerics(p: CellParams) -> CellParams:
+    """``p`` on the true cell's discretisation: 2 N + 1 masses, half steps, softer contact."""
+    s = p.solver
+    solver = replace(s, **{k: getattr(s, k) * f for k, f in TRUE_NUMERICS.items()})
+    return replace(p, sheet=replace(p.sheet, n_masses=2 * p.sheet.n_masses + 1), solver=solver)
 
 
 def draw_value(name: str, rng: random.Random) -> tuple[float, ...]:
     """A realistic magnitude of effect ``name``."""
-    e = EFFECTS[name]
     vals = []
-    for k, (lo, hi) in enumerate(e.realistic):
+    for lo, hi in EFFECTS[name].realistic:
         v = rng.uniform(lo, hi)
         if name in ("tool_offset", "mass_error"):
             v *= rng.choice((-1.0, 1.0))
@@ -49,68 +78,120 @@ def draw_value(name: str, rng: random.Random) -> tuple[float, ...]:
     return tuple(vals)
 
 
-def make_case(index: int, kind: str, rng: random.Random, base: CellParams,
-              measurement: MeasurementParams) -> dict:
-    """Draw a case and record its three runs (redrawn until the true runs are valid)."""
-    singles_cycle = EFFECT_NAMES
+def measure_chain(run, path, truth: CellParams, ms: MeasurementParams, rng: np.random.Generator,
+                  chain: dict, name: str) -> Record:
+    """The sensors' view of ``run`` with chain errors ``chain`` (knob -> value in its unit)."""
+    rec = measure(run, path, truth, ms, rng, name)
+    off = np.array([chain.get("vision.dx", 0.0), chain.get("vision.dz", 0.0)])
+    profiles = tuple(f + off for f in rec.profiles)
+    wrench = rec.wrench_xz
+    if rec.has_wrench:
+        t = rec.wrench_t - chain.get("load_cell.lag", 0.0)
+        f = np.c_[np.interp(t, run.t, run.tool_force[:, 0]),
+                  np.interp(t, run.t, run.tool_force[:, 1])]
+        wrench = ((1.0 + chain.get("load_cell.gain", 0.0)) * f
+                  + np.array([chain.get("load_cell.bias_x", 0.0),
+                              chain.get("load_cell.bias_z", 0.0)])
+                  + rng.normal(0.0, ms.wrench_noise, f.shape))
+    return replace(rec, profiles=profiles, wrench_xz=wrench)
+
+
+def make_case(index: int, kind: str, seed: int, base: CellParams,
+              measurement: MeasurementParams = MeasurementParams()) -> dict:
+    """Draw a case (its own seed) and record its three runs."""
+    rng = random.Random(seed * 1000 + index)
     for _attempt in range(20):
-        if kind == "none":
-            truth: tuple = ()
-        elif kind == "pair":
-            a, b = rng.sample(EFFECT_NAMES, 2)
-            truth = ((a, draw_value(a, rng)), (b, draw_value(b, rng)))
-        else:
-            name = singles_cycle[(index + rng.randrange(len(singles_cycle))) % len(singles_cycle)] \
-                if kind == "out_of_library" else singles_cycle[index % len(singles_cycle)]
-            truth = ((name, draw_value(name, rng)),)
-        cell = base
-        for n, v in truth:
-            cell = EFFECTS[n].apply(cell, v)
+        truth_effects: tuple = ()
+        if kind in ("single", "out_of_library"):
+            name = EFFECT_NAMES[(index // 2 + (kind == "out_of_library") * 3 + rng.randrange(2))
+                                % len(EFFECT_NAMES)] if kind == "out_of_library" else \
+                EFFECT_NAMES[(index // 2 + index) % len(EFFECT_NAMES)]
+            truth_effects = ((name, draw_value(name, rng)),)
+        perturb = {k.name: rng.uniform(-0.8, 0.8) for k in SHEET}
+        chain = {k.name: rng.uniform(-0.8, 0.8) * k.tolerance for k in CHAIN}
+        sensor = None
+        if kind == "sensor":
+            knob, (lo, hi) = SENSOR_ERRORS[index % len(SENSOR_ERRORS)]
+            chain[knob] = rng.uniform(lo, hi) * (rng.choice((-1.0, 1.0)) if knob != "load_cell.lag"
+                                                 else 1.0)
+            sensor = knob
+        written = base
+        try:
+            truth = with_sheet(base, {k: -v for k, v in perturb.items()})
+        except ValueError:
+            continue
+        for n, v in truth_effects:
+            truth = EFFECTS[n].apply(truth, v)
+        truth = true_numerics(truth)
         movements = rng.sample((1, 2, 3, 4), 3)
         records, ok = [], True
-        for j, mv in enumerate(movements):
-            c = replace(cell, movement=replace(cell.movement, number=mv))
+        nrng = np.random.default_rng(rng.randrange(2 ** 31))
+        for mv in movements:
+            t_cell = replace(truth, movement=replace(truth.movement, number=mv))
+            w_cell = replace(written, movement=replace(written.movement, number=mv))
             try:
-                rec, run = synthesize_record(c, measurement, seed=rng.randrange(2 ** 31),
-                                             name=f"case{index}-m{mv}")
+                path = scenario_plan(t_cell, movement_scenario(t_cell))
+                run = run_scenario(t_cell, path)
             except (RuntimeError, ValueError):
                 ok = False
                 break
-            if run.F_max >= c.material.F_break:
+            if run.F_max >= t_cell.material.F_break:
                 ok = False
                 break
-            records.append(rec)
+            rec = measure_chain(run, path, t_cell, measurement, nrng, chain, f"case{index}-m{mv}")
+            records.append(replace(rec, scenario=w_cell))
         if ok:
-            return {"index": index, "kind": kind, "truth": truth, "movements": movements,
-                    "records": records}
+            true_u = {k: -v for k, v in perturb.items()}
+            true_u.update({k.name: chain[k.name] / k.tolerance for k in CHAIN})
+            return {"index": index, "kind": kind, "truth": truth_effects, "movements": movements,
+                    "records": records, "true_u": true_u, "sensor": sensor}
     raise RuntimeError(f"case {index}: no valid {kind} case in 20 draws")
 
 
 def score_case(case: dict, diag) -> dict:
     names = [n for n, _ in case["truth"]]
     verdict = diag.verdict
-    named = verdict.split("+") if verdict not in ("none", "unexplained") else []
+    named = (verdict.split("+") if verdict not in ("none", "unexplained", "measurement chain")
+             else [])
+    vf = diag.verdict_fit
     row = {"index": case["index"], "kind": case["kind"], "movements": case["movements"],
-           "truth": {n: list(v) for n, v in case["truth"]}, "verdict": verdict,
-           "verdict_params": ({n: list(v) for n, v in diag.verdict_fit.values.items()}
-                              if diag.verdict_fit else None),
-           "J_nominal_fit": diag.J0, "J_nominal_holdout": diag.J0_holdout,
-           "gap_after": diag.gap_after, "gap_before": diag.gap_before, "simulations": diag.runs}
+           "truth": {n: list(v) for n, v in case["truth"]}, "sensor": case["sensor"],
+           "verdict": verdict, "verdict_p": vf.p if vf else None, "p_gap": diag.p_gap,
+           "side": diag.side["side"], "chain_outside": diag.side["chain_outside"],
+           "verdict_params": {n: list(v) for n, v in vf.values.items()} if vf else None,
+           "J_nominal": diag.J0, "J_baseline": diag.J_base, "J_nominal_holdout": diag.J0_holdout,
+           "J_baseline_holdout": diag.J_base_holdout, "baseline_took": diag.baseline_took,
+           "simulations": diag.runs,
+           "candidates": [{"name": "+".join(c.names), "J": c.J, "J_holdout": c.J_holdout,
+                           "p": c.p, "checked": c.checked, "adequate": c.adequate}
+                          for c in diag.effects + diag.pairs],
+           "chain_candidate": diag.side["chain_candidate"],
+           "ranked_first": (sorted(diag.effects, key=lambda c: (c.p, c.J))[0].names[0]
+                            if diag.effects else None)}
     if case["kind"] == "single":
         row["correct"] = named == names
-    elif case["kind"] == "pair":
-        row["correct"] = sorted(named) == sorted(names)
     elif case["kind"] == "none":
         row["correct"] = not named
+    elif case["kind"] == "sensor":
+        row["correct"] = not named
+        row["side_right"] = case["sensor"] in diag.side["chain_outside"]
     else:
         row["correct"] = verdict == "unexplained"
-    if case["kind"] in ("single", "pair") and row["correct"]:
-        errs = []
-        for n, v in case["truth"]:
-            fit = np.asarray(diag.verdict_fit.values[n], float)
-            true = np.asarray(v, float)
-            errs.append(float(np.linalg.norm(fit - true) / np.linalg.norm(true)))
-        row["param_rel_error"] = max(errs)
+        sig = diag.signature
+        if sig and verdict == "unexplained":
+            row["top_cause"] = sig["causes"][0]["kind"]
+            row["cause_right"] = row["top_cause"] == KIND_OF_EFFECT[names[0]]
+    # the fitted baseline against the truth (in tolerances)
+    errs = {k: diag.baseline[k]["u"] - case["true_u"][k] for k in case["true_u"]
+            if k in diag.baseline}
+    row["baseline_error_u"] = errs
+    row["baseline_within_tolerance"] = all(not diag.baseline[k]["outside"] for k in diag.baseline
+                                           if k in {s.name for s in SHEET})
+    if case["kind"] == "single" and row["correct"]:
+        n, v = case["truth"][0]
+        fit = np.asarray(vf.values[n], float)
+        true = np.asarray(v, float)
+        row["param_rel_error"] = float(np.linalg.norm(fit - true) / np.linalg.norm(true))
         h = diag.gap_after.get("holdout")
         row["holdout_gap_shrink"] = h.get("shrink") if h else None
     return row
@@ -118,63 +199,71 @@ def score_case(case: dict, diag) -> dict:
 
 def summarise(rows: list[dict], wall: float) -> dict:
     def frac(sel, key="correct"):
-        sel = list(sel)
+        sel = [r for r in sel if r.get(key) is not None]
         return (sum(bool(r[key]) for r in sel) / len(sel)) if sel else None
 
-    single = [r for r in rows if r["kind"] == "single"]
-    none = [r for r in rows if r["kind"] == "none"]
-    ool = [r for r in rows if r["kind"] == "out_of_library"]
-    pair = [r for r in rows if r["kind"] == "pair"]
-    errs = [r["param_rel_error"] for r in rows if r["kind"] == "single" and "param_rel_error" in r]
+    by = {k: [r for r in rows if r["kind"] == k]
+          for k in ("single", "none", "sensor", "out_of_library")}
+    single = by["single"]
+    moved = [r for r in single if r["p_gap"] is not None and r["p_gap"] <= 0.05]
+    errs = [r["param_rel_error"] for r in single if "param_rel_error" in r]
     shrink = [r["holdout_gap_shrink"] for r in rows if r.get("holdout_gap_shrink") is not None]
+    sheet_err = [abs(e) for r in rows for k, e in r["baseline_error_u"].items()
+                 if k in {s.name for s in SHEET}]
     per_effect = {}
     for n in EFFECT_NAMES:
         sel = [r for r in single if list(r["truth"]) == [n]]
         if sel:
             per_effect[n] = {"cases": len(sel), "correct": sum(r["correct"] for r in sel)}
-    ool_verdicts: dict = {}
-    for r in ool:
-        ool_verdicts[r["verdict"]] = ool_verdicts.get(r["verdict"], 0) + 1
     return {
-        "cases": len(rows),
-        "single_cases": len(single), "none_cases": len(none), "pair_cases": len(pair),
-        "out_of_library_cases": len(ool),
+        "cases": len(rows), **{f"{k}_cases": len(v) for k, v in by.items()},
         "top1_accuracy": frac(single),
+        "top1_accuracy_beyond_noise": frac(moved), "single_beyond_noise_cases": len(moved),
+        "ranked_first_right": (sum(r["ranked_first"] == list(r["truth"])[0] for r in single)
+                               / len(single)) if single else None,
         "param_rel_error_median": float(np.median(errs)) if errs else None,
-        "no_effect_false_name_rate": (1.0 - frac(none)) if none else None,
-        "out_of_library_unexplained_rate": frac(ool),
+        "no_effect_false_name_rate": (1.0 - frac(by["none"])) if by["none"] else None,
+        "no_effect_none_rate": frac(by["none"]),
+        "sensor_no_sheet_name_rate": frac(by["sensor"]),
+        "sensor_side_right_rate": frac(by["sensor"], "side_right"),
+        "out_of_library_unexplained_rate": frac(by["out_of_library"]),
+        "out_of_library_cause_right": frac(by["out_of_library"], "cause_right"),
         "holdout_gap_shrink_median": float(np.median(shrink)) if shrink else None,
-        "pair_accuracy": frac(pair),
-        "per_effect": per_effect,
-        "out_of_library_verdicts": ool_verdicts,
-        "wall_time_s": wall,
+        "baseline_within_tolerance_rate": frac(rows, "baseline_within_tolerance"),
+        "baseline_error_median_tolerances": float(np.median(sheet_err)) if sheet_err else None,
+        "simulations_median": float(np.median([r["simulations"] for r in rows])) if rows else None,
+        "per_effect": per_effect, "wall_time_s": wall,
     }
 
 
-def run_benchmark(n: int = 40, seed: int = 1, jobs: int | None = None,
-                  progress: Callable[[dict], None] | None = None) -> dict:
+def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
+                  progress: Callable[[dict], None] | None = None, n_masses: int = 31,
+                  process_time: float = 70.0, kinds: tuple[str, ...] | None = None,
+                  executor: Executor | None = None) -> dict:
     """Run ``n`` cases; returns the summary with every case under ``case_results``."""
     from .engine import diagnose
-    rng = random.Random(seed)
-    base = CellParams()
-    measurement = MeasurementParams()
+    base = base_cell(n_masses, process_time)
     rows = []
     t0 = time.monotonic()
+    pattern = kinds or KINDS_PATTERN
     for i in range(n):
-        kind = KINDS_PATTERN[i % len(KINDS_PATTERN)]
-        case = make_case(i, kind, rng, base, measurement)
+        kind = pattern[i % len(pattern)]
+        case = make_case(i, kind, seed, base)
         library = EFFECT_NAMES
         if kind == "out_of_library":
             library = tuple(x for x in EFFECT_NAMES if x != case["truth"][0][0])
-        diag = diagnose(case["records"][:2], case["records"][2:], library=library, jobs=jobs)
+        t1 = time.monotonic()
+        diag = diagnose(case["records"][:2], case["records"][2:], library=library, jobs=jobs,
+                        executor=executor)
         row = score_case(case, diag)
+        row["diagnosis_wall_s"] = time.monotonic() - t1
         row["library_size"] = len(library)
         rows.append(row)
         if progress is not None:
             progress(row)
     out = summarise(rows, time.monotonic() - t0)
-    out["seed"] = seed
-    out["case_results"] = rows
+    out.update({"seed": seed, "n_masses": n_masses, "true_n_masses": 2 * n_masses + 1,
+                "process_time_s": process_time, "case_results": rows})
     return out
 
 

@@ -1,17 +1,19 @@
-"""Parallel evaluation of candidate models against records.
+"""Batches of model runs against records: the one seam where simulations are spent.
 
-A candidate is a tuple of ``(effect name, values)`` pairs added to each
-record's nominal cell.  :class:`Evaluator` runs candidates x records in a
-process pool (all cores) and returns, per record, the sums the fit and the
-gap figures need (:class:`Stats`).  A model that fails to run (the solver
-gives up, e.g. a pinched sheet) scores infinitely bad, never crashes the
-diagnosis.
+A :class:`Task` is a record (its flattened :class:`~.compare.RecordData`) and
+the full cell to run against it (baseline values and effects already set);
+the data travels with the task, so any :class:`concurrent.futures.Executor`
+runs it (a local process pool by default; a Dask ``distributed`` client's
+``get_executor()`` as well).  :func:`run_batch` returns one
+:class:`Outcome` per task, in order: the residual vectors the linearised
+fits work on, never the whole run unless asked (``keep_run``).  A model
+that fails to run (the solver gives up) gives ``ok = False``, never an
+exception.
 """
 from __future__ import annotations
 
-import math
 import os
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor, ProcessPoolExecutor
 from dataclasses import dataclass
 from multiprocessing import get_context
 from typing import Callable, Sequence
@@ -20,85 +22,112 @@ import numpy as np
 
 from ..effects import EFFECTS
 from ..params import CellParams
+from ..simulation import RunResult
 from .compare import RecordData, residuals, simulate
 
-Candidate = tuple  # tuple[tuple[str, tuple[float, ...]], ...]
+Candidate = tuple  # tuple[tuple[str, tuple[float, ...]], ...]: (effect name, values) pairs
 
 
 @dataclass(frozen=True)
-class Stats:
-    """One record against one candidate: sums of squared residuals and gap figures."""
+class Task:
+    """One simulation: the cell ``params`` driven by ``data``'s measured tool pose."""
+
+    data: RecordData
+    params: CellParams
+    keep_run: bool = False
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One record against one model run (chain uncorrected)."""
 
     ok: bool
-    sum_p: float = math.inf       # m^2, sum of squared profile residuals
-    n_p: int = 0
-    sum_f: float = math.inf       # N^2, sum of squared force residuals (x and z)
-    n_f: int = 0
-    max_p: float = math.inf       # m, largest |profile residual|
-    delta_model: float = math.nan  # m
-    delta_measured: float = math.nan
+    profile: np.ndarray | None = None      # (P,) m, signed normal distance, measured - model
+    normal: np.ndarray | None = None       # (P, 2) unit normal of the model at each foot point
+    arc: np.ndarray | None = None          # (P,) m, arc length of the foot point
+    force: np.ndarray | None = None        # (W, 2) N, measured - model tool force
+    model_force: np.ndarray | None = None  # (W, 2) N, model tool force at the wrench stamps
+    model_dforce: np.ndarray | None = None  # (W, 2) N/s, its time derivative
+    delta_model: float = float("nan")      # m, Delta of the model at the last frame
+    delta_measured: float = float("nan")   # m
+    F_max: float = float("nan")            # N
+    run: RunResult | None = None
     error: str = ""
-
-    def chi2(self, sigma_p: float, sigma_f: float) -> tuple[float, int]:
-        """Noise-weighted sum of squares and its count (profile and force)."""
-        if not self.ok:
-            return math.inf, self.n_p + self.n_f
-        total = self.sum_p / sigma_p ** 2 + (self.sum_f / sigma_f ** 2 if self.n_f else 0.0)
-        return total, self.n_p + self.n_f
 
 
 def apply(params: CellParams, candidate: Candidate) -> CellParams:
+    """``params`` with the effects of ``candidate`` switched on."""
     for name, values in candidate:
         params = EFFECTS[name].apply(params, values)
     return params
 
 
-def evaluate_one(data: RecordData, candidate: Candidate) -> Stats:
-    try:
-        run = simulate(apply(data.record.scenario, candidate), data)
-    except (RuntimeError, ValueError, FloatingPointError) as exc:
-        return Stats(False, error=f"{type(exc).__name__}: {exc}")
-    r = residuals(data, run)
-    n_f = 0 if r.force is None else r.force.size
-    return Stats(True, float(np.sum(r.profile ** 2)), int(r.profile.size),
-                 float(np.sum(r.force ** 2)) if n_f else 0.0, n_f,
-                 float(np.max(np.abs(r.profile))), r.delta_model, r.delta_measured)
-
-
-_DATA: list[RecordData] = []
-
-
-def _init(data: list[RecordData]) -> None:
-    global _DATA
-    _DATA = data
+def run_task(task: Task) -> Outcome:
+    """Run one task (in a worker process or here)."""
     np.seterr(all="ignore")
+    data = task.data
+    try:
+        run = simulate(task.params, data)
+    except (RuntimeError, ValueError, FloatingPointError) as exc:
+        return Outcome(False, error=f"{type(exc).__name__}: {exc}")
+    r = residuals(data, run)
+    lines_seg = _normals(data, run, r)
+    mf = md = None
+    if r.force is not None:
+        t = data.record.wrench_t
+        mf = data.record.wrench_xz - r.force
+        md = np.gradient(mf, t, axis=0) if t.size > 1 else np.zeros_like(mf)
+    if not (np.all(np.isfinite(r.profile)) and (r.force is None or np.all(np.isfinite(r.force)))):
+        return Outcome(False, error="non-finite residuals")
+    return Outcome(True, r.profile, lines_seg, r.arc, r.force, mf, md, r.delta_model,
+                   r.delta_measured, float(run.F_max), run if task.keep_run else None)
 
 
-def _task(args) -> Stats:
-    i, candidate = args
-    return evaluate_one(_DATA[i], candidate)
+def _normals(data: RecordData, run: RunResult, r) -> np.ndarray:
+    """Unit left normal of the model's centreline at each foot point (the residual's direction)."""
+    from .compare import polylines_at
+    lines = polylines_at(run, data.record.profile_t)
+    tang = np.gradient(lines, axis=1)                                    # (F, K, 2)
+    cum = np.concatenate((np.zeros((len(lines), 1)), np.cumsum(np.linalg.norm(
+        np.diff(lines, axis=1), axis=2), axis=1)), axis=1)
+    out = np.empty((len(r.arc), 2))
+    for f in np.unique(data.point_frame):
+        sel = data.point_frame == f
+        tx = np.interp(r.arc[sel], cum[f], tang[f, :, 0])
+        tz = np.interp(r.arc[sel], cum[f], tang[f, :, 1])
+        n = np.hypot(tx, tz)
+        n = np.where(n > 0, n, 1.0)
+        out[sel] = np.c_[-tz / n, tx / n]
+    return out
 
 
-class Evaluator:
-    """Runs (record, candidate) pairs on ``jobs`` processes; caches results."""
+def default_executor(jobs: int | None = None) -> Executor:
+    """A local process pool on ``jobs`` processes (default: all cores)."""
+    n = max(1, jobs or os.cpu_count() or 1)
+    return ProcessPoolExecutor(n, mp_context=get_context("fork"))
 
-    def __init__(self, data: Sequence[RecordData], jobs: int | None = None,
+
+class Runner:
+    """Counts and runs batches on an executor (owned when made here, else the caller's)."""
+
+    def __init__(self, executor: Executor | None = None, jobs: int | None = None,
                  progress: Callable[[int], None] | None = None):
-        self.data = list(data)
-        self.jobs = max(1, jobs or os.cpu_count() or 1)
+        self._own = executor is None and (jobs or os.cpu_count() or 1) > 1
+        self.executor = default_executor(jobs) if self._own else executor
         self.progress = progress
-        self.cache: dict = {}
         self.runs = 0
-        self._pool = None
-        if self.jobs > 1:
-            self._pool = ProcessPoolExecutor(self.jobs, mp_context=get_context("fork"),
-                                             initializer=_init, initargs=(self.data,))
-        else:
-            _init(self.data)
+
+    def __call__(self, tasks: Sequence[Task]) -> list[Outcome]:
+        return run_batch(tasks, self.executor, self._count)
+
+    def _count(self, n: int) -> None:
+        self.runs += n
+        if self.progress is not None:
+            self.progress(n)
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown()
+        if self._own and self.executor is not None:
+            self.executor.shutdown()
 
     def __enter__(self):
         return self
@@ -106,21 +135,22 @@ class Evaluator:
     def __exit__(self, *exc):
         self.close()
 
-    def stats(self, candidates: Sequence[Candidate], records: Sequence[int]) -> list[list[Stats]]:
-        """Stats[candidate][record] for every candidate on the given record indices."""
-        keys = [(_key(c), i) for c in candidates for i in records]
-        todo = sorted({k for k in keys if k not in self.cache})
-        args = [(i, c) for c, i in todo]
-        if args:
-            results = (self._pool.map(_task, args, chunksize=1) if self._pool is not None
-                       else map(_task, args))
-            for key, res in zip(todo, results):
-                self.cache[key] = res
-                self.runs += 1
-                if self.progress is not None:
-                    self.progress(1)
-        return [[self.cache[(_key(c), i)] for i in records] for c in candidates]
 
-
-def _key(candidate: Candidate) -> Candidate:
-    return tuple(sorted((n, tuple(round(float(v), 12) for v in vals)) for n, vals in candidate))
+def run_batch(tasks: Sequence[Task], executor: Executor | None = None,
+              progress: Callable[[int], None] | None = None) -> list[Outcome]:
+    """Every task's outcome, in order; on ``executor`` (None: here, one after another)."""
+    tasks = list(tasks)
+    if executor is None:
+        out = []
+        for t in tasks:
+            out.append(run_task(t))
+            if progress is not None:
+                progress(1)
+        return out
+    futures = [executor.submit(run_task, t) for t in tasks]
+    out = []
+    for f in futures:
+        out.append(f.result())
+        if progress is not None:
+            progress(1)
+    return out

@@ -10,7 +10,8 @@ Per group of records (``fit``, ``holdout``):
   sqrt(max(mean r^2 - s_p^2, 0));
 * ``force_rms_N`` and ``force_systematic_N`` the same for the tool force;
 * ``delta_error_m``: mean |Delta measured (last frame) - Delta model|;
-* ``J``: the noise-normalised misfit (1: within noise) and ``gap``:
+* ``J``: the balanced noise-normalised misfit (1: within noise; profile and
+  tool force weigh one half each, :mod:`stats`) and ``gap``:
   sqrt(max(J - 1, 0)), the systematic gap in units of the noise; ``shrink``
   (after only): 1 - gap_after / gap_before.
 """
@@ -33,15 +34,14 @@ def _group(data, res, idx, sp, sf) -> dict | None:
            "profile_max_rel": float(np.max(np.abs(prof)) / length),
            "profile_systematic_m": float(math.sqrt(max(np.mean(prof ** 2) - sp ** 2, 0.0))),
            "delta_error_m": float(np.mean([abs(res[i].delta_measured - res[i].delta_model) for i in idx]))}
-    chi = np.sum(prof ** 2) / sp ** 2
-    n = prof.size
+    J_p = float(np.mean(prof ** 2) / sp ** 2)
+    J = J_p
     if forces:
         f = np.concatenate([x.reshape(-1) for x in forces])
         out["force_rms_N"] = float(np.sqrt(np.mean(f ** 2)))
         out["force_systematic_N"] = float(math.sqrt(max(np.mean(f ** 2) - sf ** 2, 0.0)))
-        chi += np.sum(f ** 2) / sf ** 2
-        n += f.size
-    out["J"] = float(chi / n)
+        J = 0.5 * (J_p + float(np.mean(f ** 2) / sf ** 2))
+    out["J"] = float(J)
     out["gap"] = float(math.sqrt(max(out["J"] - 1.0, 0.0)))
     return out
 

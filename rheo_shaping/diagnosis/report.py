@@ -19,7 +19,7 @@ def residual_map(diag, path: Path) -> None:
     for row, (data, before, after, _) in enumerate(maps):
         t = data.record.profile_t[data.point_frame]
         for col, (res, title) in enumerate(((before, "nominal model"),
-                                            (after, f"with {diag.verdict}" if diag.verdict_fit else "no effect added"))):
+                                            (after, f"baseline + {diag.verdict}" if diag.verdict_fit else "calibrated baseline"))):
             ax = axes[row, col]
             sc = ax.scatter(t, res.arc * 1e3, c=res.profile * 1e3, s=1, cmap="coolwarm", vmin=-lim, vmax=lim,
                             rasterized=True, linewidths=0)
@@ -34,11 +34,12 @@ def residual_map(diag, path: Path) -> None:
 
 
 def effects_chart(diag, path: Path) -> None:
-    """Explained fraction of the excess misfit per candidate, fit and holdout records."""
+    """Explained fraction of the baseline's excess misfit per candidate, fit and holdout records."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fits = sorted(diag.effects + diag.pairs, key=lambda f: f.score)
+    from .engine import _rank_key
+    fits = sorted(diag.effects + diag.pairs, key=_rank_key)
     if not fits:
         return
     names = ["+".join(f.names) for f in fits]
@@ -48,11 +49,10 @@ def effects_chart(diag, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 0.35 * len(fits) + 1.2))
     ax.barh(y - 0.2, np.nan_to_num(fit), 0.4, label="fit records")
     ax.barh(y + 0.2, np.nan_to_num(hold), 0.4, label="holdout records")
-    ax.axvline(0.85, color="k", lw=0.8, ls="--")
     ax.set_yticks(y, names)
     ax.invert_yaxis()
     ax.set_xlim(-0.2, 1.05)
-    ax.set_xlabel("fraction of the gap beyond noise explained (1 - (J - 1)/(J0 - 1))")
+    ax.set_xlabel("fraction of the calibrated baseline's excess misfit explained")
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -60,57 +60,125 @@ def effects_chart(diag, path: Path) -> None:
 
 
 def _fmt(v, scale=1.0, digits=3):
-    return "n/a" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v * scale:.{digits}f}"
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "n/a"
+    return f"{v * scale:.{digits}f}"
 
 
-def markdown(diag, figures: dict) -> str:
+def _g(v):
+    return "n/a" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.4g}"
+
+
+def markdown(diag, figures: dict, process: dict | None = None) -> str:
+    """The report (see docs/diagnosis.md for every figure)."""
+    from ..effects import EFFECTS
+    from . import stats
     j = diag.to_json()
     lines = ["# Sim-to-real gap diagnosis", "",
              f"Records fitted: {', '.join(diag.records)}; held out: {', '.join(diag.holdout) or 'none'}.",
              f"Noise estimated from the records: profile {diag.noise['profile_m'] * 1e3:.3f} mm, "
-             f"tool force {diag.noise['force_N']:.4f} N. Misfit of the nominal model J0 = {diag.J0:.3f} "
-             f"(1 = within noise) on the fit records, {_fmt(diag.J0_holdout)} on the holdout.", "",
+             f"tool force {diag.noise['force_N']:.4f} N. Balanced misfit (1 = within noise; profile "
+             f"and tool force weigh one half each): nominal J0 = {diag.J0:.3f} on the fit records "
+             f"({_fmt(diag.J0_holdout)} holdout), calibrated baseline {diag.J_base:.3f} "
+             f"({_fmt(diag.J_base_holdout)} holdout).", "",
              f"## Verdict: **{diag.verdict}**", ""]
-    if diag.verdict_fit:
-        for n, vals in diag.verdict_fit.values.items():
-            from ..effects import EFFECTS
+    lines.append(f"Gap test: the baseline's excess J - 1 = {diag.J_base - 1:.4f} against effect-free "
+                 f"records (95 % of them stay below {stats.null_quantile():.4f}): p_gap = "
+                 f"{diag.p_gap:.3g}.")
+    vf = diag.verdict_fit
+    if vf:
+        pv = f"{vf.p:.3g}" if vf.p > 0 else "< 1e-300"
+        lines.append(f"Strength: likelihood ratio {vf.LR:.1f} on {vf.k} parameter(s), p = {pv} "
+                     f"(Bonferroni over the candidates); what it leaves: J - 1 = {vf.J - 1:.4f} "
+                     f"(fit), {_fmt(vf.J_holdout - 1 if math.isfinite(vf.J_holdout) else None, 1, 4)} "
+                     "(holdout).")
+        lines.append("")
+        for n, vals in vf.values.items():
             e = EFFECTS[n]
             for k, v in enumerate(vals):
-                lo, hi = diag.verdict_fit.interval[n][k]
-                lines.append(f"- {n}.{e.fit[k]} = {v:.4g} {e.unit[k]} (95 % interval {lo:.4g} .. {hi:.4g})")
-        lines.append("")
+                lo, hi = vf.interval[n][k]
+                lines.append(f"- {n}.{e.fit[k]} = {v:.4g} {e.unit[k]} (95 % interval {lo:.4g} .. "
+                             f"{hi:.4g})")
     elif diag.verdict == "none":
-        lines += ["The nominal model agrees with the records within the measurement noise.", ""]
+        lines.append("The calibrated baseline agrees with the records as well as it does on "
+                     "effect-free records: no effect is named.")
+    elif diag.verdict == "measurement chain":
+        lines.append("The gap lies in the measurement chain: with its values beyond their "
+                     "tolerances (" + ", ".join(diag.side["chain_outside"]) + ") the baseline "
+                     "explains the records; no effect of the sheet is named.")
     else:
-        lines += ["No candidate effect accounts for the gap beyond noise (none explains "
-                  "enough of it on the fit and holdout records); the best candidates are listed below.", ""]
-    lines += ["## Where the model parts from the records (nominal model)", "",
-              "| rank | kind | where | n | RMS | systematic RMS | x noise | mean |", "|---|---|---|---|---|---|---|---|"]
+        lines.append("No candidate accounts for what the baseline leaves (significant and adequate "
+                     "on fit and holdout records): see the signature below.")
+    lines += ["", "## Baseline: what a careful user knows within a tolerance", "",
+              f"The baseline took {_fmt(diag.baseline_took, 100, 1)} % of the nominal model's "
+              "excess misfit.", "",
+              "| knob | written | fitted | in tolerances | outside |", "|---|---|---|---|---|"]
+    for name, b in diag.baseline.items():
+        lines.append(f"| {name} | {_g(b.get('written'))} | {_g(b['value'])} {b['unit']} | "
+                     f"{b['u']:+.2f} | {'yes' if b['outside'] else ''} |")
+    cc = diag.side["chain_candidate"]
+    lines += ["", "## Which side of the sensors", "",
+              f"Side: **{diag.side['side']}**. The measurement chain beyond its tolerances "
+              f"({', '.join(cc['outside']) or 'none needed'}) leaves J = {cc['J']:.4f} "
+              f"(holdout {_fmt(cc['J_holdout'])}), p = {_g(cc['p'])}, adequate: {cc['adequate']}.", ""]
+    lines += ["## Candidates", "",
+              "| rank | effect | parameters | J fit | J holdout | LR | p | adequate | checked |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for e in j["effects"]:
+        params = "; ".join(f"{n} = " + ", ".join(f"{v:.4g}" for v in vals)
+                           for n, vals in e["params"].items())
+        lines.append(f"| {e['rank']} | {e['name']} | {params} | {e['J_fit']:.4f} | "
+                     f"{_fmt(e['J_holdout'], 1, 4)} | {_fmt(e['LR'], 1, 1)} | {_g(e['p'])} | "
+                     f"{e['adequate']} | {e['checked']} |")
+    if diag.signature:
+        sig = diag.signature
+        lines += ["", "## Signature of what the baseline leaves", "",
+                  "- observables (excess J - 1): " + ", ".join(
+                      f"{k} {v:.4f}" for k, v in sig["observables"].items()),
+                  f"- along the sheet: peaks in arc-length band {sig['where']['peak_band'] + 1} of 5 "
+                  f"(fraction {sig['where']['peak_band_arc_fraction'][0]:.1f}-"
+                  f"{sig['where']['peak_band_arc_fraction'][1]:.1f} from the cake-top bond)",
+                  "- in the process: " + ", ".join(f"{k} {v * 1e3:.3f} mm" for k, v in sig["when"].items())
+                  + f" (before contact: {sig['before_contact'] * 100:.0f} %)",
+                  f"- in time: {sig['trend']['kind']} (late / early {sig['trend']['late_over_early']:.2f})",
+                  "- correlation with: " + ", ".join(f"{k} {v:+.2f}" for k, v in
+                                                      sig["proportional_to"].items()),
+                  f"- tool force: lag {_g(sig['force_lag_s'])} s, gain {_g(sig['force_gain'])}",
+                  "", "Kinds of cause, ranked: " + ", ".join(
+                      f"{c['kind']} ({c['score']:.2f})" for c in sig["causes"]), ""]
+    lines += ["", "## How far the gap shrinks", "",
+              "| records | figure | nominal | baseline | verdict |", "|---|---|---|---|---|"]
+    for grp in ("fit", "holdout"):
+        b, m, a = diag.gap_before.get(grp), diag.gap_baseline.get(grp), diag.gap_after.get(grp)
+        if not b:
+            continue
+        for key, label, s in (("profile_rms_m", "profile RMS [mm]", 1e3),
+                              ("profile_systematic_m", "profile systematic RMS [mm]", 1e3),
+                              ("profile_max_rel", "profile max / undeformed length [%]", 100),
+                              ("force_rms_N", "tool force RMS [N]", 1),
+                              ("force_systematic_N", "tool force systematic RMS [N]", 1),
+                              ("delta_error_m", "Delta error [mm]", 1e3),
+                              ("gap", "gap beyond noise sqrt(J - 1)", 1)):
+            if key in b:
+                lines.append(f"| {grp} | {label} | {_fmt(b[key], s)} | {_fmt(m[key], s)} | "
+                             f"{_fmt(a[key], s)} |")
+        lines.append(f"| {grp} | shrink of the gap | | {_fmt(m.get('shrink'))} | {_fmt(a.get('shrink'))} |")
+    if process:
+        lines += ["", "## What the corrected model changes for the process (movement 4)", "",
+                  "| figure | nominal | corrected |", "|---|---|---|"]
+        for key, label, s in (("F_max", "F_max [N]", 1), ("SF", "SF", 1), ("delta", "Delta [mm]", 1e3),
+                              ("d_opt", "d_opt [mm]", 1e3)):
+            lines.append(f"| {label} | {_fmt(process['nominal'].get(key), s)} | "
+                         f"{_fmt(process['corrected'].get(key), s)} |")
+    lines += ["", "## Where (calibrated baseline)", "",
+              "| rank | kind | where | n | RMS | systematic RMS | x noise | mean |",
+              "|---|---|---|---|---|---|---|---|"]
     for w in diag.where:
         s = 1e3 if w["unit"] == "m" else 1.0
         u = "mm" if w["unit"] == "m" else "N"
         lines.append(f"| {w['rank']} | {w['kind']} | {w['name']} | {w['n']} | {_fmt(w['rms'], s)} {u} | "
-                     f"{_fmt(w['systematic_rms'], s)} {u} | {_fmt(w['relative'], 1, 2)} | {_fmt(w['mean'], s)} {u} |")
-    lines += ["", "## Which effect: candidates ranked by BIC", "",
-              "| rank | effect | parameters | BIC | J fit | J holdout | explained fit | explained holdout |",
-              "|---|---|---|---|---|---|---|---|"]
-    for e in j["effects"]:
-        params = "; ".join(f"{n} = " + ", ".join(f"{v:.4g}" for v in vals) for n, vals in e["params"].items())
-        lines.append(f"| {e['rank']} | {e['name']} | {params} | {e['score']:.1f} | {e['J_fit']:.3f} | "
-                     f"{_fmt(e['J_holdout'])} | {_fmt(e['explained_fit'])} | {_fmt(e['explained_holdout'])} |")
-    lines += ["", "## How far the gap shrinks", "",
-              "| records | figure | before | after |", "|---|---|---|---|"]
-    for grp in ("fit", "holdout"):
-        b, a = diag.gap_before.get(grp), diag.gap_after.get(grp)
-        if not b:
-            continue
-        for key, label, s in (("profile_rms_m", "profile RMS [mm]", 1e3), ("profile_systematic_m", "profile systematic RMS [mm]", 1e3),
-                              ("profile_max_m", "profile max [mm]", 1e3), ("profile_max_rel", "profile max / undeformed length [%]", 100),
-                              ("force_rms_N", "tool force RMS [N]", 1), ("force_systematic_N", "tool force systematic RMS [N]", 1),
-                              ("delta_error_m", "Delta error [mm]", 1e3), ("gap", "gap beyond noise sqrt(J - 1)", 1)):
-            if key in b:
-                lines.append(f"| {grp} | {label} | {_fmt(b[key], s)} | {_fmt(a[key], s)} |")
-        lines.append(f"| {grp} | shrink of the gap | | {_fmt(a.get('shrink'))} |")
+                     f"{_fmt(w['systematic_rms'], s)} {u} | {_fmt(w['relative'], 1, 2)} | "
+                     f"{_fmt(w['mean'], s)} {u} |")
     lines += ["", "## Figures", ""]
     for title, name in figures.items():
         lines.append(f"![{title}]({name})")
@@ -119,12 +187,12 @@ def markdown(diag, figures: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write(diag, out_dir: Path) -> list[Path]:
+def write(diag, out_dir: Path, process: dict | None = None) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     figs = {"residual over time and arc length": "residual_map.png", "candidate effects": "effects.png"}
     residual_map(diag, out_dir / figs["residual over time and arc length"])
     effects_chart(diag, out_dir / figs["candidate effects"])
     if not (diag.effects or diag.pairs):
         figs.pop("candidate effects")
-    (out_dir / "report.md").write_text(markdown(diag, figs))
+    (out_dir / "report.md").write_text(markdown(diag, figs, process))
     return [out_dir / "report.md", *(out_dir / f for f in figs.values())]
