@@ -6,7 +6,7 @@ import json
 import sys
 
 from . import UserError
-from .common import output_path
+from .common import add_executor_arguments, executor_from_args, output_path
 
 
 def add_parser(sub) -> None:
@@ -26,7 +26,7 @@ def add_parser(sub) -> None:
     p.add_argument("--process-time", type=float, default=70.0,
                    help="length of each record [s] (default 70)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    add_executor_arguments(p)
     p.add_argument("--save", metavar="FILE", help="also write the summary with every case to FILE (JSON)")
     p.add_argument("--force", action="store_true", help="overwrite --save's file")
     p.add_argument("--json", action="store_true", help="print one JSON object (summary) instead of a table")
@@ -37,8 +37,6 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.n < 1:
         raise UserError(f"--n = {args.n} is invalid: expected at least 1 case")
-    if args.jobs is not None and args.jobs < 1:
-        raise UserError(f"--jobs = {args.jobs} is invalid: expected at least 1")
     save = output_path(args.save, args.force, "file")
     from tqdm import tqdm
 
@@ -46,16 +44,14 @@ def run(args: argparse.Namespace) -> int:
     bar = tqdm(total=args.n, desc="diagnose-benchmark", unit="case", file=sys.stderr,
                disable=args.quiet)
 
-    def progress(row: dict) -> None:
-        bar.update(1)
-        bar.set_postfix_str(f"{row['kind']} {'/'.join(row['truth']) or '-'} -> {row['verdict']}")
 
     if args.n_masses < 3:
         raise UserError(f"--n-masses = {args.n_masses} is invalid: expected at least 3")
     if not args.process_time > 10.0:
         raise UserError(f"--process-time = {args.process_time} s is invalid: expected > 10 s")
-    out = run_benchmark(args.n, args.seed, args.jobs, progress, n_masses=args.n_masses,
-                        process_time=args.process_time)
+    with executor_from_args(args) as executor:
+        out = run_benchmark(args.n, args.seed, args.jobs, bar.update, n_masses=args.n_masses,
+                            process_time=args.process_time, executor=executor)
     bar.close()
     if save is not None:
         save.write_text(json.dumps(out, indent=1, default=float))

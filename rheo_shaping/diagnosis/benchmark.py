@@ -35,6 +35,7 @@ import numpy as np
 
 from ..effects import EFFECT_NAMES, EFFECTS
 from ..measurement import MeasurementParams, measure
+from ..parallel import run_tasks
 from ..params import CellParams
 from ..record import Record
 from ..scenarios import movement_scenario, scenario_plan
@@ -237,34 +238,44 @@ def summarise(rows: list[dict], wall: float) -> dict:
 
 
 def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
-                  progress: Callable[[dict], None] | None = None, n_masses: int = 31,
+                  progress: Callable[[int], None] | None = None, n_masses: int = 31,
                   process_time: float = 70.0, kinds: tuple[str, ...] | None = None,
                   executor: Executor | None = None) -> dict:
-    """Run ``n`` cases; returns the summary with every case under ``case_results``."""
-    from .engine import diagnose
+    """Run ``n`` cases; returns the summary with every case under ``case_results``.
+
+    The cases go to ``executor`` (:mod:`rheo_shaping.parallel`: a local pool, a Dask
+    cluster), each with its own seed (case i of seed s is the same wherever it runs);
+    with no executor they run here, each diagnosis on ``jobs`` local processes.
+    ``progress(k)``: k more cases done."""
     base = base_cell(n_masses, process_time)
-    rows = []
     t0 = time.monotonic()
-    pattern = kinds or KINDS_PATTERN
-    for i in range(n):
-        kind = pattern[i % len(pattern)]
-        case = make_case(i, kind, seed, base)
-        library = EFFECT_NAMES
-        if kind == "out_of_library":
-            library = tuple(x for x in EFFECT_NAMES if x != case["truth"][0][0])
-        t1 = time.monotonic()
-        diag = diagnose(case["records"][:2], case["records"][2:], library=library, jobs=jobs,
-                        executor=executor)
-        row = score_case(case, diag)
-        row["diagnosis_wall_s"] = time.monotonic() - t1
-        row["library_size"] = len(library)
-        rows.append(row)
-        if progress is not None:
-            progress(row)
+    shared = {"seed": seed, "base": base, "pattern": kinds or KINDS_PATTERN,
+              "jobs": jobs if executor is None else 1}
+    rows = run_tasks(executor, _case_task, shared, list(range(n)), progress,
+                     chunks_per_worker=1 if executor is None else 2)
     out = summarise(rows, time.monotonic() - t0)
     out.update({"seed": seed, "n_masses": n_masses, "true_n_masses": 2 * n_masses + 1,
                 "process_time_s": process_time, "case_results": rows})
     return out
+
+
+def _case_task(shared: dict, i: int) -> dict:
+    """Case ``i``: its records (its own seed), the diagnosis, the score (module-level: it
+    pickles to a worker)."""
+    from .engine import diagnose
+    pattern = shared["pattern"]
+    kind = pattern[i % len(pattern)]
+    case = make_case(i, kind, shared["seed"], shared["base"])
+    library = EFFECT_NAMES
+    if kind == "out_of_library":
+        library = tuple(x for x in EFFECT_NAMES if x != case["truth"][0][0])
+    t1 = time.monotonic()
+    diag = diagnose(case["records"][:2], case["records"][2:], library=library,
+                    jobs=shared["jobs"])
+    row = score_case(case, diag)
+    row["diagnosis_wall_s"] = time.monotonic() - t1
+    row["library_size"] = len(library)
+    return row
 
 
 def is_fraction(v) -> bool:

@@ -13,14 +13,14 @@ exception.
 from __future__ import annotations
 
 import os
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import Executor
 from dataclasses import dataclass
-from multiprocessing import get_context
 from typing import Callable, Sequence
 
 import numpy as np
 
 from ..effects import EFFECTS
+from ..parallel import run_tasks
 from ..params import CellParams
 from ..simulation import RunResult
 from .compare import RecordData, residuals, simulate
@@ -102,9 +102,9 @@ def _normals(data: RecordData, run: RunResult, r) -> np.ndarray:
 
 
 def default_executor(jobs: int | None = None) -> Executor:
-    """A local process pool on ``jobs`` processes (default: all cores)."""
-    n = max(1, jobs or os.cpu_count() or 1)
-    return ProcessPoolExecutor(n, mp_context=get_context("fork"))
+    """A local process pool on ``jobs`` processes (default: all cores; rheo_shaping.parallel)."""
+    from ..parallel import _local_pool
+    return _local_pool(max(1, jobs or os.cpu_count() or 1))
 
 
 class Runner:
@@ -138,19 +138,10 @@ class Runner:
 
 def run_batch(tasks: Sequence[Task], executor: Executor | None = None,
               progress: Callable[[int], None] | None = None) -> list[Outcome]:
-    """Every task's outcome, in order; on ``executor`` (None: here, one after another)."""
-    tasks = list(tasks)
-    if executor is None:
-        out = []
-        for t in tasks:
-            out.append(run_task(t))
-            if progress is not None:
-                progress(1)
-        return out
-    futures = [executor.submit(run_task, t) for t in tasks]
-    out = []
-    for f in futures:
-        out.append(f.result())
-        if progress is not None:
-            progress(1)
-    return out
+    """Every task's outcome, in order; on ``executor`` (None: here, one after another),
+    through the package's one seam (:func:`rheo_shaping.parallel.run_tasks`)."""
+    return run_tasks(executor, _run_one, None, list(tasks), progress)
+
+
+def _run_one(_shared, task: Task) -> Outcome:
+    return run_task(task)

@@ -2,8 +2,9 @@
 read-only install (colcon prefix, site-packages) compiles once per user, not every run.
 
 The package is copied into a read-only tree and imported from there in a fresh process
-with an empty temporary HOME; when the tests run as root (who may write anywhere) that
-process runs as the unprivileged user ``nobody``, so the tree is really read-only to it.
+with an empty temporary HOME; when the tests run as root (who may write anywhere) the tree
+is bind-mounted read-only for that process (a private mount namespace, ``unshare``), so
+it is really read-only to it.
 """
 from __future__ import annotations
 
@@ -81,11 +82,16 @@ def _check_cache(tmp_path: Path) -> None:
     home.mkdir()
     user: list[str] = []
     if os.geteuid() == 0:
-        setpriv = shutil.which("setpriv")
-        if setpriv is None:
-            pytest.skip("running as root without setpriv: cannot make the install read-only")
-        user = [setpriv, "--reuid=65534", "--regid=65534", "--clear-groups"]
-        os.chown(home, 65534, 65534)
+        unshare = shutil.which("unshare")
+        probe = subprocess.run([unshare or "unshare", "--mount", "true"], capture_output=True) \
+            if unshare else None
+        if probe is None or probe.returncode != 0:
+            pytest.skip("running as root without unshare --mount: cannot make the install "
+                        "read-only")
+        # the tree given as the last argument is bind-mounted read-only, then python runs
+        user = [unshare, "--mount", "sh", "-c",
+                'for a; do site="$a"; done; mount --bind -o ro "$site" "$site" && exec "$@"',
+                "sh"]
     first = _run(site, home, user, debug=False)
     assert first.returncode == 0, first.stderr[-3000:]
     cache = home / ".cache" / "rheo_shaping" / "numba"
