@@ -14,6 +14,11 @@ from .simulation import RunResult
 from .tools import tool_shape
 
 #: Colours of the phases shaded in time plots.
+def phase_label(name: str) -> str:
+    """A phase's name as figures write it (the paper's words)."""
+    return "forced deformation" if name == "forced" else name
+
+
 PHASE_COLOURS = {"approach": "#e8f0ff", "forced": "#ffe8e8", "dwell": "#fff6d8",
                  "release": "#e8ffe8", "settle": "#f2f2f2"}
 
@@ -100,7 +105,7 @@ def _phase_legend(ax, phases) -> None:
     for _, _, n in phases:
         if n not in names:
             names.append(n)
-    handles = [Patch(color=PHASE_COLOURS.get(n, "#f0f0f0"), label=n) for n in names]
+    handles = [Patch(color=PHASE_COLOURS.get(n, "#f0f0f0"), label=phase_label(n)) for n in names]
     ax.legend(handles=handles, fontsize=7, loc="upper right", ncol=len(handles), frameon=False)
 
 
@@ -146,16 +151,19 @@ def plot_movement_history(run, path: str | Path, title: str = "") -> Path:
 
 
 def _cell_limits(result: RunResult) -> tuple[tuple[float, float], tuple[float, float]]:
+    """x and z limits [mm] that hold the cake, the sheet and the whole tool at every step."""
     p = result.params
     xs = [result.x[..., 0].max(), result.anchors[1][0]]
-    tool_x = result.tool[:, 0][np.isfinite(result.tool[:, 0])]
-    reach = float(np.max(np.abs(tool_shape(p.tool).outline(64)))) if tool_x.size else 0.0
-    if tool_x.size:
-        xs.append(min(tool_x.max() + reach, 0.15))
+    zs = [p.cake.height + 0.02, float(result.x[..., 1].max()) + 0.01]
+    finite = np.all(np.isfinite(result.tool), axis=1)
+    if finite.any():
+        outline = tool_shape(p.tool).outline(64)              # relative to the tool point
+        tools = result.tool[finite]
+        xs.append(min(float(tools[:, 0].max() + outline[:, 0].max()), 0.15))
+        zs.append(min(float(tools[:, 1].max() + outline[:, 1].max()) + 0.003, 0.2))
     x_hi = max(xs) + 0.005
     x_lo = min(result.anchors[0][0], -p.cake.fillet_radius) - 0.01
-    z_hi = max(p.cake.height + 0.02, float(result.x[..., 1].max()) + 0.01)
-    return (x_lo * 1e3, x_hi * 1e3), (-3.0, z_hi * 1e3)
+    return (x_lo * 1e3, x_hi * 1e3), (-3.0, max(zs) * 1e3)
 
 
 def plot_phase_profiles(run, path: str | Path, title: str = "") -> Path:
@@ -178,9 +186,11 @@ def plot_phase_profiles(run, path: str | Path, title: str = "") -> Path:
         ax.set_aspect("equal")
         ax.set_xlim(*xlim)
         ax.set_ylim(*zlim)
-        ax.set_title(f"end of {name}, t = {res.t[k]:.1f} s" if name != "start" else "t = 0",
+        ax.set_title(f"end of {phase_label(name)}, t = {res.t[k]:.1f} s" if name != "start" else "t = 0",
                      fontsize=8)
         ax.tick_params(labelsize=7)
+        ax.set_xlabel("x, out from the cake wall [mm]", fontsize=7)
+        ax.set_ylabel("z, up from the workplane [mm]", fontsize=7)
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
     fig.suptitle(title or f"movement {run.label}: profiles (red: spheres touching the tool)", fontsize=9)

@@ -7,27 +7,48 @@ from pathlib import Path
 import numpy as np
 
 
+def binned_means(t: np.ndarray, arc: np.ndarray, values: np.ndarray, t_bins: int = 36,
+                 arc_bins: int = 24) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean of ``values`` in a grid of time [s] x arc length [m] bins (NaN where empty):
+    the systematic part of a residual, with the per-point noise averaged out.
+    Returns (time edges, arc edges, means (t_bins, arc_bins))."""
+    t_edges = np.linspace(float(np.min(t)), float(np.max(t)) + 1e-9, t_bins + 1)
+    a_edges = np.linspace(float(np.min(arc)), float(np.max(arc)) + 1e-12, arc_bins + 1)
+    total, _, _ = np.histogram2d(t, arc, (t_edges, a_edges), weights=values)
+    count, _, _ = np.histogram2d(t, arc, (t_edges, a_edges))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    return t_edges, a_edges, mean
+
+
 def residual_map(diag, path: Path) -> None:
-    """Residual [mm] over time and arc length, nominal model beside the verdict's, per record."""
+    """Profile residual [mm] over time and arc length per record: the raw points of the
+    nominal model, then the binned systematic means of the nominal model and of the
+    verdict's (calibrated baseline + effect), on one colour scale."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     maps = diag.residual_maps
-    fig, axes = plt.subplots(len(maps), 2, figsize=(11, 3.2 * len(maps)), squeeze=False,
+    fig, axes = plt.subplots(len(maps), 3, figsize=(14, 3.2 * len(maps)), squeeze=False,
                              sharex="row", sharey="row", constrained_layout=True)
     lim = max(float(np.percentile(np.abs(r.profile), 99)) for _, r, _, _ in maps) * 1e3
+    after_title = f"baseline + {diag.verdict}" if diag.verdict_fit else "calibrated baseline"
     for row, (data, before, after, _) in enumerate(maps):
         t = data.record.profile_t[data.point_frame]
-        for col, (res, title) in enumerate(((before, "nominal model"),
-                                            (after, f"baseline + {diag.verdict}" if diag.verdict_fit else "calibrated baseline"))):
+        held = " (holdout)" if data.record.name in diag.holdout else ""
+        ax = axes[row, 0]
+        sc = ax.scatter(t, before.arc * 1e3, c=before.profile * 1e3, s=1, cmap="coolwarm",
+                        vmin=-lim, vmax=lim, rasterized=True, linewidths=0)
+        ax.set_title(f"{data.record.name}{held}: nominal model, every point", fontsize=9)
+        for col, (res, title) in enumerate(((before, "nominal model"), (after, after_title)), 1):
+            te, ae, mean = binned_means(t, res.arc, res.profile)
             ax = axes[row, col]
-            sc = ax.scatter(t, res.arc * 1e3, c=res.profile * 1e3, s=1, cmap="coolwarm", vmin=-lim, vmax=lim,
-                            rasterized=True, linewidths=0)
-            held = " (holdout)" if data.record.name in diag.holdout else ""
-            ax.set_title(f"{data.record.name}{held}: {title}", fontsize=9)
+            ax.pcolormesh(te, ae * 1e3, mean.T * 1e3, cmap="coolwarm", vmin=-lim, vmax=lim,
+                          shading="flat", rasterized=True)
+            ax.set_title(f"{data.record.name}{held}: {title}, binned means", fontsize=9)
+        for ax in axes[row]:
             ax.set_xlabel("time [s]")
-            if col == 0:
-                ax.set_ylabel("arc length from the cake-top bond [mm]")
+        axes[row, 0].set_ylabel("arc length from the cake-top bond [mm]")
     fig.colorbar(sc, ax=axes, label="profile residual, measured - model [mm]", shrink=0.8)
     fig.savefig(path, dpi=80)
     plt.close(fig)
