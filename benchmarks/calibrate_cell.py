@@ -62,7 +62,6 @@ import argparse
 import json
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -71,6 +70,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rheo_shaping.drape import make_drape  # noqa: E402
+from rheo_shaping.parallel import executor_from_spec, run_tasks  # noqa: E402
 from rheo_shaping.params import CellParams  # noqa: E402
 from rheo_shaping.reproduce import HALF_SPEED, PAPER, parabolic_minimum, run_movement, sweep_point  # noqa: E402
 from rheo_shaping import simulation  # noqa: E402
@@ -166,10 +166,12 @@ def _settled_key(params: CellParams):
     return (params.material, params.sheet, params.cake, params.solver)
 
 
-def _run(args):
-    params, kind, arg, settled = args
-    # every worker would settle the same new sheet again (0.3-1 s): hand it the
-    # state the parent already computed (simulation's per-process cache)
+def _run(shared, job):
+    """One run of a design's evaluation (module-level: it pickles to any executor)."""
+    params, settled = shared
+    kind, arg = job
+    # every worker would settle the same new sheet again (0.3-1 s): the state the parent
+    # computed travels with the task into the worker's cache (simulation's per-process cache)
     if settled is not None:
         simulation._SETTLED.setdefault(_settled_key(params), settled)
     if kind == "movement":
@@ -178,16 +180,16 @@ def _run(args):
     if kind == "half":
         r = run_movement(params, 1, speed=HALF_SPEED, dwell=0.0)
         return {"F": r.F_max, "D": r.delta, "forced": r.forced_time}
-    return sweep_point((params, arg))
+    return sweep_point(params, arg)
 
 
-def evaluate(params: CellParams, mapper=map, d_values=COARSE_D) -> dict:
-    """The calibration's metrics of a cell."""
+def evaluate(params: CellParams, executor=None, d_values=COARSE_D) -> dict:
+    """The calibration's metrics of a cell; its runs on ``executor`` (rheo_shaping.parallel)."""
     Simulation(params)                                   # settle once, here
     settled = simulation._SETTLED.get(_settled_key(params))
-    jobs = [(params, "movement", m, settled) for m in (1, 2, 3, 4)] + [(params, "half", None, settled)]
-    jobs += [(params, "sweep", float(d), settled) for d in d_values]
-    out = list(mapper(_run, jobs))
+    jobs = [("movement", m) for m in (1, 2, 3, 4)] + [("half", None)]
+    jobs += [("sweep", float(d)) for d in d_values]
+    out = run_tasks(executor, _run, (params, settled), jobs, chunks_per_worker=1)
     rows = out[5:]
     sw = parabolic_minimum(np.array([r["d"] for r in rows]), np.array([r["F_max"] for r in rows]))
     i = sw[3]
@@ -213,8 +215,8 @@ def objective(res: dict) -> float:
 
 
 class Problem:
-    def __init__(self, mapper):
-        self.mapper = mapper
+    def __init__(self, executor):
+        self.executor = executor
         self.evals = 0
         self.best = (np.inf, None, None)
         self.log = []
@@ -226,7 +228,7 @@ class Problem:
         x = LO + np.clip(u, 0.0, 1.0) * (HI - LO)
         self.evals += 1
         try:
-            m = evaluate(build_cell(x), self.mapper)
+            m = evaluate(build_cell(x), self.executor)
         except Exception as exc:          # an infeasible geometry (e.g. bond inside the fillet)
             self.log.append((np.inf, x.tolist(), repr(exc)))
             return 1e6 + pen
@@ -291,6 +293,8 @@ def main(argv=None) -> int:
     ap.add_argument("--check", action="store_true",
                     help="only evaluate the default cell (and check it is its design, rounded)")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--executor", metavar="SPEC", default=None,
+                    help="local (default), local:N, serial or dask://HOST:PORT (rheo_shaping.parallel)")
     ap.add_argument("--refine", type=int, default=REFINE,
                     help=f"masses per paper sphere (default {REFINE}; 1 = the paper's 2 g lumps)")
     ap.add_argument("--lsq", action="store_true",
@@ -305,16 +309,16 @@ def main(argv=None) -> int:
     from scipy.stats import qmc
 
     t0 = time.time()
-    with ProcessPoolExecutor(args.jobs) as pool:
+    with executor_from_spec(args.executor, jobs=args.jobs) as pool:
         if args.check:
             x = current_design()
             p = build_cell(x, rounded=True)
             print(f"default cell's design, {REFINE} masses per paper sphere (N = {p.sheet.n_masses}):")
-            report([x[n] for n in NAMES], evaluate(p, pool.map))
+            report([x[n] for n in NAMES], evaluate(p, pool))
             print("default cell == build_cell(its design, rounded):", p == CellParams())
             print(f"{time.time() - t0:.0f} s")
             return 0
-        prob = Problem(pool.map)
+        prob = Problem(pool)
         if args.start:
             d = json.loads(args.start)
             starts = [(np.array([d[n] * 1e-3 for n in NAMES]) - LO) / (HI - LO)]
@@ -350,7 +354,7 @@ def main(argv=None) -> int:
         print("design (mm):", json.dumps({n: round(v * 1e3, 3) for n, v in zip(NAMES, x)}))
         p = build_cell(x, rounded=True)
         print("the same, every length rounded to 0.1 mm (the default cell):")
-        report([round(v, 4) for v in x], evaluate(p, pool.map))
+        report([round(v, 4) for v in x], evaluate(p, pool))
         print_cell(p)
     if args.log:
         with open(args.log, "w") as fh:
