@@ -40,6 +40,22 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
+class _Progress:
+    """The diagnosis's progress on a tqdm bar: each batch of simulations adds its size to
+    the total as it starts (the later batches depend on the earlier results), so the bar
+    shows done / known so far and an ETA for the known work."""
+
+    def __init__(self, bar):
+        self.bar = bar
+
+    def expect(self, n: int) -> None:
+        self.bar.total = (self.bar.total or 0) + n
+        self.bar.refresh()
+
+    def __call__(self, n: int) -> None:
+        self.bar.update(n)
+
+
 def run(args: argparse.Namespace) -> int:
     library = EFFECT_NAMES
     if args.effects:
@@ -63,11 +79,12 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from ..diagnosis.engine import diagnose
-    bar = tqdm(desc="diagnose", unit="sim", file=sys.stderr, disable=args.quiet)
+    bar = tqdm(desc="diagnose", unit="sim", file=sys.stderr, disable=args.quiet, total=0)
     t0 = time.monotonic()
     try:
         with executor_from_args(args) as executor:
-            diag = diagnose(fit, hold, library=library, progress=bar.update, executor=executor)
+            diag = diagnose(fit, hold, library=library, progress=_Progress(bar),
+                            executor=executor)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     finally:

@@ -118,6 +118,9 @@ class Runner:
         self.runs = 0
 
     def __call__(self, tasks: Sequence[Task]) -> list[Outcome]:
+        expect = getattr(self.progress, "expect", None)
+        if expect is not None:             # a progress display learns each batch's size first
+            expect(len(tasks))
         return run_batch(tasks, self.executor, self._count)
 
     def _count(self, n: int) -> None:
