@@ -23,6 +23,7 @@ from typing import Callable
 import numpy as np
 import rclpy
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
@@ -323,8 +324,9 @@ def replay(record_dir: Path, *, namespace: str = "", rate: float = 1.0, clock: b
             for c in reader.connections:
                 topic = T.ALL.get(c.topic)
                 qos = topic.qos if topic is not None else T.STATE_QOS
+                # a deep history: a subscriber slower than the replay loses nothing
                 pubs[c.id] = node.create_publisher(get_message(c.msgtype), c.topic.lstrip("/"),
-                                                   qos)
+                                                   T.writer_qos(qos))
             clock_pub = node.create_publisher(T.CLOCK.type, T.CLOCK.name, T.CLOCK.qos) \
                 if clock else None
             if wait_for_subscribers > 0:
@@ -348,8 +350,11 @@ def replay(record_dir: Path, *, namespace: str = "", rate: float = 1.0, clock: b
                     clock_pub.publish(m.clock_msg(stamp))
                 pubs[conn.id].publish(bytes(raw))      # the bag's CDR, as recorded
                 counts[conn.topic] = counts.get(conn.topic, 0) + 1
-        return {"record": str(record_dir), "messages": counts,
-                "wall_time_s": time.monotonic() - wall0 if counts else 0.0}
+        wall = time.monotonic() - wall0 if counts else 0.0
+        # reliable delivery of the last messages before this node leaves the graph
+        for pub in pubs.values():
+            pub.wait_for_all_acked(Duration(seconds=10.0))
+        return {"record": str(record_dir), "messages": counts, "wall_time_s": wall}
     finally:
         executor.shutdown(timeout_sec=1.0)
         node.destroy_node()
