@@ -109,16 +109,12 @@ def _campaign_task(shared: dict, item: tuple) -> dict:
         return run_case(index, cell, shared["trend"])
 
 
-def run_case(index: int, cell: CellParams, trend: bool = False) -> dict:
-    """Offline (no monitor) and closed-loop run of one cell."""
-    from rclpy.parameter import Parameter
-
+def offline_case(index: int, cell: CellParams):
+    """A case's row and its offline run without a monitor (``would_tear``); (row with
+    ``failed``, None) when the plan is refused or the core fails."""
     from rheo_shaping.clearance import plan_clearance
-    from rheo_shaping.config import dump_cell
-    from rheo_shaping.nodes.cell import run_cell
     from rheo_shaping.scenarios import movement_scenario, scenario_plan
     from rheo_shaping.simulation import run_scenario
-
     mv = cell.movement
     row = {"case": index, "movement": mv.number, "speed_factor": mv.speed / 1e-3,
            "k1": cell.material.k1, "c2": cell.material.c2, "F_break": cell.material.F_break,
@@ -126,12 +122,25 @@ def run_case(index: int, cell: CellParams, trend: bool = False) -> dict:
     try:
         plan = scenario_plan(cell, movement_scenario(cell))
         if plan_clearance(cell, plan.plan).gap < cell.sheet.thickness:
-            return {**row, "failed": "plan refused by the clearance check"}
+            return {**row, "failed": "plan refused by the clearance check"}, None
         offline = run_scenario(cell, plan)
     except (RuntimeError, ValueError) as exc:
-        return {**row, "failed": f"offline: {exc}"}
-    row["F_max_offline"] = offline.F_max
+        return {**row, "failed": f"offline: {exc}"}, None
+    row["F_max_offline"] = float(offline.F_max)
     row["would_tear"] = bool(offline.F_max >= cell.material.F_break)
+    return row, offline
+
+
+def run_case(index: int, cell: CellParams, trend: bool = False) -> dict:
+    """Offline (no monitor) and closed-loop run of one cell."""
+    from rclpy.parameter import Parameter
+
+    from rheo_shaping.config import dump_cell
+    from rheo_shaping.nodes.cell import run_cell
+
+    row, offline = offline_case(index, cell)
+    if offline is None:
+        return row
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "cell.yaml"
         path.write_text(dump_cell(cell))

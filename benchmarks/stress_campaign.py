@@ -103,27 +103,13 @@ def lossy_namespace(loss_percent: int):
 def run_case_processes(index: int, cell, prefix: list[str], domain: int,
                        timeout: float) -> dict:
     """Offline run, then the cell as three processes (inside ``prefix``); figures from logs."""
-    import numpy as np
-
-    from rheo_shaping.clearance import plan_clearance
-    from rheo_shaping.config import dump_cell
-    from rheo_shaping.scenarios import movement_scenario, scenario_plan
-    from rheo_shaping.simulation import run_scenario
     import yaml
 
-    mv = cell.movement
-    row = {"case": index, "movement": mv.number, "speed_factor": mv.speed / 1e-3,
-           "k1": cell.material.k1, "c2": cell.material.c2, "F_break": cell.material.F_break,
-           "d": mv.d if mv.number == 4 else None}
-    try:
-        plan = scenario_plan(cell, movement_scenario(cell))
-        if plan_clearance(cell, plan.plan).gap < cell.sheet.thickness:
-            return {**row, "failed": "plan refused by the clearance check"}
-        offline = run_scenario(cell, plan)
-    except (RuntimeError, ValueError) as exc:
-        return {**row, "failed": f"offline: {exc}"}
-    row["F_max_offline"] = float(offline.F_max)
-    row["would_tear"] = bool(offline.F_max >= cell.material.F_break)
+    from rheo_shaping.config import dump_cell
+
+    row, offline = campaign.offline_case(index, cell)
+    if offline is None:
+        return row
     rtf = campaign.RTF
     with tempfile.TemporaryDirectory(prefix="rheo-stress-") as tmp:
         params = Path(tmp) / "cell.yaml"
