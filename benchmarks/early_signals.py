@@ -66,7 +66,8 @@ def one_run(exe: str, delay: float, sig: int, env: dict, exit_timeout: float) ->
         rc = "timeout"
     return {"node": exe, "delay_s": round(delay, 3), "signal": signal.Signals(sig).name,
             "rc": rc, "traceback": "Traceback" in out,
-            "ok": rc == 0 and "Traceback" not in out, "tail": out[-400:] if rc != 0 else ""}
+            "ok": rc == 0 and "Traceback" not in out,
+            "tail": out[-1500:] if (rc != 0 or "Traceback" in out) else ""}
 
 
 def main(argv: list[str] | None = None) -> int:

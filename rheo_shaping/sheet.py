@@ -356,26 +356,22 @@ def _reach(shape) -> float:
 
 
 def warm_up() -> float:
-    """Load (or, on a user's first run, compile) every entry of the compiled step by
-    running a five-mass chain through it once; returns the wall time it took [s].
+    """Load (or, on a user's first run, compile) every entry of the compiled step the nodes
+    use, by running a short process of the default cell (cake, workplane and tool shapes,
+    the settle, a scenario) once; returns the wall time it took [s].
 
-    The node executables call it before ``rclpy.init``, so that a long first compile
-    happens while a signal can still end the process at once (:mod:`rheo_shaping.nodes.entry`).
+    The node executables call it before ``rclpy.init``, so that loading the compiled code
+    (numba calls back into Python through ctypes while it loads) and a long first compile
+    happen while a signal can still end the process at once (:mod:`rheo_shaping.nodes.entry`).
     """
     import time
+    from dataclasses import replace as _replace
 
-    from .geometry import Workplane
+    from .params import CellParams
+    from .scenarios import movement_scenario, scenario_plan
+    from .simulation import run_scenario
     t0 = time.perf_counter()
-    n = 5
-    c = ChainConstants(anchor_top=np.array([0.0, 0.1]), anchor_bottom=np.array([0.1, 0.1]),
-                       rest_length=np.full(n + 1, 0.02), k1=np.full(n + 1, 500.0),
-                       c1=np.zeros(n + 1), c2=np.full(n + 1, 1e3), mass=np.full(n, 1e-3),
-                       radius=1e-3)
-    plane = Workplane()
-    model = SheetModel(c, [Obstacle("workplane", plane)])
-    x0 = np.column_stack((np.linspace(0.0, 0.1, n + 2)[1:-1], np.full(n, 0.1)))
-    state = model.step(model.initial_state(x0), 0.01, dynamic=False)
-    state = model.run_steps(state, 0.01, 3)
-    model.run_path(state, np.full(3, 0.01), np.full((3, 2), np.nan))
-    plane.signed_distance(x0)
+    cell = CellParams()
+    cell = _replace(cell, movement=_replace(cell.movement, process_time=5.0))
+    run_scenario(cell, scenario_plan(cell, movement_scenario(cell)))
     return time.perf_counter() - t0
