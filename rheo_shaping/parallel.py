@@ -42,7 +42,7 @@ class SerialExecutor(Executor):
         return future
 
 
-def _local_pool(workers: int) -> ProcessPoolExecutor:
+def local_pool(workers: int) -> ProcessPoolExecutor:
     """A process pool; forked workers start fast, but a process with threads (a ROS node,
     whose DDS threads Python does not see, a Dask client) spawns them, since fork copies
     only the calling thread."""
@@ -73,7 +73,7 @@ def executor_from_spec(spec: str | None = None, jobs: int | None = None) -> Iter
             if not count.isdigit() or int(count) < 1:
                 raise ValueError(f"--executor {spec!r}: expected 'local:N' with N >= 1 workers")
             workers = int(count)
-        pool = _local_pool(workers)
+        pool = local_pool(workers)
         try:
             yield pool
         finally:

@@ -103,8 +103,8 @@ def _normals(data: RecordData, run: RunResult, r) -> np.ndarray:
 
 def default_executor(jobs: int | None = None) -> Executor:
     """A local process pool on ``jobs`` processes (default: all cores; rheo_shaping.parallel)."""
-    from ..parallel import _local_pool
-    return _local_pool(max(1, jobs or os.cpu_count() or 1))
+    from ..parallel import local_pool
+    return local_pool(max(1, jobs or os.cpu_count() or 1))
 
 
 class Runner:

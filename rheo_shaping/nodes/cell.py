@@ -19,7 +19,6 @@ from typing import Callable, Sequence
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor  # noqa: F401
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 
