@@ -157,11 +157,21 @@ def test_planner_restarted_mid_run_does_not_resume(ros, procs, tmp_path):
     states = Recorder(ros.node("restart_observer"), {"/shaping/planner_state": (String, True)})
     restart = write_params(tmp_path / "restart.yaml", CellParams(), planner={"autostart": True})
     again = procs("planner", "--ros-args", "--params-file", str(restart), "-p", "use_sim_time:=true")
-    c.wait(lambda: states.published_after("/shaping/planner_state", t_dead_ns)
-           and states.published_after("/shaping/planner_state", t_dead_ns)[-1].data == "tool_away",
-           60.0, "the new planner to refuse the autostart")
+
+    def decided():
+        mine = states.published_after("/shaping/planner_state", t_dead_ns)
+        return mine[-1].data if mine and mine[-1].data in ("tool_away", "holding") else None
+    c.wait(decided, 60.0, "the new planner to refuse the autostart")
     # the new planner has decided; a set-point it sent would reach us within this window
     c.ros.spin_for(2.0)
     assert c.rec.published_after("/tool/command", t_dead_ns) == []   # none from the new planner
-    assert "neither at home nor at the plan's start" in again.text()
+    if decided() == "holding":
+        # a CPU-starved simulator can miss the monitor's 0.5 s data age while the planner is
+        # down: the monitor's abort is then latched, and the new planner holds on it. That is a
+        # refusal too, but only a stale-data abort may stand in for the tool-away check.
+        reasons = [a.data for a in c.rec["/shaping/abort"]]
+        print(f"\nrestarted planner holds on a latched abort: {reasons}")
+        assert reasons and all("stale data" in r for r in reasons), reasons
+    else:
+        assert "neither at home nor at the plan's start" in again.text()
     assert isinstance(c.rec.last("/tool/pose"), PoseStamped)
