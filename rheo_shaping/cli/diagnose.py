@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     process = None
     if scen is not None:
         from ..config import dump_cell
-        from ..diagnosis.engine import process_figures
+        from ..diagnosis.result import process_figures
         scen.write_text("# rheo-shaping diagnose: calibrated baseline + verdict "
                         f"'{diag.verdict}' of {', '.join(diag.records)}\n" + dump_cell(diag.corrected))
         nominal = fit[0].scenario

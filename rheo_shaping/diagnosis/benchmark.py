@@ -40,14 +40,14 @@ from ..params import CellParams
 from ..record import Record
 from ..scenarios import movement_scenario, scenario_plan
 from ..simulation import run_scenario
-from .baseline import CHAIN, SHEET, step_of, with_sheet
+from .baseline import CHAIN, SHEET, with_sheet
+from .check import REFINEMENT
 from .signature import KIND_OF_EFFECT
 
 KINDS_PATTERN = ("single", "none", "single", "out_of_library", "single", "none", "single",
                  "sensor", "single", "out_of_library")
 #: How the true cell's numerics differ from the scenario's (factor on the scenario's values).
-TRUE_NUMERICS = {"dt": 0.5, "dt_still": 0.5, "max_tool_step": 0.5, "dt_settle": 0.5,
-                 "contact_stiffness": 1.0 / 3.0}
+TRUE_NUMERICS = {**REFINEMENT, "contact_stiffness": 1.0 / 3.0}
 #: Chain errors beyond tolerance for ``sensor`` cases: (knob, |value| range in its unit).
 SENSOR_ERRORS = (("vision.dx", (1.5e-3, 3e-3)), ("vision.dz", (1.5e-3, 3e-3)),
                  ("load_cell.gain", (0.10, 0.25)), ("load_cell.lag", (0.2, 0.5)),
@@ -163,8 +163,13 @@ def score_case(case: dict, diag) -> dict:
            "J_nominal": diag.J0, "J_baseline": diag.J_base, "J_nominal_holdout": diag.J0_holdout,
            "J_baseline_holdout": diag.J_base_holdout, "baseline_took": diag.baseline_took,
            "simulations": diag.runs,
+           "J_num_baseline": list(diag.J_num_base),
            "candidates": [{"name": "+".join(c.names), "J": c.J, "J_holdout": c.J_holdout,
-                           "p": c.p, "checked": c.checked, "adequate": c.adequate}
+                           "p": c.p, "checked": c.checked, "adequate": c.adequate,
+                           "J_num": c.J_num, "J_num_holdout": c.J_num_holdout,
+                           "values": {n: list(v) for n, v in c.values.items()},
+                           "interval": {n: [list(iv) for iv in ivs]
+                                        for n, ivs in c.interval.items()}}
                           for c in diag.effects + diag.pairs],
            "chain_candidate": diag.side["chain_candidate"],
            "ranked_first": (sorted(diag.effects, key=lambda c: (c.p, c.J))[0].names[0]

@@ -38,145 +38,23 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import Executor
-from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 import numpy as np
 
-from ..effects import EFFECT_NAMES, EFFECTS
+from ..effects import EFFECT_NAMES
 from ..params import CellParams
 from ..record import Record
 from ..schema import ParameterError
 from . import stats
-from .baseline import CHAIN, SHEET, values as knob_values, with_sheet
+from .baseline import CHAIN, SHEET, with_sheet
+from .candidates import (CHECKED, PAIRED, PROBES, REFINE_STEPS, Explanation, fit_pair,
+                         fit_single, rank_key)
+from .check import adequate, check, numerics
 from .compare import RecordData, noise_level, residuals
-from .evaluate import Candidate, Outcome, Runner, Task, apply
+from .evaluate import Outcome, Runner, Task, all_ok, apply
 from .linear import Solver, Stack
-
-#: Probe values per effect: (kind, values).  "curve": a scalar effect probed at two magnitudes,
-#: the response piecewise linear through 0 and both; "linear": one column per probe (signed).
-PROBES: dict = {
-    "friction_mould": ("curve", (0.2, 0.5), 0.8),
-    "friction_tool": ("curve", (0.2, 0.5), 0.8),
-    "bending": ("curve", (3e-6, 1e-5), 1.6e-5),
-    "kelvin_c1": ("curve", (500.0, 2000.0), 3000.0),
-    "power_law": ("curve", (0.8, 0.55), 0.35),
-    "thinning": ("curve", (0.6, 1.6), 2.5),
-    "tool_offset": ("linear", ((1e-3, 0.0), (0.0, 1e-3)), None),
-    "mass_error": ("linear", ((0.25,),), None),
-}
-GRID = 41          # magnitudes tried per curve effect on the linearised model
-CHECKED = 2        # single effects checked by simulation
-PAIRED = 3         # pairs among this many best single effects
-REFINE_STEPS = 8   # chord (secant) steps of each checked candidate (each simulated)
-
-
-@dataclass
-class Candidate_:
-    """One candidate explanation (an effect or a pair) and its evidence."""
-
-    names: tuple[str, ...]
-    values: dict                    # name -> tuple of values
-    J: float                        # fit records, balanced misfit (simulated once checked)
-    J_parts: dict = field(default_factory=dict)
-    J_holdout: float = math.nan
-    LR: float = math.nan
-    p: float = math.nan             # Bonferroni-corrected
-    k: int = 1
-    checked: bool = False
-    adequate: bool = False
-    baseline_u: np.ndarray | None = None
-    interval: dict = field(default_factory=dict)
-    chain_free: bool = False        # the measurement chain's hypothesis (chain beyond tolerance)
-    z_raw: np.ndarray | None = field(default=None, repr=False)   # fit records' z at the last run
-    prev: tuple | None = field(default=None, repr=False)         # (z_raw, u_sheet, values) before
-    damp: float = 1.0                                            # step factor (halved on a miss)
-
-    @property
-    def candidate(self) -> Candidate:
-        return tuple((n, self.values[n]) for n in self.names)
-
-    @property
-    def n_params(self) -> int:
-        return self.k
-
-
-@dataclass
-class Diagnosis:
-    """Everything the report and the JSON say."""
-
-    verdict: str
-    verdict_fit: Candidate_ | None
-    effects: list[Candidate_]
-    pairs: list[Candidate_]
-    where: list[dict]
-    gap_before: dict
-    gap_after: dict
-    gap_baseline: dict
-    noise: dict
-    J0: float
-    J0_holdout: float
-    J_base: float
-    J_base_holdout: float
-    baseline: dict                  # knob -> {value, written, u, tolerance, unit, outside}
-    side: dict                      # {"side": ..., "p_chain": ..., "chain_outside": [...]}
-    p_gap: float
-    n_eff: dict
-    records: list[str]
-    holdout: list[str]
-    runs: int
-    signature: dict | None = None
-    corrected: CellParams | None = None
-    residual_maps: list = field(default_factory=list)
-
-    def explained(self, fr: Candidate_, holdout: bool = False) -> float:
-        """Fraction of the baseline's excess misfit the candidate removes."""
-        Jb = self.J_base_holdout if holdout else self.J_base
-        J = fr.J_holdout if holdout else fr.J
-        if not (math.isfinite(Jb) and math.isfinite(J)) or Jb - 1.0 <= 0:
-            return math.nan
-        return (Jb - J) / (Jb - 1.0)
-
-    @property
-    def baseline_took(self) -> float:
-        """Fraction of the nominal model's excess misfit the calibrated baseline removes."""
-        return (self.J0 - self.J_base) / (self.J0 - 1.0) if self.J0 > 1.0 else math.nan
-
-    def to_json(self) -> dict:
-        def eff(fr: Candidate_, rank: int) -> dict:
-            return {"name": "+".join(fr.names), "rank": rank, "checked": fr.checked,
-                    "params": {n: list(v) for n, v in fr.values.items()},
-                    "interval": {n: [list(iv) for iv in ivs] for n, ivs in fr.interval.items()},
-                    "J_fit": fr.J, "J_holdout": _num(fr.J_holdout), "LR": _num(fr.LR),
-                    "p": _num(fr.p), "adequate": fr.adequate,
-                    "explained_fit": _num(self.explained(fr)),
-                    "explained_holdout": _num(self.explained(fr, True))}
-        ranked = sorted(self.effects + self.pairs, key=_rank_key)
-        vf = self.verdict_fit
-        return {"verdict": self.verdict,
-                "verdict_params": {n: list(v) for n, v in vf.values.items()} if vf else None,
-                "verdict_interval": ({n: [list(iv) for iv in ivs]
-                                      for n, ivs in vf.interval.items()}
-                                     if vf else None),
-                "verdict_p": _num(vf.p) if vf else None,
-                "p_gap": self.p_gap, "side": self.side, "baseline": self.baseline,
-                "baseline_took": _num(self.baseline_took),
-                "J_nominal": {"fit": self.J0, "holdout": _num(self.J0_holdout)},
-                "J_baseline": {"fit": self.J_base, "holdout": _num(self.J_base_holdout)},
-                "n_eff": self.n_eff, "effects": [eff(f, i + 1) for i, f in enumerate(ranked)],
-                "signature": self.signature, "where": self.where,
-                "gap_before": self.gap_before, "gap_baseline": self.gap_baseline,
-                "gap_after": self.gap_after, "noise": self.noise, "records": self.records,
-                "holdout": self.holdout, "simulations": self.runs}
-
-
-def _num(v):
-    return None if v is None or not math.isfinite(v) else float(v)
-
-
-def _rank_key(f: Candidate_):
-    return (not f.checked, f.p if math.isfinite(f.p) else 1.0, f.J)
-
+from .result import Diagnosis, as_residuals, baseline_table, chain_correct, num as _num
 
 class _Group:
     """The records of one group (fit or holdout) and their stacked residuals."""
@@ -194,9 +72,6 @@ class _Group:
     def J(self, z: np.ndarray) -> float:
         return float(z @ z)
 
-
-def _ok(outs: list[Outcome]) -> bool:
-    return all(o.ok for o in outs)
 
 
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
@@ -251,7 +126,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         cols = []
         for j in range(len(SHEET)):
             o = outs[j * nf:(j + 1) * nf]
-            cols.append((G.z(o) - z0) / steps[j] if _ok(o) else np.zeros_like(z0))
+            cols.append((G.z(o) - z0) / steps[j] if all_ok(o) else np.zeros_like(z0))
         A_sheet = np.column_stack(cols)
         A = np.hstack((A_sheet, G.chain))
         solver = Solver(A)
@@ -281,14 +156,14 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             except ParameterError:
                 break
             tried.append((u_try, outs))
-            if not _ok(outs[:nf]):
+            if not all_ok(outs[:nf]):
                 break
             zb = G.z(outs[:nf])
             # chord step: same Jacobian from the new point
             du, _ = solver.solve(zb, np.r_[-1 - u_try, -chain_lim], np.r_[1 - u_try, chain_lim])
             u_lin = np.r_[u_try + du[:n_s], du[n_s:]]
         for u_try, outs in tried:
-            if not _ok(outs[:nf]) or (H and not _ok(outs[nf:])):
+            if not all_ok(outs[:nf]) or (H and not all_ok(outs[nf:])):
                 continue
             uc, J, zc = chain_fit(G.z(outs[:nf]))
             if best is None or J < best[1]:
@@ -307,15 +182,16 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
 
         # 4. which side: the chain beyond its tolerance (no simulation: linear), checked
         u_ch, J_ch = solver.solve(zB_raw, np.r_[-1 - u_s, -chain_free], np.r_[1 - u_s, chain_free])
-        chain_c = Candidate_((), {}, J_ch, G.stack.J_parts(solver.residual(zB_raw, u_ch)),
+        chain_c = Explanation((), {}, J_ch, G.stack.J_parts(solver.residual(zB_raw, u_ch)),
                              baseline_u=u_ch, chain_free=True)
         outside = [k.name for k, v in zip(CHAIN, u_ch[n_s:]) if abs(v) > 1.0 + 1e-6]
         chain_c.k = max(len(outside), 1)
         chain_c.LR = stats.likelihood_ratio(parts_B, chain_c.J_parts, n_eff)
 
         # 5. effects: probes at the baseline, linearised fits
-        effects: list[Candidate_] = []
-        pairs: list[Candidate_] = []
+        J_num_base = (math.nan, math.nan)
+        effects: list[Explanation] = []
+        pairs: list[Explanation] = []
         responses: dict = {}
         if gap_left and library:
             ptasks, index = [], []
@@ -330,12 +206,12 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             for i, (name, vv) in enumerate(index):
                 o = pouts[i * nf:(i + 1) * nf]
                 responses.setdefault(name, []).append(
-                    (vv, G.z(o) - zB_raw if _ok(o) else None))
+                    (vv, G.z(o) - zB_raw if all_ok(o) else None))
             base_solver = Solver(A)
             blo = np.r_[-1 - u_s, -chain_lim]
             bhi = np.r_[1 - u_s, chain_lim]
             for name in library:
-                c = _fit_linear(name, responses[name], zB_raw, base_solver, blo, bhi, G, n_eff,
+                c = fit_single(name, responses[name], zB_raw, base_solver, blo, bhi, G, n_eff,
                                 parts_B)
                 if c is not None:
                     effects.append(c)
@@ -344,22 +220,27 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 c.p = min(1.0, stats.chi2_sf(c.LR, c.k) * m)
             effects.sort(key=lambda c: (c.p, c.J))
             chain_c.p = min(1.0, stats.chi2_sf(chain_c.LR, chain_c.k) * (m + 1))
-            _check(effects[:CHECKED] + [chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params,
-                   chain_fit,
-                   parts_B, n_eff, J_base_h, m, chain_free, (A_sheet, responses, REFINE_STEPS))
+            check(effects[:CHECKED] + [chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params,
+                  chain_fit, parts_B, n_eff, J_base_h, m, chain_free,
+                  (A_sheet, responses, REFINE_STEPS))
+            base_c = Explanation((), {}, J_base, checked=True, baseline_u=np.r_[u_s, u_c],
+                                 z_raw=zB_raw, zh_raw=H.z(base_outs[nf:]) if H else None)
+            numerics(effects[:CHECKED] + [base_c], run, fit_d, hold_d, G, H, base_params, n_s,
+                     A, responses)
+            J_num_base = (base_c.J_num, base_c.J_num_holdout)
         elif gap_left:
-            _check([chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
+            check([chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
                    parts_B, n_eff, J_base_h, 1, chain_free)
         # decision
         verdict_fit = None
         if not gap_left or not library:
             chain_c.p = min(1.0, stats.chi2_sf(chain_c.LR, chain_c.k))
         outside = [k.name for k, v in zip(CHAIN, chain_c.baseline_u[n_s:]) if abs(v) > 1.0 + 1e-6]
-        chain_c.adequate = chain_c.checked and _adequate(chain_c, J_base_h, bool(hold_d))
+        chain_c.adequate = chain_c.checked and adequate(chain_c, J_base_h, bool(hold_d))
         chain_ok = gap_left and chain_c.checked and chain_c.p <= stats.ALPHA and chain_c.adequate
         for c in effects:
-            c.adequate = c.checked and _adequate(c, J_base_h, bool(hold_d))
-        ranked = sorted(effects, key=_rank_key)
+            c.adequate = c.checked and adequate(c, J_base_h, bool(hold_d))
+        ranked = sorted(effects, key=rank_key)
         if gap_left and ranked:
             lead = ranked[0]
             if lead.checked and lead.p <= stats.ALPHA and lead.adequate and not (
@@ -371,7 +252,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 top = sorted(effects, key=lambda c: (c.p, c.J))[:PAIRED]
                 for i, a in enumerate(top):
                     for b in top[i + 1:]:
-                        pc = _fit_pair(a, b, responses, zB_raw, Solver(A),
+                        pc = fit_pair(a, b, responses, zB_raw, Solver(A),
                                        np.r_[-1 - u_s, -chain_lim],
                                        np.r_[1 - u_s, chain_lim], G, n_eff, parts_B)
                         if pc is not None:
@@ -379,11 +260,12 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                             pairs.append(pc)
                 pairs.sort(key=lambda c: (c.p, c.J))
                 if pairs:
-                    _check(pairs[:1], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
-                           parts_B, n_eff, J_base_h, m, chain_free,
-                           (A_sheet, responses, REFINE_STEPS))
+                    check(pairs[:1], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
+                          parts_B, n_eff, J_base_h, m, chain_free,
+                          (A_sheet, responses, REFINE_STEPS))
+                    numerics(pairs[:1], run, fit_d, hold_d, G, H, base_params, n_s)
                     bp = pairs[0]
-                    bp.adequate = bp.checked and _adequate(bp, J_base_h, bool(hold_d))
+                    bp.adequate = bp.checked and adequate(bp, J_base_h, bool(hold_d))
                     # a pair must beat each of its parts significantly
                     if bp.checked and bp.p <= stats.ALPHA and bp.adequate:
                         verdict_fit = bp
@@ -420,18 +302,19 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
     vfc = verdict_fit or verdict_fit_chain
     corrected = (apply(base_params(fit_d[0], vfc.baseline_u[:n_s]), vfc.candidate)
                  if vfc else base_params(fit_d[0], u_s))
-    baseline_tab = _baseline_table(fit_d[0].record.scenario,
+    baseline_tab = baseline_table(fit_d[0].record.scenario,
                                    vfc.baseline_u if vfc else np.r_[u_s, u_c])
     nom_res = [residuals(d, o.run) for d, o in zip(data, nominal)]
     base_runs = [o.run for o in base_outs]
-    base_res = [_chain_correct(residuals(d, o.run), o, u_c) for d, o in zip(data, base_outs)]
-    after_res = ([_chain_correct(_as_res(d, o, base_runs[i]), o, u_cv) for i, (d, o) in
+    base_res = [chain_correct(residuals(d, o.run), o, u_c) for d, o in zip(data, base_outs)]
+    after_res = ([chain_correct(as_residuals(d, o, base_runs[i]), o, u_cv) for i, (d, o) in
                   enumerate(zip(data, after))] if vfc else base_res)
     fit_idx, hold_idx = tuple(range(nf)), tuple(range(nf, len(data)))
     diag = Diagnosis(verdict, verdict_fit, effects, pairs, [], {}, {}, {},
                      {"profile_m": sp, "force_N": sf}, J0, J0h, J_base, J_base_h, baseline_tab,
                      side, p_gap, n_eff, [d.record.name for d in fit_d],
-                     [d.record.name for d in hold_d], runs, corrected=corrected)
+                     [d.record.name for d in hold_d], runs, corrected=corrected,
+                     J_num_base=J_num_base)
     diag.where = where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf)
     diag.gap_before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
     before = diag.gap_before
@@ -452,321 +335,3 @@ def _n_eff(G: _Group, z: np.ndarray, data: list[RecordData]) -> dict:
     if st.n_f:
         out["tool force"] = stats.n_eff_force(z[st.n_p:].reshape(-1, 2))
     return out
-
-
-def _curve(resp, a: float) -> np.ndarray:
-    """Piecewise-linear response at magnitude ``a`` through (0, 0) and the probes."""
-    (m1, d1), (m2, d2) = resp
-    if a <= m1:
-        return d1 * (a / m1)
-    return d1 + (d2 - d1) * ((a - m1) / (m2 - m1))
-
-
-def _magnitude(name: str, v: float) -> float:
-    return 1.0 - v if name == "power_law" else v
-
-
-def _fit_linear(name, resp, zB_raw, solver: Solver, lo, hi, G: _Group, n_eff, parts_B):
-    kind, vals, top = PROBES[name]
-    e = EFFECTS[name]
-    if any(d is None for _, d in resp):
-        resp = [(v, d) for v, d in resp if d is not None]
-        if not resp:
-            return None
-    if kind == "linear":
-        cols = []
-        for v, d in resp:
-            k = int(np.argmax(np.abs(v)))
-            cols.append((k, d / v[k]))
-        E = np.column_stack([c for _, c in cols])
-        elo = np.array([e.bounds[k][0] for k, _ in cols])
-        ehi = np.array([e.bounds[k][1] for k, _ in cols])
-        u, J = solver.solve(zB_raw, lo, hi, E, (elo, ehi))
-        vals_fit = [0.0] * e.n_params
-        for (k, _), x in zip(cols, u[solver.A.shape[1]:]):
-            vals_fit[k] = float(x)
-        z = solver.residual(zB_raw, u, E)
-        c = Candidate_((name,), {name: tuple(vals_fit)}, J, G.stack.J_parts(z), k=len(cols),
-                       baseline_u=u[:solver.A.shape[1]])
-        # 95 % interval: the value whose LR drop is 3.84 (effective sample size), the baseline
-        # refitted (the column with the baseline's columns projected out)
-        e_perp = E - solver.Q @ (solver.Q.T @ E)
-        ntot = sum(n_eff.values())
-        ivs = [(v, v) for v in vals_fit]
-        for (k, _), col in zip(cols, e_perp.T):
-            h = float(col @ col)
-            half = math.sqrt(3.84 * J / (ntot * h)) if h > 0 else math.inf
-            ivs[k] = (vals_fit[k] - half, vals_fit[k] + half)
-        c.interval = {name: ivs}
-    else:
-        mags = [(_magnitude(name, v[0]), d) for v, d in resp]
-        if len(mags) < 2:
-            mags = [mags[0], (2 * mags[0][0], 2 * mags[0][1])]
-        grid = np.linspace(0.0, _magnitude(name, top), GRID)
-        Js, us = [], []
-        for a in grid:
-            u, J = solver.solve(zB_raw + _curve(mags, a), lo, hi)
-            Js.append(J)
-            us.append(u)
-        i = int(np.argmin(Js))
-        a = float(grid[i])
-        # 95 % interval: magnitudes within the LR drop of 3.84 (effective sample size)
-        ntot = sum(n_eff.values())
-        ok = [g for g, J in zip(grid, Js) if ntot * math.log(J / Js[i]) <= 3.84]
-        z = zB_raw + _curve(mags, a) + solver.A @ us[i]
-        v = 1.0 - a if name == "power_law" else a
-        lo_a, hi_a = min(ok), max(ok)
-        iv = sorted((1.0 - lo_a, 1.0 - hi_a)) if name == "power_law" else [lo_a, hi_a]
-        c = Candidate_((name,), {name: (v,)}, Js[i], G.stack.J_parts(z), k=1, baseline_u=us[i])
-        c.interval = {name: [tuple(iv)]}
-    c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
-    return c
-
-
-def _fit_pair(a: Candidate_, b: Candidate_, responses, zB_raw, solver: Solver, lo, hi, G, n_eff,
-              parts_B):
-    """Two effects together on the linearised model (responses add)."""
-    na, nb = a.names[0], b.names[0]
-    best = None
-    grids = []
-    for n in (na, nb):
-        kind, vals, top = PROBES[n]
-        resp = [(v, d) for v, d in responses[n] if d is not None]
-        if kind == "linear":
-            grids.append((n, "linear", resp))
-        else:
-            mags = [(_magnitude(n, v[0]), d) for v, d in resp]
-            grids.append((n, "curve", (mags, np.linspace(0, _magnitude(n, top), 17))))
-    curve = [g for g in grids if g[1] == "curve"]
-    lin = [g for g in grids if g[1] == "linear"]
-    E, elo, ehi, kidx = None, [], [], []
-    if lin:
-        cols = []
-        for n, _, resp in lin:
-            e = EFFECTS[n]
-            for v, d in resp:
-                k = int(np.argmax(np.abs(v)))
-                cols.append(d / v[k])
-                elo.append(e.bounds[k][0])
-                ehi.append(e.bounds[k][1])
-                kidx.append((n, k))
-        E = np.column_stack(cols)
-    import itertools
-    axes = [g[2][1] for g in curve] or [[None]]
-    for combo in itertools.product(*axes):
-        shift = np.zeros_like(zB_raw)
-        for (n, _, (mags, _g)), x in zip(curve, combo):
-            if x is not None:
-                shift = shift + _curve(mags, x)
-        u, J = solver.solve(zB_raw + shift, lo, hi, E,
-                            (np.array(elo), np.array(ehi)) if E is not None else None)
-        if best is None or J < best[0]:
-            best = (J, u, combo, shift)
-    J, u, combo, shift = best
-    values = {}
-    for (n, _, _), x in zip(curve, combo):
-        values[n] = ((1.0 - x) if n == "power_law" else float(x),)
-    if E is not None:
-        for n in {n for n, _ in kidx}:
-            vv = [0.0] * EFFECTS[n].n_params
-            for (nn, k), x in zip(kidx, u[solver.A.shape[1]:]):
-                if nn == n:
-                    vv[k] = float(x)
-            values[n] = tuple(vv)
-    k0 = solver.A.shape[1]
-    z = zB_raw + shift + solver.A @ u[:k0] + (E @ u[k0:] if E is not None else 0.0)
-    names = tuple(sorted((na, nb)))
-    c = Candidate_(names, {n: values[n] for n in names}, J, G.stack.J_parts(z),
-                   k=a.k + b.k, baseline_u=u[:solver.A.shape[1]])
-    c.interval = {n: [(v, v) for v in values[n]] for n in names}
-    c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
-    return c
-
-
-def _check(cands, run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit, parts_B, n_eff,
-           J_base_h, m, chain_free=None, refine=None) -> None:
-    """Simulate the candidates at their fitted values (fit and holdout records).
-
-    With ``refine = (A_sheet, responses, steps)``, each effect candidate then takes up to
-    ``steps`` chord steps (the baseline's Jacobian and the effect's probe response, from the
-    simulated point), each simulated and kept only when it lowers J on the fit records.
-    """
-    points = []
-    for c in cands:
-        points.append((c, np.clip(u_s + c.baseline_u[:n_s], -1, 1), c.values))
-    _simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
-                     chain_free, first=True)
-    if refine is None:
-        return
-    A_sheet, responses, steps = refine
-    for _ in range(steps):
-        points = []
-        for c in cands:
-            if c.chain_free or not math.isfinite(c.J) or c.z_raw is None:
-                continue
-            step = _chord(c, A_sheet, G, responses, n_s)
-            if step is not None:
-                points.append((c, *step))
-        if not points:
-            break
-        _simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff,
-                         m, chain_free, first=False)
-
-
-def _simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
-                     chain_free, first: bool) -> None:
-    tasks = []
-    for c, u_sheet, vals in points:
-        cand = tuple((n, vals[n]) for n in c.names)
-        for d in list(fit_d) + list(hold_d):
-            tasks.append(Task(d, apply(base_params(d, u_sheet), cand)))
-    outs = run(tasks)
-    nd = len(fit_d) + len(hold_d)
-    for i, (c, u_sheet, vals) in enumerate(points):
-        o = outs[i * nd:(i + 1) * nd]
-        if not _ok(o):
-            if first:
-                c.checked, c.J, c.p = True, math.inf, 1.0
-            continue
-        z_raw = G.z(o[:len(fit_d)])
-        if c.chain_free:
-            uc, J, zc = chain_fit(z_raw, -chain_free, chain_free)
-        else:
-            uc, J, zc = chain_fit(z_raw)
-        if not first and not J < c.J:
-            c.damp *= 0.5
-            continue
-        if not first:
-            c.prev = (c.z_raw, c.baseline_u[:len(u_sheet)].copy(), dict(c.values))
-        for n in c.names:
-            if n in c.interval:
-                c.interval[n] = [(lo + vals[n][k] - c.values[n][k],
-                                  hi + vals[n][k] - c.values[n][k])
-                                 for k, (lo, hi) in enumerate(c.interval[n])]
-        c.J, c.J_parts, c.z_raw, c.values = J, G.stack.J_parts(zc), z_raw, dict(vals)
-        c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
-        c.p = min(1.0, stats.chi2_sf(c.LR, c.k) * m)
-        if H is not None:
-            c.J_holdout = H.J(H.z(o[len(fit_d):]) + H.chain @ uc)
-        c.baseline_u = np.r_[u_sheet, uc]
-        c.checked = True
-
-
-def _chord(c, A_sheet, G, responses, n_s):
-    """The next point (sheet u, values) of candidate ``c``: one linearised step from its run."""
-    cols, lo_e, hi_e, slots = [], [], [], []
-    for name in c.names:
-        kind, vals, top = PROBES[name]
-        resp = [(v, d) for v, d in responses[name] if d is not None]
-        e = EFFECTS[name]
-        cur = c.values[name]
-        if kind == "linear":
-            for v, d in resp:
-                k = int(np.argmax(np.abs(v)))
-                cols.append(d / v[k])
-                lo_e.append(e.bounds[k][0] - cur[k])
-                hi_e.append(e.bounds[k][1] - cur[k])
-                slots.append((name, k, False))
-        else:
-            mags = [(_magnitude(name, v[0]), d) for v, d in resp]
-            if len(mags) < 2:
-                return None
-            (m1, d1), (m2, d2) = mags
-            a = _magnitude(name, cur[0])
-            col = d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1)
-            if c.prev is not None and len(c.names) == 1:
-                # secant: the response between the last two simulated points, the baseline's
-                # linear part removed
-                z_p, u_p, v_p = c.prev
-                da = a - _magnitude(name, v_p[name][0])
-                if abs(da) > 1e-12:
-                    col = (c.z_raw - z_p - A_sheet @ (c.baseline_u[:n_s] - u_p)) / da
-            cols.append(col)
-            lo_e.append(-a)
-            hi_e.append(_magnitude(name, top) - a)
-            slots.append((name, 0, True))
-    u_cur = c.baseline_u[:n_s]
-    A = np.hstack((A_sheet, G.chain))
-    lim = np.ones(G.chain.shape[1])
-    du, _ = Solver(A).solve(c.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
-                            np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
-    du = du * c.damp
-    u_new = np.clip(u_cur + du[:n_s], -1, 1)
-    vals = {n: list(v) for n, v in c.values.items()}
-    for (name, k, is_curve), x in zip(slots, du[A.shape[1]:]):
-        if is_curve:
-            a = _magnitude(name, vals[name][0]) + x
-            vals[name][0] = (1.0 - a) if name == "power_law" else a
-        else:
-            vals[name][k] = vals[name][k] + x
-    return u_new, {n: tuple(float(x) for x in v) for n, v in vals.items()}
-
-
-def _adequate(c: Candidate_, J_base_h: float, has_holdout: bool) -> bool:
-    ok = c.J - 1.0 <= stats.null_quantile()
-    if ok and has_holdout and math.isfinite(J_base_h):
-        ok = (c.J_holdout < J_base_h and c.J_holdout - 1.0 <= stats.null_quantile(True))
-    return bool(ok)
-
-
-def _baseline_table(scenario: CellParams, u: np.ndarray) -> dict:
-    vals = knob_values(scenario, {k.name: float(x) for k, x in zip(SHEET + CHAIN, u)})
-    out = {}
-    for k, x in zip(SHEET + CHAIN, u):
-        out[k.name] = {"value": vals[k.name], "u": float(x), "tolerance": k.tolerance,
-                       "relative": k.relative, "unit": k.unit, "outside": abs(float(x)) > 1 + 1e-9}
-        if k in SHEET:
-            from .baseline import written
-            out[k.name]["written"] = written(scenario, k.name)
-    return out
-
-
-def _chain_correct(res, o: Outcome, u_c: np.ndarray):
-    """``res`` with the chain's fitted errors removed (the fit's linear forms)."""
-    dx, dz, bx, bz, g, lag = np.array([k.tolerance for k in CHAIN]) * np.asarray(u_c, float)
-    prof = o.profile - o.normal @ np.array([dx, dz])
-    force = None
-    if o.force is not None:
-        force = o.force - np.array([bx, bz]) - g * o.model_force + lag * o.model_dforce
-    return replace(res, profile=prof, force=force)
-
-
-def _as_res(d: RecordData, o: Outcome, run):
-    from .compare import Residuals
-    return Residuals(o.profile, o.arc, np.zeros((o.profile.size, 2)), o.force, o.delta_measured,
-                     o.delta_model, run)
-
-
-def process_figures(nominal: CellParams, corrected: CellParams,
-                    d_candidates: Sequence[float] | None = None, delta_limit: float = 5e-3,
-                    executor: Executor | None = None) -> dict:
-    """Movement 4 of the nominal and the corrected cell: F_max [N], SF, Delta [m], d_opt [m].
-
-    d_opt is the planner's choice (:func:`rheo_shaping.optimise.best_d`: smallest
-    F_max with Delta <= ``delta_limit``) over ``d_candidates`` (default: the
-    cell's d +- 3 mm in 1 mm steps); None when no candidate meets the limit.
-    """
-    from ..optimise import run_d
-    d0 = nominal.movement.d
-    ds = list(d_candidates) if d_candidates is not None else [d0 + k * 1e-3 for k in range(-3, 4)]
-    jobs = [(p, d) for p in (nominal, corrected) for d in [d0] + ds]
-    if executor is None:
-        runs = [run_d(p, d) for p, d in jobs]
-    else:
-        runs = list(executor.map(_run_d, jobs))
-    out = {}
-    n = len(ds) + 1
-    for i, key in enumerate(("nominal", "corrected")):
-        rs = runs[i * n:(i + 1) * n]
-        ok = [r for r in rs[1:] if math.isfinite(r.F_max) and r.delta <= delta_limit]
-        best = min(ok, key=lambda r: (r.F_max, r.d)) if ok else None
-        F = rs[0].F_max
-        p = (nominal, corrected)[i]
-        out[key] = {"F_max": F, "SF": p.material.F_break / F if F > 0 else math.inf,
-                    "delta": rs[0].delta, "d_opt": best.d if best else None}
-    return out
-
-
-def _run_d(args):
-    from ..optimise import run_d
-    return run_d(*args)

@@ -55,6 +55,11 @@ class Outcome:
     error: str = ""
 
 
+def all_ok(outs: Sequence[Outcome]) -> bool:
+    """Every outcome ran."""
+    return all(o.ok for o in outs)
+
+
 def apply(params: CellParams, candidate: Candidate) -> CellParams:
     """``params`` with the effects of ``candidate`` switched on."""
     for name, values in candidate:

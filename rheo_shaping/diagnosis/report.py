@@ -59,7 +59,7 @@ def effects_chart(diag, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from .engine import _rank_key
+    from .candidates import rank_key as _rank_key
     fits = sorted(diag.effects + diag.pairs, key=_rank_key)
     if not fits:
         return

@@ -22,7 +22,6 @@ import math
 
 import numpy as np
 
-from ..geometry import Cake
 from ..tools import tool_shape
 
 PLACES = ("top edge", "free span", "tool contact", "cake bottom", "workplane")

@@ -1,0 +1,197 @@
+"""Candidate explanations: the effects' probes, their linearised fits (single and pairs)."""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..effects import EFFECTS
+from . import stats
+from .evaluate import Candidate
+from .linear import Solver
+
+#: Probe values per effect: (kind, values).  "curve": a scalar effect probed at two magnitudes,
+#: the response piecewise linear through 0 and both; "linear": one column per probe (signed).
+PROBES: dict = {
+    "friction_mould": ("curve", (0.2, 0.5), 0.8),
+    "friction_tool": ("curve", (0.2, 0.5), 0.8),
+    "bending": ("curve", (3e-6, 1e-5), 1.6e-5),
+    "kelvin_c1": ("curve", (500.0, 2000.0), 3000.0),
+    "power_law": ("curve", (0.8, 0.55), 0.35),
+    "thinning": ("curve", (0.6, 1.6), 2.5),
+    "tool_offset": ("linear", ((1e-3, 0.0), (0.0, 1e-3)), None),
+    "mass_error": ("linear", ((0.25,),), None),
+}
+GRID = 41          # magnitudes tried per curve effect on the linearised model
+CHECKED = 2        # single effects checked by simulation
+PAIRED = 3         # pairs among this many best single effects
+REFINE_STEPS = 8   # chord (secant) steps of each checked candidate (each simulated)
+
+
+@dataclass
+class Explanation:
+    """One candidate explanation (an effect or a pair) and its evidence."""
+
+    names: tuple[str, ...]
+    values: dict                    # name -> tuple of values
+    J: float                        # fit records, balanced misfit (simulated once checked)
+    J_parts: dict = field(default_factory=dict)
+    J_holdout: float = math.nan
+    LR: float = math.nan
+    p: float = math.nan             # Bonferroni-corrected
+    k: int = 1
+    checked: bool = False
+    adequate: bool = False
+    baseline_u: np.ndarray | None = None
+    interval: dict = field(default_factory=dict)
+    chain_free: bool = False        # the measurement chain's hypothesis (chain beyond tolerance)
+    z_raw: np.ndarray | None = field(default=None, repr=False)   # fit records' z at the last run
+    zh_raw: np.ndarray | None = field(default=None, repr=False)  # holdout records' z, same run
+    J_num: float = math.nan         # misfit of its run against the refined run (fit records)
+    J_num_holdout: float = math.nan
+    value_shift: dict = field(default_factory=dict)  # name -> value shift under refinement
+    prev: tuple | None = field(default=None, repr=False)         # (z_raw, u_sheet, values) before
+    damp: float = 1.0                                            # step factor (halved on a miss)
+
+    @property
+    def candidate(self) -> Candidate:
+        return tuple((n, self.values[n]) for n in self.names)
+
+    @property
+    def n_params(self) -> int:
+        return self.k
+
+
+
+def rank_key(f: Explanation):
+    return (not f.checked, f.p if math.isfinite(f.p) else 1.0, f.J)
+
+
+def curve(resp, a: float) -> np.ndarray:
+    """Piecewise-linear response at magnitude ``a`` through (0, 0) and the probes."""
+    (m1, d1), (m2, d2) = resp
+    if a <= m1:
+        return d1 * (a / m1)
+    return d1 + (d2 - d1) * ((a - m1) / (m2 - m1))
+
+
+def magnitude(name: str, v: float) -> float:
+    return 1.0 - v if name == "power_law" else v
+
+
+def fit_single(name, resp, zB_raw, solver: Solver, lo, hi, G, n_eff, parts_B):
+    kind, vals, top = PROBES[name]
+    e = EFFECTS[name]
+    if any(d is None for _, d in resp):
+        resp = [(v, d) for v, d in resp if d is not None]
+        if not resp:
+            return None
+    if kind == "linear":
+        cols = []
+        for v, d in resp:
+            k = int(np.argmax(np.abs(v)))
+            cols.append((k, d / v[k]))
+        E = np.column_stack([c for _, c in cols])
+        elo = np.array([e.bounds[k][0] for k, _ in cols])
+        ehi = np.array([e.bounds[k][1] for k, _ in cols])
+        u, J = solver.solve(zB_raw, lo, hi, E, (elo, ehi))
+        vals_fit = [0.0] * e.n_params
+        for (k, _), x in zip(cols, u[solver.A.shape[1]:]):
+            vals_fit[k] = float(x)
+        z = solver.residual(zB_raw, u, E)
+        c = Explanation((name,), {name: tuple(vals_fit)}, J, G.stack.J_parts(z), k=len(cols),
+                       baseline_u=u[:solver.A.shape[1]])
+        # 95 % interval: the value whose LR drop is 3.84 (effective sample size), the baseline
+        # refitted (the column with the baseline's columns projected out)
+        e_perp = E - solver.Q @ (solver.Q.T @ E)
+        ntot = sum(n_eff.values())
+        ivs = [(v, v) for v in vals_fit]
+        for (k, _), col in zip(cols, e_perp.T):
+            h = float(col @ col)
+            half = math.sqrt(3.84 * J / (ntot * h)) if h > 0 else math.inf
+            ivs[k] = (vals_fit[k] - half, vals_fit[k] + half)
+        c.interval = {name: ivs}
+    else:
+        mags = [(magnitude(name, v[0]), d) for v, d in resp]
+        if len(mags) < 2:
+            mags = [mags[0], (2 * mags[0][0], 2 * mags[0][1])]
+        grid = np.linspace(0.0, magnitude(name, top), GRID)
+        Js, us = [], []
+        for a in grid:
+            u, J = solver.solve(zB_raw + curve(mags, a), lo, hi)
+            Js.append(J)
+            us.append(u)
+        i = int(np.argmin(Js))
+        a = float(grid[i])
+        # 95 % interval: magnitudes within the LR drop of 3.84 (effective sample size)
+        ntot = sum(n_eff.values())
+        ok = [g for g, J in zip(grid, Js) if ntot * math.log(J / Js[i]) <= 3.84]
+        z = zB_raw + curve(mags, a) + solver.A @ us[i]
+        v = 1.0 - a if name == "power_law" else a
+        lo_a, hi_a = min(ok), max(ok)
+        iv = sorted((1.0 - lo_a, 1.0 - hi_a)) if name == "power_law" else [lo_a, hi_a]
+        c = Explanation((name,), {name: (v,)}, Js[i], G.stack.J_parts(z), k=1, baseline_u=us[i])
+        c.interval = {name: [tuple(iv)]}
+    c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
+    return c
+
+
+def fit_pair(a: Explanation, b: Explanation, responses, zB_raw, solver: Solver, lo, hi, G, n_eff,
+              parts_B):
+    """Two effects together on the linearised model (responses add)."""
+    na, nb = a.names[0], b.names[0]
+    best = None
+    grids = []
+    for n in (na, nb):
+        kind, vals, top = PROBES[n]
+        resp = [(v, d) for v, d in responses[n] if d is not None]
+        if kind == "linear":
+            grids.append((n, "linear", resp))
+        else:
+            mags = [(magnitude(n, v[0]), d) for v, d in resp]
+            grids.append((n, "curve", (mags, np.linspace(0, magnitude(n, top), 17))))
+    curve = [g for g in grids if g[1] == "curve"]
+    lin = [g for g in grids if g[1] == "linear"]
+    E, elo, ehi, kidx = None, [], [], []
+    if lin:
+        cols = []
+        for n, _, resp in lin:
+            e = EFFECTS[n]
+            for v, d in resp:
+                k = int(np.argmax(np.abs(v)))
+                cols.append(d / v[k])
+                elo.append(e.bounds[k][0])
+                ehi.append(e.bounds[k][1])
+                kidx.append((n, k))
+        E = np.column_stack(cols)
+    axes = [g[2][1] for g in curve] or [[None]]
+    for combo in itertools.product(*axes):
+        shift = np.zeros_like(zB_raw)
+        for (n, _, (mags, _g)), x in zip(curve, combo):
+            if x is not None:
+                shift = shift + curve(mags, x)
+        u, J = solver.solve(zB_raw + shift, lo, hi, E,
+                            (np.array(elo), np.array(ehi)) if E is not None else None)
+        if best is None or J < best[0]:
+            best = (J, u, combo, shift)
+    J, u, combo, shift = best
+    values = {}
+    for (n, _, _), x in zip(curve, combo):
+        values[n] = ((1.0 - x) if n == "power_law" else float(x),)
+    if E is not None:
+        for n in {n for n, _ in kidx}:
+            vv = [0.0] * EFFECTS[n].n_params
+            for (nn, k), x in zip(kidx, u[solver.A.shape[1]:]):
+                if nn == n:
+                    vv[k] = float(x)
+            values[n] = tuple(vv)
+    k0 = solver.A.shape[1]
+    z = zB_raw + shift + solver.A @ u[:k0] + (E @ u[k0:] if E is not None else 0.0)
+    names = tuple(sorted((na, nb)))
+    c = Explanation(names, {n: values[n] for n in names}, J, G.stack.J_parts(z),
+                   k=a.k + b.k, baseline_u=u[:solver.A.shape[1]])
+    c.interval = {n: [(v, v) for v in values[n]] for n in names}
+    c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
+    return c

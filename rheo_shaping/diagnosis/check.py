@@ -1,0 +1,229 @@
+"""Candidates checked by simulation: their runs, chord refinement, numerics and adequacy.
+
+Numerics.  The diagnosis's model is a discretisation (N masses, its time steps); a
+real cell is not.  What the model with the right effect leaves can therefore exceed
+the effect-free null where the effect itself is strong (a large Kelvin creep, a stiff
+bending): not a missing effect, the model's own discretisation error at that effect.
+:func:`numerics` measures it the way a convergence study does: the candidate's run is
+repeated on a refined discretisation (2 N + 1 masses, every step half as long,
+:func:`refined`); J_num is the balanced misfit between the two runs.  For a method of
+first order in the step, the coarse run's error is about twice its change under one
+halving, so about ``NUMERICS_FACTOR = 4`` times J_num in misfit (J is quadratic): the
+allowance :func:`adequate` grants above the null's quantile.  The same change, projected
+on the effect's response, is the shift the effect's value would take on the refined
+model; twice it widens the value's interval (:func:`numerics`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..params import CellParams
+
+from ..effects import EFFECTS
+from . import stats
+from .candidates import PROBES, magnitude
+from .evaluate import Task, all_ok, apply
+from .linear import Solver
+
+#: One refinement of the diagnosis's discretisation: factors on the solver's steps (the chain
+#: goes from N to 2 N + 1 masses).
+REFINEMENT = {"dt": 0.5, "dt_still": 0.5, "max_tool_step": 0.5, "dt_settle": 0.5}
+#: Misfit of the coarse model's discretisation error, in units of its change under one
+#: refinement (first order: amplitude 2x, misfit 4x).
+NUMERICS_FACTOR = 4.0
+
+
+def refined(p: CellParams) -> CellParams:
+    """``p`` on the refined discretisation: 2 N + 1 masses, every step half as long."""
+    s = p.solver
+    solver = replace(s, **{k: getattr(s, k) * f for k, f in REFINEMENT.items()})
+    return replace(p, sheet=replace(p.sheet, n_masses=2 * p.sheet.n_masses + 1), solver=solver)
+
+
+def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A=None, responses=None) -> None:
+    """Each candidate's J_num (fit and holdout records): the misfit between its run and the
+    same run refined (:func:`refined`); with ``A`` (the baseline's columns) and
+    ``responses`` (the probes), a single effect's interval is widened by twice the shift
+    of its value that the refinement implies."""
+    cands = [c for c in cands if c.checked and c.z_raw is not None and math.isfinite(c.J)]
+    if not cands:
+        return
+    tasks = []
+    for c in cands:
+        for d in list(fit_d) + list(hold_d):
+            tasks.append(Task(d, refined(apply(base_params(d, c.baseline_u[:n_s]),
+                                               c.candidate))))
+    outs = run(tasks)
+    nd, nf = len(fit_d) + len(hold_d), len(fit_d)
+    for i, c in enumerate(cands):
+        o = outs[i * nd:(i + 1) * nd]
+        if not all_ok(o):
+            continue                         # no allowance where the refined run fails
+        dz = G.z(o[:nf]) - c.z_raw
+        c.J_num = G.J(dz)
+        if H is not None and c.zh_raw is not None:
+            c.J_num_holdout = H.J(H.z(o[nf:]) - c.zh_raw)
+        if A is not None and responses is not None and len(c.names) == 1:
+            _widen(c, dz, A, responses)
+
+
+def _widen(c, dz: np.ndarray, A: np.ndarray, responses) -> None:
+    """Widen ``c``'s interval by twice the value shift the refinement ``dz`` implies."""
+    name = c.names[0]
+    kind, _vals, _top = PROBES[name]
+    resp = [(v, d) for v, d in responses[name] if d is not None]
+    if kind == "linear":
+        cols = [(int(np.argmax(np.abs(v))), d / v[int(np.argmax(np.abs(v)))]) for v, d in resp]
+    else:
+        mags = [(magnitude(name, v[0]), d) for v, d in resp]
+        if len(mags) < 2:
+            return
+        (m1, d1), (m2, d2) = mags
+        a = magnitude(name, c.values[name][0])
+        cols = [(0, d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1))]
+    E = np.column_stack([col for _, col in cols])
+    Q = Solver(A).Q
+    E_perp = E - Q @ (Q.T @ E)
+    shift, *_ = np.linalg.lstsq(E_perp, dz - Q @ (Q.T @ dz), rcond=None)
+    ivs = list(c.interval.get(name, [(v, v) for v in c.values[name]]))
+    for (k, _), s in zip(cols, shift):
+        lo, hi = ivs[k]
+        ivs[k] = (lo - 2.0 * abs(float(s)), hi + 2.0 * abs(float(s)))
+    c.interval[name] = ivs
+    c.value_shift = {name: [float(s) for s in shift]}
+
+
+def check(cands, run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit, parts_B, n_eff,
+           J_base_h, m, chain_free=None, refine=None) -> None:
+    """Simulate the candidates at their fitted values (fit and holdout records).
+
+    With ``refine = (A_sheet, responses, steps)``, each effect candidate then takes up to
+    ``steps`` chord steps (the baseline's Jacobian and the effect's probe response, from the
+    simulated point), each simulated and kept only when it lowers J on the fit records.
+    """
+    points = []
+    for c in cands:
+        points.append((c, np.clip(u_s + c.baseline_u[:n_s], -1, 1), c.values))
+    simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
+                     chain_free, first=True)
+    if refine is None:
+        return
+    A_sheet, responses, steps = refine
+    for _ in range(steps):
+        points = []
+        for c in cands:
+            if c.chain_free or not math.isfinite(c.J) or c.z_raw is None:
+                continue
+            step = chord(c, A_sheet, G, responses, n_s)
+            if step is not None:
+                points.append((c, *step))
+        if not points:
+            break
+        simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff,
+                         m, chain_free, first=False)
+
+
+def simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
+                     chain_free, first: bool) -> None:
+    tasks = []
+    for c, u_sheet, vals in points:
+        cand = tuple((n, vals[n]) for n in c.names)
+        for d in list(fit_d) + list(hold_d):
+            tasks.append(Task(d, apply(base_params(d, u_sheet), cand)))
+    outs = run(tasks)
+    nd = len(fit_d) + len(hold_d)
+    for i, (c, u_sheet, vals) in enumerate(points):
+        o = outs[i * nd:(i + 1) * nd]
+        if not all_ok(o):
+            if first:
+                c.checked, c.J, c.p = True, math.inf, 1.0
+            continue
+        z_raw = G.z(o[:len(fit_d)])
+        if c.chain_free:
+            uc, J, zc = chain_fit(z_raw, -chain_free, chain_free)
+        else:
+            uc, J, zc = chain_fit(z_raw)
+        if not first and not J < c.J:
+            c.damp *= 0.5
+            continue
+        if not first:
+            c.prev = (c.z_raw, c.baseline_u[:len(u_sheet)].copy(), dict(c.values))
+        for n in c.names:
+            if n in c.interval:
+                c.interval[n] = [(lo + vals[n][k] - c.values[n][k],
+                                  hi + vals[n][k] - c.values[n][k])
+                                 for k, (lo, hi) in enumerate(c.interval[n])]
+        c.J, c.J_parts, c.z_raw, c.values = J, G.stack.J_parts(zc), z_raw, dict(vals)
+        c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
+        c.p = min(1.0, stats.chi2_sf(c.LR, c.k) * m)
+        if H is not None:
+            c.zh_raw = H.z(o[len(fit_d):])
+            c.J_holdout = H.J(c.zh_raw + H.chain @ uc)
+        c.baseline_u = np.r_[u_sheet, uc]
+        c.checked = True
+
+
+def chord(c, A_sheet, G, responses, n_s):
+    """The next point (sheet u, values) of candidate ``c``: one linearised step from its run."""
+    cols, lo_e, hi_e, slots = [], [], [], []
+    for name in c.names:
+        kind, vals, top = PROBES[name]
+        resp = [(v, d) for v, d in responses[name] if d is not None]
+        e = EFFECTS[name]
+        cur = c.values[name]
+        if kind == "linear":
+            for v, d in resp:
+                k = int(np.argmax(np.abs(v)))
+                cols.append(d / v[k])
+                lo_e.append(e.bounds[k][0] - cur[k])
+                hi_e.append(e.bounds[k][1] - cur[k])
+                slots.append((name, k, False))
+        else:
+            mags = [(magnitude(name, v[0]), d) for v, d in resp]
+            if len(mags) < 2:
+                return None
+            (m1, d1), (m2, d2) = mags
+            a = magnitude(name, cur[0])
+            col = d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1)
+            if c.prev is not None and len(c.names) == 1:
+                # secant: the response between the last two simulated points, the baseline's
+                # linear part removed
+                z_p, u_p, v_p = c.prev
+                da = a - magnitude(name, v_p[name][0])
+                if abs(da) > 1e-12:
+                    col = (c.z_raw - z_p - A_sheet @ (c.baseline_u[:n_s] - u_p)) / da
+            cols.append(col)
+            lo_e.append(-a)
+            hi_e.append(magnitude(name, top) - a)
+            slots.append((name, 0, True))
+    u_cur = c.baseline_u[:n_s]
+    A = np.hstack((A_sheet, G.chain))
+    lim = np.ones(G.chain.shape[1])
+    du, _ = Solver(A).solve(c.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
+                            np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
+    du = du * c.damp
+    u_new = np.clip(u_cur + du[:n_s], -1, 1)
+    vals = {n: list(v) for n, v in c.values.items()}
+    for (name, k, is_curve), x in zip(slots, du[A.shape[1]:]):
+        if is_curve:
+            a = magnitude(name, vals[name][0]) + x
+            vals[name][0] = (1.0 - a) if name == "power_law" else a
+        else:
+            vals[name][k] = vals[name][k] + x
+    return u_new, {n: tuple(float(x) for x in v) for n, v in vals.items()}
+
+
+def adequate(c, J_base_h: float, has_holdout: bool) -> bool:
+    """What ``c`` leaves looks like the effect-free baseline: its excess misfit within the
+    null's 95 % quantile plus ``NUMERICS_FACTOR`` J_num (fit; and holdout, which must also
+    improve on the baseline)."""
+    def allow(j: float) -> float:
+        return NUMERICS_FACTOR * j if math.isfinite(j) else 0.0
+    ok = c.J - 1.0 <= stats.null_quantile() + allow(c.J_num)
+    if ok and has_holdout and math.isfinite(J_base_h):
+        ok = (c.J_holdout < J_base_h
+              and c.J_holdout - 1.0 <= stats.null_quantile(True) + allow(c.J_num_holdout))
+    return bool(ok)

@@ -1,0 +1,156 @@
+"""What a diagnosis says: the :class:`Diagnosis`, its JSON, and the corrected cell's process figures."""
+from __future__ import annotations
+
+import math
+from concurrent.futures import Executor
+from dataclasses import dataclass, field, replace
+from typing import Sequence
+
+import numpy as np
+
+from ..params import CellParams
+from .baseline import CHAIN, SHEET, values as knob_values
+from .candidates import Explanation, rank_key
+from .compare import RecordData
+from .evaluate import Outcome
+
+
+@dataclass
+class Diagnosis:
+    """Everything the report and the JSON say."""
+
+    verdict: str
+    verdict_fit: Explanation | None
+    effects: list[Explanation]
+    pairs: list[Explanation]
+    where: list[dict]
+    gap_before: dict
+    gap_after: dict
+    gap_baseline: dict
+    noise: dict
+    J0: float
+    J0_holdout: float
+    J_base: float
+    J_base_holdout: float
+    baseline: dict                  # knob -> {value, written, u, tolerance, unit, outside}
+    side: dict                      # {"side": ..., "p_chain": ..., "chain_outside": [...]}
+    p_gap: float
+    n_eff: dict
+    records: list[str]
+    holdout: list[str]
+    runs: int
+    signature: dict | None = None
+    corrected: CellParams | None = None
+    residual_maps: list = field(default_factory=list)
+    J_num_base: tuple = (math.nan, math.nan)   # the baseline's misfit against its refined run
+
+    def explained(self, fr: Explanation, holdout: bool = False) -> float:
+        """Fraction of the baseline's excess misfit the candidate removes."""
+        Jb = self.J_base_holdout if holdout else self.J_base
+        J = fr.J_holdout if holdout else fr.J
+        if not (math.isfinite(Jb) and math.isfinite(J)) or Jb - 1.0 <= 0:
+            return math.nan
+        return (Jb - J) / (Jb - 1.0)
+
+    @property
+    def baseline_took(self) -> float:
+        """Fraction of the nominal model's excess misfit the calibrated baseline removes."""
+        return (self.J0 - self.J_base) / (self.J0 - 1.0) if self.J0 > 1.0 else math.nan
+
+    def to_json(self) -> dict:
+        def eff(fr: Explanation, rank: int) -> dict:
+            return {"name": "+".join(fr.names), "rank": rank, "checked": fr.checked,
+                    "params": {n: list(v) for n, v in fr.values.items()},
+                    "interval": {n: [list(iv) for iv in ivs] for n, ivs in fr.interval.items()},
+                    "J_fit": fr.J, "J_holdout": num(fr.J_holdout), "LR": num(fr.LR),
+                    "p": num(fr.p), "adequate": fr.adequate,
+                    "explained_fit": num(self.explained(fr)),
+                    "explained_holdout": num(self.explained(fr, True)),
+                    "J_numerics": {"fit": num(fr.J_num), "holdout": num(fr.J_num_holdout)},
+                    "value_shift_refined": fr.value_shift}
+        ranked = sorted(self.effects + self.pairs, key=rank_key)
+        vf = self.verdict_fit
+        return {"verdict": self.verdict,
+                "verdict_params": {n: list(v) for n, v in vf.values.items()} if vf else None,
+                "verdict_interval": ({n: [list(iv) for iv in ivs]
+                                      for n, ivs in vf.interval.items()}
+                                     if vf else None),
+                "verdict_p": num(vf.p) if vf else None,
+                "p_gap": self.p_gap, "side": self.side, "baseline": self.baseline,
+                "baseline_took": num(self.baseline_took),
+                "J_nominal": {"fit": self.J0, "holdout": num(self.J0_holdout)},
+                "J_baseline": {"fit": self.J_base, "holdout": num(self.J_base_holdout)},
+                "n_eff": self.n_eff, "effects": [eff(f, i + 1) for i, f in enumerate(ranked)],
+                "signature": self.signature, "where": self.where,
+                "gap_before": self.gap_before, "gap_baseline": self.gap_baseline,
+                "gap_after": self.gap_after, "noise": self.noise, "records": self.records,
+                "holdout": self.holdout, "simulations": self.runs,
+                "J_numerics_baseline": {"fit": num(self.J_num_base[0]),
+                                        "holdout": num(self.J_num_base[1])}}
+
+
+def num(v):
+    return None if v is None or not math.isfinite(v) else float(v)
+
+
+def baseline_table(scenario: CellParams, u: np.ndarray) -> dict:
+    vals = knob_values(scenario, {k.name: float(x) for k, x in zip(SHEET + CHAIN, u)})
+    out = {}
+    for k, x in zip(SHEET + CHAIN, u):
+        out[k.name] = {"value": vals[k.name], "u": float(x), "tolerance": k.tolerance,
+                       "relative": k.relative, "unit": k.unit, "outside": abs(float(x)) > 1 + 1e-9}
+        if k in SHEET:
+            from .baseline import written
+            out[k.name]["written"] = written(scenario, k.name)
+    return out
+
+
+def chain_correct(res, o: Outcome, u_c: np.ndarray):
+    """``res`` with the chain's fitted errors removed (the fit's linear forms)."""
+    dx, dz, bx, bz, g, lag = np.array([k.tolerance for k in CHAIN]) * np.asarray(u_c, float)
+    prof = o.profile - o.normal @ np.array([dx, dz])
+    force = None
+    if o.force is not None:
+        force = o.force - np.array([bx, bz]) - g * o.model_force + lag * o.model_dforce
+    return replace(res, profile=prof, force=force)
+
+
+def as_residuals(d: RecordData, o: Outcome, run):
+    from .compare import Residuals
+    return Residuals(o.profile, o.arc, np.zeros((o.profile.size, 2)), o.force, o.delta_measured,
+                     o.delta_model, run)
+
+
+def process_figures(nominal: CellParams, corrected: CellParams,
+                    d_candidates: Sequence[float] | None = None, delta_limit: float = 5e-3,
+                    executor: Executor | None = None) -> dict:
+    """Movement 4 of the nominal and the corrected cell: F_max [N], SF, Delta [m], d_opt [m].
+
+    d_opt is the planner's choice (:func:`rheo_shaping.optimise.best_d`: smallest
+    F_max with Delta <= ``delta_limit``) over ``d_candidates`` (default: the
+    cell's d +- 3 mm in 1 mm steps); None when no candidate meets the limit.
+    """
+    from ..optimise import run_d
+    d0 = nominal.movement.d
+    ds = list(d_candidates) if d_candidates is not None else [d0 + k * 1e-3 for k in range(-3, 4)]
+    jobs = [(p, d) for p in (nominal, corrected) for d in [d0] + ds]
+    if executor is None:
+        runs = [run_d(p, d) for p, d in jobs]
+    else:
+        runs = list(executor.map(_run_d, jobs))
+    out = {}
+    n = len(ds) + 1
+    for i, key in enumerate(("nominal", "corrected")):
+        rs = runs[i * n:(i + 1) * n]
+        ok = [r for r in rs[1:] if math.isfinite(r.F_max) and r.delta <= delta_limit]
+        best = min(ok, key=lambda r: (r.F_max, r.d)) if ok else None
+        F = rs[0].F_max
+        p = (nominal, corrected)[i]
+        out[key] = {"F_max": F, "SF": p.material.F_break / F if F > 0 else math.inf,
+                    "delta": rs[0].delta, "d_opt": best.d if best else None}
+    return out
+
+
+def _run_d(args):
+    from ..optimise import run_d
+    return run_d(*args)
