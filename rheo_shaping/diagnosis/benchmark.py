@@ -163,10 +163,11 @@ def score_case(case: dict, diag) -> dict:
            "J_nominal": diag.J0, "J_baseline": diag.J_base, "J_nominal_holdout": diag.J0_holdout,
            "J_baseline_holdout": diag.J_base_holdout, "baseline_took": diag.baseline_took,
            "simulations": diag.runs,
-           "J_num_baseline": list(diag.J_num_base),
+           "J_num_baseline": diag.numerics_json(),
            "candidates": [{"name": "+".join(c.names), "J": c.J, "J_holdout": c.J_holdout,
                            "p": c.p, "checked": c.checked, "adequate": c.adequate,
                            "J_num": c.J_num, "J_num_holdout": c.J_num_holdout,
+                           "J_num_perp": c.J_num_perp,
                            "values": {n: list(v) for n, v in c.values.items()},
                            "interval": {n: [list(iv) for iv in ivs]
                                         for n, ivs in c.interval.items()}}
@@ -212,6 +213,8 @@ def summarise(rows: list[dict], wall: float) -> dict:
           for k in ("single", "none", "sensor", "out_of_library")}
     single = by["single"]
     moved = [r for r in single if r["p_gap"] is not None and r["p_gap"] <= 0.05]
+    ool_moved = [r for r in by["out_of_library"]
+                 if r["p_gap"] is not None and r["p_gap"] <= 0.05]
     errs = [r["param_rel_error"] for r in single if "param_rel_error" in r]
     shrink = [r["holdout_gap_shrink"] for r in rows if r.get("holdout_gap_shrink") is not None]
     sheet_err = [abs(e) for r in rows for k, e in r["baseline_error_u"].items()
@@ -233,6 +236,14 @@ def summarise(rows: list[dict], wall: float) -> dict:
         "sensor_no_sheet_name_rate": frac(by["sensor"]),
         "sensor_side_right_rate": frac(by["sensor"], "side_right"),
         "out_of_library_unexplained_rate": frac(by["out_of_library"]),
+        # the same among the cases whose effect the calibrated baseline does not absorb
+        "out_of_library_unexplained_rate_beyond_noise": frac(ool_moved),
+        "out_of_library_beyond_noise_cases": len(ool_moved),
+        "out_of_library_wrong_name_rate": (sum(r["verdict"] not in ("none", "unexplained",
+                                                                     "measurement chain")
+                                               for r in by["out_of_library"])
+                                           / len(by["out_of_library"])
+                                           if by["out_of_library"] else None),
         "out_of_library_cause_right": frac(by["out_of_library"], "cause_right"),
         "holdout_gap_shrink_median": float(np.median(shrink)) if shrink else None,
         "baseline_within_tolerance_rate": frac(rows, "baseline_within_tolerance"),

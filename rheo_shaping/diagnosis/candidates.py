@@ -51,6 +51,8 @@ class Explanation:
     zh_raw: np.ndarray | None = field(default=None, repr=False)  # holdout records' z, same run
     J_num: float = math.nan         # misfit of its run against the refined run (fit records)
     J_num_holdout: float = math.nan
+    J_num_perp: float = math.nan    # the part of J_num no refit absorbs
+    jacobian: np.ndarray | None = field(default=None, repr=False)  # own sheet-knob Jacobian
     value_shift: dict = field(default_factory=dict)  # name -> value shift under refinement
     prev: tuple | None = field(default=None, repr=False)         # (z_raw, u_sheet, values) before
     damp: float = 1.0                                            # step factor (halved on a miss)
@@ -69,7 +71,7 @@ def rank_key(f: Explanation):
     return (not f.checked, f.p if math.isfinite(f.p) else 1.0, f.J)
 
 
-def curve(resp, a: float) -> np.ndarray:
+def response_at(resp, a: float) -> np.ndarray:
     """Piecewise-linear response at magnitude ``a`` through (0, 0) and the probes."""
     (m1, d1), (m2, d2) = resp
     if a <= m1:
@@ -120,22 +122,46 @@ def fit_single(name, resp, zB_raw, solver: Solver, lo, hi, G, n_eff, parts_B):
         grid = np.linspace(0.0, magnitude(name, top), GRID)
         Js, us = [], []
         for a in grid:
-            u, J = solver.solve(zB_raw + curve(mags, a), lo, hi)
+            u, J = solver.solve(zB_raw + response_at(mags, a), lo, hi)
             Js.append(J)
             us.append(u)
         i = int(np.argmin(Js))
         a = float(grid[i])
         # 95 % interval: magnitudes within the LR drop of 3.84 (effective sample size)
         ntot = sum(n_eff.values())
-        ok = [g for g, J in zip(grid, Js) if ntot * math.log(J / Js[i]) <= 3.84]
-        z = zB_raw + curve(mags, a) + solver.A @ us[i]
+        lo_a, hi_a = _lr_interval(grid, np.asarray(Js), i, ntot)
+        z = zB_raw + response_at(mags, a) + solver.A @ us[i]
         v = 1.0 - a if name == "power_law" else a
-        lo_a, hi_a = min(ok), max(ok)
         iv = sorted((1.0 - lo_a, 1.0 - hi_a)) if name == "power_law" else [lo_a, hi_a]
         c = Explanation((name,), {name: (v,)}, Js[i], G.stack.J_parts(z), k=1, baseline_u=us[i])
         c.interval = {name: [tuple(iv)]}
     c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
     return c
+
+
+def _lr_interval(grid: np.ndarray, Js: np.ndarray, i: int, ntot: float) -> tuple[float, float]:
+    """Magnitudes whose LR drop n ln(J / J_min) stays within 3.84 (95 %), between grid points
+    by linear interpolation of the drop, and never narrower than the parabola through the
+    minimum and its neighbours gives (a grid step can be wider than the interval)."""
+    drop = ntot * np.log(Js / Js[i])
+    lo_a = hi_a = float(grid[i])
+    j = i
+    while j > 0 and drop[j - 1] <= 3.84:
+        j -= 1
+    lo_a = float(grid[j]) if j == 0 else float(np.interp(3.84, [drop[j], drop[j - 1]],
+                                                         [grid[j], grid[j - 1]]))
+    j = i
+    while j < len(grid) - 1 and drop[j + 1] <= 3.84:
+        j += 1
+    hi_a = float(grid[j]) if j == len(grid) - 1 else float(np.interp(3.84, [drop[j], drop[j + 1]],
+                                                                     [grid[j], grid[j + 1]]))
+    if 0 < i < len(grid) - 1:
+        h = float(grid[1] - grid[0])
+        curv = (drop[i - 1] - 2 * drop[i] + drop[i + 1]) / h ** 2
+        if curv > 0:
+            half = math.sqrt(2 * 3.84 / curv)
+            lo_a, hi_a = min(lo_a, float(grid[i]) - half), max(hi_a, float(grid[i]) + half)
+    return max(lo_a, float(grid[0])), min(hi_a, float(grid[-1]))
 
 
 def fit_pair(a: Explanation, b: Explanation, responses, zB_raw, solver: Solver, lo, hi, G, n_eff,
@@ -171,7 +197,7 @@ def fit_pair(a: Explanation, b: Explanation, responses, zB_raw, solver: Solver, 
         shift = np.zeros_like(zB_raw)
         for (n, _, (mags, _g)), x in zip(curve, combo):
             if x is not None:
-                shift = shift + curve(mags, x)
+                shift = shift + response_at(mags, x)
         u, J = solver.solve(zB_raw + shift, lo, hi, E,
                             (np.array(elo), np.array(ehi)) if E is not None else None)
         if best is None or J < best[0]:

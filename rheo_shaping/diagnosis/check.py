@@ -43,11 +43,13 @@ def refined(p: CellParams) -> CellParams:
     return replace(p, sheet=replace(p.sheet, n_masses=2 * p.sheet.n_masses + 1), solver=solver)
 
 
-def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A=None, responses=None) -> None:
-    """Each candidate's J_num (fit and holdout records): the misfit between its run and the
-    same run refined (:func:`refined`); with ``A`` (the baseline's columns) and
-    ``responses`` (the probes), a single effect's interval is widened by twice the shift
-    of its value that the refinement implies."""
+def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A, responses) -> None:
+    """Each candidate's numerics misfit: its run against the same run refined
+    (:func:`refined`).  ``J_num``: all of it (fit records); ``J_num_perp``: the part no
+    refit of the baseline's knobs and the candidate's own values could absorb (the change
+    projected off their columns ``A`` and the effects' responses); ``J_num_holdout``: all of
+    it on the holdout records (no refit there).  A single effect's interval is widened by
+    twice the shift of its value the refinement implies."""
     cands = [c for c in cands if c.checked and c.z_raw is not None and math.isfinite(c.J)]
     if not cands:
         return
@@ -64,32 +66,45 @@ def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A=None, response
             continue                         # no allowance where the refined run fails
         dz = G.z(o[:nf]) - c.z_raw
         c.J_num = G.J(dz)
+        E = _columns(c, responses)
+        M = np.hstack((A, E)) if E is not None else A
+        Q = np.linalg.qr(M, mode="reduced")[0]
+        perp = dz - Q @ (Q.T @ dz)
+        c.J_num_perp = G.J(perp)
         if H is not None and c.zh_raw is not None:
             c.J_num_holdout = H.J(H.z(o[nf:]) - c.zh_raw)
-        if A is not None and responses is not None and len(c.names) == 1:
-            _widen(c, dz, A, responses)
+        if E is not None and len(c.names) == 1:
+            _widen(c, dz, A, E)
 
 
-def _widen(c, dz: np.ndarray, A: np.ndarray, responses) -> None:
+def _columns(c, responses):
+    """The response columns of ``c``'s effects at its values (None for the baseline)."""
+    out = []
+    for name in c.names:
+        kind, _vals, _top = PROBES[name]
+        resp = [(v, d) for v, d in responses[name] if d is not None]
+        if kind == "linear":
+            out += [(int(np.argmax(np.abs(v))), d / v[int(np.argmax(np.abs(v)))])
+                    for v, d in resp]
+        else:
+            mags = [(magnitude(name, v[0]), d) for v, d in resp]
+            if len(mags) < 2:
+                continue
+            (m1, d1), (m2, d2) = mags
+            a = magnitude(name, c.values[name][0])
+            out.append((0, d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1)))
+    c._slots = [k for k, _ in out]
+    return np.column_stack([col for _, col in out]) if out else None
+
+
+def _widen(c, dz: np.ndarray, A: np.ndarray, E: np.ndarray) -> None:
     """Widen ``c``'s interval by twice the value shift the refinement ``dz`` implies."""
     name = c.names[0]
-    kind, _vals, _top = PROBES[name]
-    resp = [(v, d) for v, d in responses[name] if d is not None]
-    if kind == "linear":
-        cols = [(int(np.argmax(np.abs(v))), d / v[int(np.argmax(np.abs(v)))]) for v, d in resp]
-    else:
-        mags = [(magnitude(name, v[0]), d) for v, d in resp]
-        if len(mags) < 2:
-            return
-        (m1, d1), (m2, d2) = mags
-        a = magnitude(name, c.values[name][0])
-        cols = [(0, d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1))]
-    E = np.column_stack([col for _, col in cols])
-    Q = Solver(A).Q
+    Q = np.linalg.qr(A, mode="reduced")[0]
     E_perp = E - Q @ (Q.T @ E)
     shift, *_ = np.linalg.lstsq(E_perp, dz - Q @ (Q.T @ dz), rcond=None)
     ivs = list(c.interval.get(name, [(v, v) for v in c.values[name]]))
-    for (k, _), s in zip(cols, shift):
+    for k, s in zip(c._slots, shift):
         lo, hi = ivs[k]
         ivs[k] = (lo - 2.0 * abs(float(s)), hi + 2.0 * abs(float(s)))
     c.interval[name] = ivs
@@ -112,18 +127,58 @@ def check(cands, run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit, par
     if refine is None:
         return
     A_sheet, responses, steps = refine
+    refine_points(cands, run, fit_d, hold_d, G, H, n_s, base_params, chain_fit, parts_B, n_eff,
+                  m, chain_free, A_sheet, responses, steps)
+
+
+def refine_points(cands, run, fit_d, hold_d, G, H, n_s, base_params, chain_fit, parts_B, n_eff,
+                  m, chain_free, A_sheet, responses, steps) -> None:
+    """Up to ``steps`` chord steps of each effect candidate (its own Jacobian of the sheet
+    knobs when :func:`relinearise` made one, else ``A_sheet``), each simulated and kept only
+    when it lowers J on the fit records."""
     for _ in range(steps):
         points = []
         for c in cands:
             if c.chain_free or not math.isfinite(c.J) or c.z_raw is None:
                 continue
-            step = chord(c, A_sheet, G, responses, n_s)
+            A_c = c.jacobian if c.jacobian is not None else A_sheet
+            step = chord(c, A_c, G, responses, n_s)
             if step is not None:
                 points.append((c, *step))
         if not points:
             break
         simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff,
-                         m, chain_free, first=False)
+                        m, chain_free, first=False)
+
+
+def relinearise(cands, run, fit_d, G, base_params, n_s) -> None:
+    """Each candidate's own Jacobian of the sheet knobs, at its point with its effect on
+    (forward differences of half a tolerance, toward the inside of the +-1 box): the
+    baseline's Jacobian is taken without any effect, and a strong effect (a large creep, a
+    friction) changes how the knobs act, so chord steps from it stall short of the fit."""
+    from ..schema import ParameterError
+    nf = len(fit_d)
+    for c in cands:
+        u = np.asarray(c.baseline_u[:n_s], float)
+        tasks, steps = [], []
+        for j in range(n_s):
+            h = 0.5 if u[j] <= 0.5 else -0.5
+            uj = u.copy()
+            uj[j] += h
+            try:
+                ps = [apply(base_params(d, uj), c.candidate) for d in fit_d]
+            except ParameterError:
+                ps, h = [apply(base_params(d, u), c.candidate) for d in fit_d], 0.0
+            tasks += [Task(d, p) for d, p in zip(fit_d, ps)]
+            steps.append(h)
+        outs = run(tasks)
+        cols = []
+        for j in range(n_s):
+            o = outs[j * nf:(j + 1) * nf]
+            ok = all_ok(o) and steps[j] != 0.0
+            cols.append((G.z(o) - c.z_raw) / steps[j] if ok else np.zeros_like(c.z_raw))
+        c.jacobian = np.column_stack(cols)
+        c.prev, c.damp = None, 1.0
 
 
 def simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
@@ -216,14 +271,27 @@ def chord(c, A_sheet, G, responses, n_s):
     return u_new, {n: tuple(float(x) for x in v) for n, v in vals.items()}
 
 
-def adequate(c, J_base_h: float, has_holdout: bool) -> bool:
+def adequate(c, J_base_h: float, has_holdout: bool, base=None) -> bool:
     """What ``c`` leaves looks like the effect-free baseline: its excess misfit within the
-    null's 95 % quantile plus ``NUMERICS_FACTOR`` J_num (fit; and holdout, which must also
-    improve on the baseline)."""
-    def allow(j: float) -> float:
-        return NUMERICS_FACTOR * j if math.isfinite(j) else 0.0
-    ok = c.J - 1.0 <= stats.null_quantile() + allow(c.J_num)
+    null's 95 % quantile plus ``NUMERICS_FACTOR`` times the numerics misfit ``c`` carries
+    beyond the baseline's own (``base``; the null already holds that), on the fit and the
+    holdout records; the holdout records must also improve on the baseline."""
+    def allow(j: float, j0: float) -> float:
+        if not (math.isfinite(j) and math.isfinite(j0)):
+            return 0.0
+        return NUMERICS_FACTOR * max(j - j0, 0.0)
+    b_fit = base.J_num if base is not None else math.nan
+    b_hold = base.J_num_holdout if base is not None else math.nan
+    ok = c.J - 1.0 <= stats.null_quantile() + allow(c.J_num, b_fit)
     if ok and has_holdout and math.isfinite(J_base_h):
-        ok = (c.J_holdout < J_base_h
-              and c.J_holdout - 1.0 <= stats.null_quantile(True) + allow(c.J_num_holdout))
+        ok = (c.J_holdout < J_base_h and c.J_holdout - 1.0
+              <= stats.null_quantile(True) + allow(c.J_num_holdout, b_hold))
     return bool(ok)
+
+
+def needs_numerics(c, J_base_h: float, has_holdout: bool) -> bool:
+    """``c`` is significant, improves the holdout records, and is refused without the
+    numerics allowance: only then is the refined run worth its cost."""
+    return (c.checked and math.isfinite(c.J) and c.p <= stats.ALPHA
+            and not adequate(c, J_base_h, has_holdout)
+            and (not has_holdout or not math.isfinite(J_base_h) or c.J_holdout < J_base_h))

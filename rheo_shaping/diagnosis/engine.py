@@ -23,9 +23,11 @@
    the linearised model (piecewise linear in the effect's magnitude); the two
    best (by their likelihood-ratio p-value) are checked by simulation on the
    fit and holdout records.  Named: p (Bonferroni over the candidates) <=
-   ALPHA, and what it leaves is adequate (excess within the effect-free null's
-   95 % quantile on fit and holdout records, and the holdout improves).  Else
-   the pairs among the three best (linearised, the best checked by
+   ALPHA, and what it leaves is adequate (:func:`check.adequate`: excess
+   within the effect-free null's 95 % quantile on fit and holdout records,
+   plus the model's own discretisation error at the candidate, measured by
+   re-running it refined, :func:`check.numerics`; and the holdout improves).
+   Else the pairs among the three best (linearised, the best checked by
    simulation), same rule; else ``unexplained``, with the residual's
    signature and the kinds of cause it points to (:mod:`signature`).
 6. How far.  Gap figures: nominal, baseline and verdict on fit and holdout
@@ -50,7 +52,8 @@ from . import stats
 from .baseline import CHAIN, SHEET, with_sheet
 from .candidates import (CHECKED, PAIRED, PROBES, REFINE_STEPS, Explanation, fit_pair,
                          fit_single, rank_key)
-from .check import adequate, check, numerics
+from .check import (adequate, check, needs_numerics, numerics, refine_points,
+                    relinearise)
 from .compare import RecordData, noise_level, residuals
 from .evaluate import Outcome, Runner, Task, all_ok, apply
 from .linear import Solver, Stack
@@ -189,7 +192,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         chain_c.LR = stats.likelihood_ratio(parts_B, chain_c.J_parts, n_eff)
 
         # 5. effects: probes at the baseline, linearised fits
-        J_num_base = (math.nan, math.nan)
+        base_c = None
         effects: list[Explanation] = []
         pairs: list[Explanation] = []
         responses: dict = {}
@@ -225,9 +228,16 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                   (A_sheet, responses, REFINE_STEPS))
             base_c = Explanation((), {}, J_base, checked=True, baseline_u=np.r_[u_s, u_c],
                                  z_raw=zB_raw, zh_raw=H.z(base_outs[nf:]) if H else None)
-            numerics(effects[:CHECKED] + [base_c], run, fit_d, hold_d, G, H, base_params, n_s,
-                     A, responses)
-            J_num_base = (base_c.J_num, base_c.J_num_holdout)
+            need = [c for c in effects[:CHECKED] if needs_numerics(c, J_base_h, bool(hold_d))]
+            if need:
+                # a strong effect changes how the knobs act: refit from its own Jacobian
+                relinearise(need, run, fit_d, G, base_params, n_s)
+                refine_points(need, run, fit_d, hold_d, G, H, n_s, base_params, chain_fit,
+                              parts_B, n_eff, m, chain_free, A_sheet, responses, REFINE_STEPS)
+                need = [c for c in need if needs_numerics(c, J_base_h, bool(hold_d))]
+            if need:
+                numerics(need + [base_c], run, fit_d, hold_d, G, H, base_params, n_s, A,
+                         responses)
         elif gap_left:
             check([chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
                    parts_B, n_eff, J_base_h, 1, chain_free)
@@ -239,7 +249,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         chain_c.adequate = chain_c.checked and adequate(chain_c, J_base_h, bool(hold_d))
         chain_ok = gap_left and chain_c.checked and chain_c.p <= stats.ALPHA and chain_c.adequate
         for c in effects:
-            c.adequate = c.checked and adequate(c, J_base_h, bool(hold_d))
+            c.adequate = c.checked and adequate(c, J_base_h, bool(hold_d), base_c)
         ranked = sorted(effects, key=rank_key)
         if gap_left and ranked:
             lead = ranked[0]
@@ -263,9 +273,13 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                     check(pairs[:1], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
                           parts_B, n_eff, J_base_h, m, chain_free,
                           (A_sheet, responses, REFINE_STEPS))
-                    numerics(pairs[:1], run, fit_d, hold_d, G, H, base_params, n_s)
+                    if needs_numerics(pairs[0], J_base_h, bool(hold_d)):
+                        fresh = [pairs[0]] + ([base_c] if not math.isfinite(base_c.J_num)
+                                              else [])
+                        numerics(fresh, run, fit_d, hold_d, G, H, base_params, n_s, A,
+                                 responses)
                     bp = pairs[0]
-                    bp.adequate = bp.checked and adequate(bp, J_base_h, bool(hold_d))
+                    bp.adequate = bp.checked and adequate(bp, J_base_h, bool(hold_d), base_c)
                     # a pair must beat each of its parts significantly
                     if bp.checked and bp.p <= stats.ALPHA and bp.adequate:
                         verdict_fit = bp
@@ -314,7 +328,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                      {"profile_m": sp, "force_N": sf}, J0, J0h, J_base, J_base_h, baseline_tab,
                      side, p_gap, n_eff, [d.record.name for d in fit_d],
                      [d.record.name for d in hold_d], runs, corrected=corrected,
-                     J_num_base=J_num_base)
+                     numerics_base=base_c)
     diag.where = where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf)
     diag.gap_before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
     before = diag.gap_before

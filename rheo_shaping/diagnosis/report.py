@@ -113,6 +113,17 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
                      f"(Bonferroni over the candidates); what it leaves: J - 1 = {vf.J - 1:.4f} "
                      f"(fit), {_fmt(vf.J_holdout - 1 if math.isfinite(vf.J_holdout) else None, 1, 4)} "
                      "(holdout).")
+        b = diag.numerics_base
+        if math.isfinite(vf.J_num_perp) and b is not None:
+            from .check import NUMERICS_FACTOR
+            lines.append(f"Numerics: the verdict's run refined (2 N + 1 masses, half steps) moves "
+                         f"by J_num = {vf.J_num:.4f} ({vf.J_num_perp:.4f} that no refit absorbs; "
+                         f"holdout {_fmt(vf.J_num_holdout, 1, 4)}), the baseline's by "
+                         f"{_fmt(b.J_num, 1, 4)} ({_fmt(b.J_num_perp, 1, 4)}): what the verdict "
+                         f"leaves may exceed the effect-free null by {NUMERICS_FACTOR:g} x the "
+                         "difference (the coarse model's own discretisation error at the "
+                         "effect); the interval includes twice the value shift of the "
+                         "refinement.")
         lines.append("")
         for n, vals in vf.values.items():
             e = EFFECTS[n]

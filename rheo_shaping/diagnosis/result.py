@@ -42,7 +42,7 @@ class Diagnosis:
     signature: dict | None = None
     corrected: CellParams | None = None
     residual_maps: list = field(default_factory=list)
-    J_num_base: tuple = (math.nan, math.nan)   # the baseline's misfit against its refined run
+    numerics_base: Explanation | None = None   # the baseline's run against its refined run
 
     def explained(self, fr: Explanation, holdout: bool = False) -> float:
         """Fraction of the baseline's excess misfit the candidate removes."""
@@ -66,7 +66,8 @@ class Diagnosis:
                     "p": num(fr.p), "adequate": fr.adequate,
                     "explained_fit": num(self.explained(fr)),
                     "explained_holdout": num(self.explained(fr, True)),
-                    "J_numerics": {"fit": num(fr.J_num), "holdout": num(fr.J_num_holdout)},
+                    "J_numerics": {"fit": num(fr.J_num), "fit_unabsorbed": num(fr.J_num_perp),
+                                   "holdout": num(fr.J_num_holdout)},
                     "value_shift_refined": fr.value_shift}
         ranked = sorted(self.effects + self.pairs, key=rank_key)
         vf = self.verdict_fit
@@ -85,8 +86,15 @@ class Diagnosis:
                 "gap_before": self.gap_before, "gap_baseline": self.gap_baseline,
                 "gap_after": self.gap_after, "noise": self.noise, "records": self.records,
                 "holdout": self.holdout, "simulations": self.runs,
-                "J_numerics_baseline": {"fit": num(self.J_num_base[0]),
-                                        "holdout": num(self.J_num_base[1])}}
+                "J_numerics_baseline": self.numerics_json()}
+
+    def numerics_json(self) -> dict | None:
+        """The baseline's numerics misfit (None when no candidate was checked)."""
+        b = self.numerics_base
+        if b is None:
+            return None
+        return {"fit": num(b.J_num), "fit_unabsorbed": num(b.J_num_perp),
+                "holdout": num(b.J_num_holdout)}
 
 
 def num(v):

@@ -25,7 +25,8 @@ Tests.
   against chi^2 with the effect's parameter count; p Bonferroni-corrected
   over the candidates tried.
 * Adequacy: what the named effect leaves must look like the effect-free
-  baseline (excess at most the null's 95 % quantile, fit and holdout).
+  baseline (excess at most the null's 95 % quantile, fit and holdout), up to
+  the model's own discretisation error at the effect (:mod:`check`).
 """
 from __future__ import annotations
 
