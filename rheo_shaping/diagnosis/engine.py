@@ -83,7 +83,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
              executor: Executor | None = None) -> Diagnosis:
     """Diagnose the gap between ``records`` (fitted) and their scenario; check on ``holdout``."""
     from . import gap, where as where_mod
-    from .signature import describe
+    from .signature import describe, partial_shares
     if not records:
         raise ValueError("diagnose needs at least one record to fit")
     library = tuple(library)
@@ -335,7 +335,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
     diag.gap_baseline = gap.figures(data, base_res, fit_idx, hold_idx, sp, sf, before=before)
     diag.gap_after = gap.figures(data, after_res, fit_idx, hold_idx, sp, sf, before=before)
     if verdict not in ("none", "measurement chain"):
-        diag.signature = describe(fit_d, base_res[:nf], base_runs[:nf], sp, sf, u_c)
+        diag.signature = describe(fit_d, base_res[:nf], base_runs[:nf], sp, sf, u_c,
+                                  partial_shares(effects, J_base))
     diag.residual_maps = [(d, nom_res[i], after_res[i], nominal[i].run)
                           for i, d in enumerate(data)]
     return diag

@@ -176,8 +176,13 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
                   "- correlation with: " + ", ".join(f"{k} {v:+.2f}" for k, v in
                                                       sig["proportional_to"].items()),
                   f"- tool force: lag {_g(sig['force_lag_s'])} s, gain {_g(sig['force_gain'])}",
-                  "", "Kinds of cause, ranked: " + ", ".join(
-                      f"{c['kind']} ({c['score']:.2f})" for c in sig["causes"]), ""]
+                  "", "Kinds of cause, ranked (feature score; share of the gap a library "
+                  "effect of that kind imitates on its own, which ranks a kind first from "
+                  "30 %): " + ", ".join(
+                      f"{c['kind']} ({c['score']:.2f}"
+                      + (f"; {c['substitute_share'] * 100:.0f} %"
+                         if c.get("substitute_share") is not None else "") + ")"
+                      for c in sig["causes"]), ""]
     lines += ["", "## How far the gap shrinks", "",
               "| records | figure | nominal | baseline | verdict |", "|---|---|---|---|---|"]
     for grp in ("fit", "holdout"):

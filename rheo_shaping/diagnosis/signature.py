@@ -19,7 +19,10 @@ From the baseline's residuals on the fit records (chain errors removed):
   the model force.
 
 :func:`rank_causes` scores the kinds of cause (``CAUSES``) from these
-features (rules in docs/diagnosis.md, "Beyond the library").
+features (rules in docs/diagnosis.md, "Beyond the library"); a kind one of
+whose library effects imitates at least ``SUBSTITUTE_SHARE`` of the gap on
+its own (``partial``: the share of the baseline's excess it removes, though
+not enough to be named) ranks first, by that share.
 """
 from __future__ import annotations
 
@@ -50,7 +53,27 @@ def _corr(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.corrcoef(a, b)[0, 1])
 
 
-def describe(data, res, runs, sp: float, sf: float, u_chain=None) -> dict:
+#: A library effect that removes at least this share of the baseline's excess points to its kind.
+SUBSTITUTE_SHARE = 0.3
+
+
+def partial_shares(effects, J_base: float) -> dict:
+    """Kind of cause -> the largest share of the baseline's excess one of its library effects
+    removes on its own (fit records)."""
+    out: dict = {}
+    if not J_base > 1.0:
+        return out
+    for c in effects:
+        if len(c.names) != 1 or not math.isfinite(c.J):
+            continue
+        kind = KIND_OF_EFFECT.get(c.names[0])
+        if kind:
+            out[kind] = max(out.get(kind, -math.inf), (J_base - c.J) / (J_base - 1.0))
+    return out
+
+
+def describe(data, res, runs, sp: float, sf: float, u_chain=None,
+             partial: dict | None = None) -> dict:
     """The residual's signature on the fit records (see the module's docstring)."""
     prof = np.concatenate([r.profile for r in res])
     out: dict = {"observables": {"profile": float(np.mean(prof ** 2) / sp ** 2 - 1.0)}}
@@ -138,6 +161,7 @@ def describe(data, res, runs, sp: float, sf: float, u_chain=None) -> dict:
     prof_mean = float(np.mean(prof))
     out["profile_mean_m"] = prof_mean
     out["profile_offset_share"] = abs(prof_mean) / max(_sys(prof, sp), 1e-12)
+    out["partial_substitutes"] = dict(partial or {})
     out["causes"] = rank_causes(out)
     return out
 
@@ -172,5 +196,8 @@ def rank_causes(sig: dict) -> list[dict]:
         "measurement chain": 0.5 * chain_like * force_share + 0.5 * min(
             sig.get("profile_offset_share", 0.0), 1.0) * (1 - force_share),
     }
-    ranked = sorted(scores.items(), key=lambda kv: -kv[1])
-    return [{"kind": k, "score": float(v)} for k, v in ranked]
+    partial = sig.get("partial_substitutes") or {}
+    lead = {k: v for k, v in partial.items() if v >= SUBSTITUTE_SHARE}
+    ranked = sorted(scores.items(), key=lambda kv: (-lead.get(kv[0], -1.0), -kv[1]))
+    return [{"kind": k, "score": float(v), "substitute_share": partial.get(k)}
+            for k, v in ranked]
