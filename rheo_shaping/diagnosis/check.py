@@ -7,11 +7,13 @@ bending): not a missing effect, the model's own discretisation error at that eff
 :func:`numerics` measures it the way a convergence study does: the candidate's run is
 repeated on a refined discretisation (2 N + 1 masses, every step half as long,
 :func:`refined`); J_num is the balanced misfit between the two runs.  For a method of
-first order in the step, the coarse run's error is about twice its change under one
-halving, so about ``NUMERICS_FACTOR = 4`` times J_num in misfit (J is quadratic): the
-allowance :func:`adequate` grants above the null's quantile.  The same change, projected
+first order, the coarse run's error is about twice its change under one
+halving; of order ``ORDER`` (a half, bounding what the convergence study shows) the
+error is ``1 / (1 - 2^-ORDER)`` times the change, ``NUMERICS_FACTOR`` = 11.7 times J_num in
+misfit (J is quadratic): the allowance :func:`adequate` grants above the null's quantile,
+never more than ``GAP_SHARE`` of the baseline's excess.  The same change, projected
 on the effect's response, is the shift the effect's value would take on the refined
-model; twice it widens the value's interval (:func:`numerics`).
+model; ``ERROR_PER_CHANGE`` (3.4) times it widens the value's interval (:func:`numerics`).
 """
 from __future__ import annotations
 
@@ -31,9 +33,15 @@ from .linear import Solver
 #: One refinement of the diagnosis's discretisation: factors on the solver's steps (the chain
 #: goes from N to 2 N + 1 masses).
 REFINEMENT = {"dt": 0.5, "dt_still": 0.5, "max_tool_step": 0.5, "dt_settle": 0.5}
+#: The order of convergence assumed for the model's discretisation error (docs/model.md,
+#: Convergence: F_max moves by 0.05 % and 0.04 % under two successive halvings of the pitch,
+#: far from the asymptotic order 2; a half order bounds that behaviour).
+ORDER = 0.5
 #: Misfit of the coarse model's discretisation error, in units of its change under one
-#: refinement (first order: amplitude 2x, misfit 4x).
-NUMERICS_FACTOR = 4.0
+#: refinement: the error is 1 / (1 - 2^-ORDER) times that change, the misfit its square
+#: (11.7 at half order; 4 at first order).
+ERROR_PER_CHANGE = 1.0 / (1.0 - 2.0 ** -ORDER)
+NUMERICS_FACTOR = ERROR_PER_CHANGE ** 2
 #: The largest share of the baseline's excess misfit the allowance may cover (the model's
 #: discretisation error is a small part of any effect it resolves: docs/model.md, Convergence).
 GAP_SHARE = 0.25
@@ -50,9 +58,9 @@ def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A, responses) ->
     """Each candidate's numerics misfit: its run against the same run refined
     (:func:`refined`).  ``J_num``: all of it (fit records); ``J_num_perp``: the part no
     refit of the baseline's knobs and the candidate's own values could absorb (the change
-    projected off their columns ``A`` and the effects' responses); ``J_num_holdout``: all of
-    it on the holdout records (no refit there).  A single effect's interval is widened by
-    twice the shift of its value the refinement implies."""
+    projected off their columns ``A`` and the effects' responses; reported, not used);
+    ``J_num_holdout``: all of it on the holdout records (no refit there).  A single effect's
+    interval is widened by the value error the refinement implies."""
     cands = [c for c in cands if c.checked and c.z_raw is not None and math.isfinite(c.J)]
     if not cands:
         return
@@ -101,7 +109,8 @@ def _columns(c, responses):
 
 
 def _widen(c, dz: np.ndarray, A: np.ndarray, E: np.ndarray) -> None:
-    """Widen ``c``'s interval by twice the value shift the refinement ``dz`` implies."""
+    """Widen ``c``'s interval by the value error the refinement ``dz`` implies
+    (``ERROR_PER_CHANGE`` times the shift)."""
     name = c.names[0]
     Q = np.linalg.qr(A, mode="reduced")[0]
     E_perp = E - Q @ (Q.T @ E)
@@ -109,7 +118,8 @@ def _widen(c, dz: np.ndarray, A: np.ndarray, E: np.ndarray) -> None:
     ivs = list(c.interval.get(name, [(v, v) for v in c.values[name]]))
     for k, s in zip(c._slots, shift):
         lo, hi = ivs[k]
-        ivs[k] = (lo - 2.0 * abs(float(s)), hi + 2.0 * abs(float(s)))
+        w = ERROR_PER_CHANGE * abs(float(s))
+        ivs[k] = (lo - w, hi + w)
     c.interval[name] = ivs
     c.value_shift = {name: [float(s) for s in shift]}
 

@@ -115,15 +115,15 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
                      "(holdout).")
         b = diag.numerics_base
         if math.isfinite(vf.J_num_perp) and b is not None:
-            from .check import NUMERICS_FACTOR
+            from .check import GAP_SHARE, NUMERICS_FACTOR
             lines.append(f"Numerics: the verdict's run refined (2 N + 1 masses, half steps) moves "
                          f"by J_num = {vf.J_num:.4f} ({vf.J_num_perp:.4f} that no refit absorbs; "
                          f"holdout {_fmt(vf.J_num_holdout, 1, 4)}), the baseline's by "
                          f"{_fmt(b.J_num, 1, 4)} ({_fmt(b.J_num_perp, 1, 4)}): what the verdict "
-                         f"leaves may exceed the effect-free null by {NUMERICS_FACTOR:g} x the "
+                         f"leaves may exceed the effect-free null by {NUMERICS_FACTOR:.1f} x the "
                          "difference (the coarse model's own discretisation error at the "
-                         "effect); the interval includes twice the value shift of the "
-                         "refinement.")
+                         f"effect), at most {GAP_SHARE * 100:.0f} % of the baseline's excess; "
+                         "the interval includes the value error the refinement implies.")
         lines.append("")
         for n, vals in vf.values.items():
             e = EFFECTS[n]
