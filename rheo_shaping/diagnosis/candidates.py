@@ -51,6 +51,7 @@ class Explanation:
     zh_raw: np.ndarray | None = field(default=None, repr=False)  # holdout records' z, same run
     J_num: float = math.nan         # misfit of its run against the refined run (fit records)
     J_num_holdout: float = math.nan
+    refinement: str = "chain and steps"   # what numerics() refined
     J_num_perp: float = math.nan    # the part of J_num no refit absorbs
     jacobian: np.ndarray | None = field(default=None, repr=False)  # own sheet-knob Jacobian
     value_shift: dict = field(default_factory=dict)  # name -> value shift under refinement

@@ -47,11 +47,13 @@ NUMERICS_FACTOR = ERROR_PER_CHANGE ** 2
 GAP_SHARE = 0.25
 
 
-def refined(p: CellParams) -> CellParams:
-    """``p`` on the refined discretisation: 2 N + 1 masses, every step half as long."""
+def refined(p: CellParams, chain: bool = True) -> CellParams:
+    """``p`` on the refined discretisation: 2 N + 1 masses (``chain``), every step half as
+    long."""
     s = p.solver
     solver = replace(s, **{k: getattr(s, k) * f for k, f in REFINEMENT.items()})
-    return replace(p, sheet=replace(p.sheet, n_masses=2 * p.sheet.n_masses + 1), solver=solver)
+    n = 2 * p.sheet.n_masses + 1 if chain else p.sheet.n_masses
+    return replace(p, sheet=replace(p.sheet, n_masses=n), solver=solver)
 
 
 def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A, responses) -> None:
@@ -71,10 +73,18 @@ def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A, responses) ->
                                                c.candidate))))
     outs = run(tasks)
     nd, nf = len(fit_d) + len(hold_d), len(fit_d)
+    # where the finer chain does not run (its Newton gives up), the steps alone are refined,
+    # for every candidate alike (the baseline's J_num is compared with theirs)
+    if any(not all_ok(outs[i * nd:(i + 1) * nd]) for i in range(len(cands))):
+        outs = run([Task(d, refined(apply(base_params(d, c.baseline_u[:n_s]), c.candidate),
+                                    chain=False))
+                    for c in cands for d in list(fit_d) + list(hold_d)])
+        for c in cands:
+            c.refinement = "steps"
     for i, c in enumerate(cands):
         o = outs[i * nd:(i + 1) * nd]
         if not all_ok(o):
-            continue                         # no allowance where the refined run fails
+            continue                         # no allowance where no refined run runs
         dz = G.z(o[:nf]) - c.z_raw
         c.J_num = G.J(dz)
         E = _columns(c, responses)
@@ -119,7 +129,8 @@ def _widen(c, dz: np.ndarray, A: np.ndarray, E: np.ndarray) -> None:
     for k, s in zip(c._slots, shift):
         lo, hi = ivs[k]
         w = ERROR_PER_CHANGE * abs(float(s))
-        ivs[k] = (lo - w, hi + w)
+        b_lo, b_hi = EFFECTS[name].bounds[k]           # never beyond the effect's range
+        ivs[k] = (max(lo - w, b_lo), min(hi + w, b_hi))
     c.interval[name] = ivs
     c.value_shift = {name: [float(s) for s in shift]}
 

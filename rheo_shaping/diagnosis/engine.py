@@ -274,10 +274,9 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                           parts_B, n_eff, J_base_h, m, chain_free,
                           (A_sheet, responses, REFINE_STEPS))
                     if needs_numerics(pairs[0], J_base_h, bool(hold_d)):
-                        fresh = [pairs[0]] + ([base_c] if not math.isfinite(base_c.J_num)
-                                              else [])
-                        numerics(fresh, run, fit_d, hold_d, G, H, base_params, n_s, A,
-                                 responses)
+                        # the baseline again, refined the same way as the pair
+                        numerics([pairs[0], base_c], run, fit_d, hold_d, G, H, base_params,
+                                 n_s, A, responses)
                     bp = pairs[0]
                     bp.adequate = bp.checked and adequate(bp, J_base_h, bool(hold_d), base_c)
                     # a pair must beat each of its parts significantly

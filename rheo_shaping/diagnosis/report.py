@@ -116,7 +116,9 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
         b = diag.numerics_base
         if math.isfinite(vf.J_num_perp) and b is not None:
             from .check import GAP_SHARE, NUMERICS_FACTOR
-            lines.append(f"Numerics: the verdict's run refined (2 N + 1 masses, half steps) moves "
+            how = ("2 N + 1 masses, half steps" if vf.refinement == "chain and steps"
+                   else "half steps; the finer chain did not run")
+            lines.append(f"Numerics: the verdict's run refined ({how}) moves "
                          f"by J_num = {vf.J_num:.4f} ({vf.J_num_perp:.4f} that no refit absorbs; "
                          f"holdout {_fmt(vf.J_num_holdout, 1, 4)}), the baseline's by "
                          f"{_fmt(b.J_num, 1, 4)} ({_fmt(b.J_num_perp, 1, 4)}): what the verdict "

@@ -67,7 +67,8 @@ class Diagnosis:
                     "explained_fit": num(self.explained(fr)),
                     "explained_holdout": num(self.explained(fr, True)),
                     "J_numerics": {"fit": num(fr.J_num), "fit_unabsorbed": num(fr.J_num_perp),
-                                   "holdout": num(fr.J_num_holdout)},
+                                   "holdout": num(fr.J_num_holdout),
+                                   "refined": fr.refinement},
                     "value_shift_refined": fr.value_shift}
         ranked = sorted(self.effects + self.pairs, key=rank_key)
         vf = self.verdict_fit
