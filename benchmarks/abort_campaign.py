@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import random
 import sys
@@ -58,7 +57,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rheo_shaping.params import CellParams
+from rheo_shaping.params.params import CellParams
 
 RTF = 20.0  # simulated seconds per wall second in the closed-loop runs
 
@@ -112,15 +111,15 @@ def _campaign_task(shared: dict, item: tuple) -> dict:
 def offline_case(index: int, cell: CellParams):
     """A case's row and its offline run without a monitor (``would_tear``); (row with
     ``failed``, None) when the plan is refused or the core fails."""
-    from rheo_shaping.clearance import plan_clearance
-    from rheo_shaping.scenarios import movement_scenario, scenario_plan
-    from rheo_shaping.simulation import run_scenario
+    from rheo_shaping.planning.clearance import plan_clearance
+    from rheo_shaping.planning.movement import movement_plan
+    from rheo_shaping.sheet.simulation import run_scenario
     mv = cell.movement
     row = {"case": index, "movement": mv.number, "speed_factor": mv.speed / 1e-3,
            "k1": cell.material.k1, "c2": cell.material.c2, "F_break": cell.material.F_break,
            "d": mv.d if mv.number == 4 else None}
     try:
-        plan = scenario_plan(cell, movement_scenario(cell))
+        plan = movement_plan(cell)
         if plan_clearance(cell, plan.plan).gap < cell.sheet.thickness:
             return {**row, "failed": "plan refused by the clearance check"}, None
         offline = run_scenario(cell, plan)
@@ -135,7 +134,7 @@ def run_case(index: int, cell: CellParams, trend: bool = False) -> dict:
     """Offline (no monitor) and closed-loop run of one cell."""
     from rclpy.parameter import Parameter
 
-    from rheo_shaping.config import dump_cell
+    from rheo_shaping.params.config import dump_cell
     from rheo_shaping.nodes.cell import run_cell
 
     row, offline = offline_case(index, cell)

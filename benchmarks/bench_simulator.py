@@ -4,9 +4,8 @@
 Measures, on this machine:
 
 * ``rtf_n25``: simulated seconds per wall second of the default cell's 120 s
-  two-step cycle (movement 4, ``run_scenario(p, scenario_plan(p,
-  movement_scenario(p, 4)))``) with N = 25 masses, on ONE core (the process
-  is pinned to one CPU and BLAS/OpenMP are limited to one thread).  The
+  two-step cycle (movement 4, ``run_movement(p, 4)``) with N = 25 masses,
+  on ONE core (the process is pinned to one CPU and BLAS/OpenMP are limited to one thread).  The
   settle (the inertial pre-sag, cached per cell in ``simulation._SETTLED``) is
   timed separately, with the cache cleared; the cycle is timed with the settle
   cached.  Medians of ``--repeats`` runs.
@@ -23,7 +22,7 @@ Measures, on this machine:
   own and cumulative time (the compiled kernel is one call), the kernel's work
   per step, and per-call costs measured without the profiler (``micro``).
 * ``effects``: the default cell's cycle (N = 63) with each effect of
-  :mod:`rheo_shaping.effects` alone at the top of its realistic range, timed
+  :mod:`rheo_shaping.sheet.effects` alone at the top of its realistic range, timed
   interleaved with the nominal cycle: the ratio of the two.
 * ``cold_start``: ``rheo-shaping simulate --json`` in a fresh process, first
   with an empty compile cache (a temporary ``NUMBA_CACHE_DIR``), then with the
@@ -88,12 +87,12 @@ try:
 except ImportError:                                   # run from a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import rheo_shaping.simulation as simulation
-from rheo_shaping.analytic import elastic_chain_equilibrium
-from rheo_shaping.params import CellParams
-from rheo_shaping.scenarios import movement_scenario, scenario_plan
-from rheo_shaping.sheet import ChainConstants, SheetModel
-from rheo_shaping.simulation import Simulation, run_scenario
+import rheo_shaping.sheet.simulation as simulation
+from rheo_shaping.sheet.analytic import elastic_chain_equilibrium
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.sheet.sheet import ChainConstants, SheetModel
+from rheo_shaping.sheet.simulation import Simulation, run_scenario
 
 SIZES = (25, 50, 63, 100, 200, 400, 1000)
 MB = 1024.0 * 1024.0
@@ -140,7 +139,7 @@ def cycle(n: int):
     """The default cell with ``n`` masses and its movement-4 plan (read fresh)."""
     p = CellParams()
     p = replace(p, sheet=replace(p.sheet, n_masses=int(n)))
-    return p, scenario_plan(p, movement_scenario(p, 4))
+    return p, movement_plan(p, 4)
 
 
 def time_settle(p, plan) -> tuple[float, float]:
@@ -183,7 +182,7 @@ def _reset_peak_rss() -> bool:
 def counting(*given):
     """Count the solver's work during a run: the kernel's counters (SheetModel.stats) of every
     model made inside the block and of the ``given`` models, summed."""
-    from rheo_shaping import kernel as K
+    from rheo_shaping.sheet import kernel as K
     c = collections.Counter()
     models: list = [(m, m.stats.copy()) for m in given]
     init = SheetModel.__init__
@@ -317,7 +316,7 @@ def micro(n: int = 25, number: int = 2000) -> dict:
     """Per-call CPU costs [us] without the profiler, on the N = 25 cycle's state one step
     before the tool pushes hardest: one step as a Python call, its compiled parts."""
     try:
-        from rheo_shaping import kernel as K
+        from rheo_shaping.sheet import kernel as K
         p, plan = cycle(n)
         r = run_scenario(p, plan)
         k = max(int(np.argmax(np.hypot(r.tool_force[:, 0], r.tool_force[:, 1]))) - 1, 0)
@@ -530,8 +529,8 @@ def mujoco_compare(quick: bool = False, tol: float = 1e-6, repeats: int = 21) ->
 # ---------------------------------------------------------------- effects, cold start
 def effects_table(repeats: int = 3) -> dict:
     """Cycle cost of the default cell (N = 63) with each effect alone at the top of its
-    realistic range (rheo_shaping.effects), against the nominal cycle timed beside it."""
-    from rheo_shaping.effects import EFFECTS
+    realistic range (rheo_shaping.sheet.effects), against the nominal cycle timed beside it."""
+    from rheo_shaping.sheet.effects import EFFECTS
     p0, plan = cycle(CellParams().sheet.n_masses)
     rows = []
     for name, e in EFFECTS.items():

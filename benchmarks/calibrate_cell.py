@@ -54,7 +54,7 @@ Nelder-Mead from the best few points, on 2 worker processes.  Run:
     PYTHONPATH=. python benchmarks/calibrate_cell.py --check         # residuals of the defaults only
 
 It prints the objective, the chosen numbers and every residual; the numbers
-go into rheo_shaping/params.py and config/cell.yaml by hand.
+go into rheo_shaping/params/params.py and config/cell.yaml by hand.
 """
 from __future__ import annotations
 
@@ -69,13 +69,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rheo_shaping.drape import make_drape  # noqa: E402
+from rheo_shaping.sheet.drape import make_drape  # noqa: E402
 from rheo_shaping.parallel import executor_from_spec, run_tasks  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
-from rheo_shaping.reproduce import HALF_SPEED, PAPER, parabolic_minimum, run_movement, sweep_point  # noqa: E402
-from rheo_shaping import simulation  # noqa: E402
-from rheo_shaping.simulation import Simulation  # noqa: E402
-from rheo_shaping.tools import tool_shape  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.study.reproduce import HALF_SPEED, PAPER, parabolic_minimum, movement_run, sweep_point  # noqa: E402
+from rheo_shaping.sheet import simulation  # noqa: E402
+from rheo_shaping.sheet.simulation import Simulation  # noqa: E402
+from rheo_shaping.sheet.tools import tool_shape  # noqa: E402
 
 #: name, lower bound, upper bound [m]
 DESIGN = (
@@ -175,10 +175,10 @@ def _run(shared, job):
     if settled is not None:
         simulation._SETTLED.setdefault(_settled_key(params), settled)
     if kind == "movement":
-        r = run_movement(params, arg)
+        r = movement_run(params, arg)
         return {"F": r.F_max, "D": r.delta, "forced": r.forced_time, "contacts": r.min_contacts_forced}
     if kind == "half":
-        r = run_movement(params, 1, speed=HALF_SPEED, dwell=0.0)
+        r = movement_run(params, 1, speed=HALF_SPEED, dwell=0.0)
         return {"F": r.F_max, "D": r.delta, "forced": r.forced_time}
     return sweep_point(params, arg)
 

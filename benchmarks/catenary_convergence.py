@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Convergence of the lumped elastic chain to Irvine's elastic catenary.
 
-For N = 10, 20, 50, 100, 200 masses (``rheo_shaping.analytic.discretise_cable``)
+For N = 10, 20, 50, 100, 200 masses (``rheo_shaping.sheet.analytic.discretise_cable``)
 the exact chain equilibrium is compared with Irvine's closed form:
 
 * ``err_node`` [m]: largest distance between a mass and the cable point with
@@ -44,10 +44,10 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 try:
-    from rheo_shaping.analytic import discretise_cable, solve_irvine
+    from rheo_shaping.sheet.analytic import discretise_cable, solve_irvine
 except ImportError:                                   # run from a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from rheo_shaping.analytic import discretise_cable, solve_irvine
+    from rheo_shaping.sheet.analytic import discretise_cable, solve_irvine
 
 G = 9.81
 
@@ -95,7 +95,7 @@ def simulate(span: float, height_difference: float, length: float, ea: float, w:
              ns: list[int], dt: float = 1e3, force_tol: float = 1e-11, max_newton: int = 500,
              max_steps: int = 6) -> dict:
     """The simulator's settled elastic chains against the exact chain and Irvine (SI units)."""
-    from rheo_shaping.sheet import ChainConstants, SheetModel
+    from rheo_shaping.sheet.sheet import ChainConstants, SheetModel
 
     cab = solve_irvine(span, height_difference, length, ea, w)
     rows = []

@@ -46,9 +46,9 @@ try:
 except ImportError:                                   # run from a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rheo_shaping.params import CellParams
-from rheo_shaping.scenarios import movement_scenario, scenario_plan
-from rheo_shaping.simulation import run_scenario
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.sheet.simulation import run_scenario
 
 F_TOL = 0.01        # relative change of F_max
 DELTA_TOL = 1e-4    # m, change of Delta
@@ -79,7 +79,7 @@ def variant(kind: str, level: int, settle: bool = False) -> CellParams:
 
 def run_one(movement: int, kind: str, level: int, settle: bool) -> dict:
     p = variant(kind, level, settle)
-    path = scenario_plan(p, movement_scenario(p, movement))
+    path = movement_plan(p, movement)
     t0 = time.perf_counter()
     r = run_scenario(p, path)
     wall = time.perf_counter() - t0

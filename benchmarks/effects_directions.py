@@ -25,10 +25,10 @@ try:
 except ImportError:                                   # a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rheo_shaping.effects import EFFECTS  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
-from rheo_shaping.scenarios import movement_scenario, scenario_plan  # noqa: E402
-from rheo_shaping.simulation import Simulation, run_scenario  # noqa: E402
+from rheo_shaping.sheet.effects import EFFECTS  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.sheet.simulation import Simulation, run_scenario  # noqa: E402
 
 #: effect name -> (value, how it is printed): typical values inside each realistic range
 CASES = {
@@ -47,7 +47,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     args = ap.parse_args(argv)
     base = CellParams()
-    plan = scenario_plan(base, movement_scenario(base))
+    plan = movement_plan(base)
     Simulation(base)                                  # settle once (cached) outside the timings
     t0 = time.perf_counter()
     nominal = run_scenario(base, plan)

@@ -26,13 +26,13 @@ import time
 
 import numpy as np
 
-from rheo_shaping.geometry import Cake, Workplane
-from rheo_shaping.material import elongation_step
-from rheo_shaping.params import CellParams
-from rheo_shaping.scenarios import movement_scenario, scenario_plan
-from rheo_shaping.sheet import Obstacle, SheetModel
-from rheo_shaping.simulation import build_chain, run_scenario, settle
-import rheo_shaping.simulation as simulation
+from rheo_shaping.sheet.geometry import Cake, Workplane
+from rheo_shaping.material.material import elongation_step
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.sheet.sheet import Obstacle, SheetModel
+from rheo_shaping.sheet.simulation import build_chain, run_scenario, settle
+import rheo_shaping.sheet.simulation as simulation
 
 
 def explicit_settle(params: CellParams, kc: float, window: float, safety: float = 0.5):
@@ -108,7 +108,7 @@ def main(argv=None) -> int:
     # the process itself: quasi-static long steps
     simulation._SETTLED.clear()
     simulation.Simulation(params)          # settle once (cached), not part of the process
-    plan = scenario_plan(params, movement_scenario(params, 4))
+    plan = movement_plan(params, 4)
     res = run_scenario(params, plan)
     rows.append({"integrator": "implicit backward Euler (quasi-static process, movement 4)",
                  "contact_stiffness_N_per_m": params.solver.contact_stiffness,

@@ -25,17 +25,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import abort_campaign as ac  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
 
 
 def _score(cell) -> tuple[float, float]:
     """(offline F_max [N], the monitor's default threshold [N]) of a cell, with the core as it is."""
-    from rheo_shaping.abort_budget import abort_horizon, configured_speed_threshold
-    from rheo_shaping.node_params import MonitorNodeParams
-    from rheo_shaping.scenarios import movement_scenario, scenario_plan
-    from rheo_shaping.simulation import run_scenario
+    from rheo_shaping.safety.abort_budget import abort_horizon, configured_speed_threshold
+    from rheo_shaping.params.node_params import MonitorNodeParams
+    from rheo_shaping.planning.movement import run_movement
 
-    f_off = run_scenario(cell, scenario_plan(cell, movement_scenario(cell))).F_max
+    f_off = run_movement(cell).F_max
     s = MonitorNodeParams()
     threshold, _, _ = configured_speed_threshold(cell, abort_horizon(cell, s.detect_time, s.stop_time),
                                                  s.noise_sigma)

@@ -105,7 +105,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
     """Offline run, then the cell as three processes (inside ``prefix``); figures from logs."""
     import yaml
 
-    from rheo_shaping.config import dump_cell
+    from rheo_shaping.params.config import dump_cell
 
     row, offline = campaign.offline_case(index, cell)
     if offline is None:
@@ -188,7 +188,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
 def run_condition(condition: str, seed: int, args) -> dict:
     import random
 
-    from rheo_shaping.params import CellParams
+    from rheo_shaping.params.params import CellParams
     rng = random.Random(seed)
     cells = [campaign.sample_cell(CellParams(), rng) for _ in range(args.runs)]
     t0 = time.monotonic()

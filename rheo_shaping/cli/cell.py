@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as exc:
         raise UserError(f"the cell needs ROS 2 (rclpy): {exc}; use the full venv "
                         f"(python3 dev.py setup, then .venv/bin/rheo-shaping cell)") from None
-    from ..schema import ParameterError
+    from ..params.schema import ParameterError
     say = None if (args.quiet or args.json) else (lambda msg: print(msg, flush=True))
     try:
         result = run_cell(args.params, movement=args.movement,
@@ -71,12 +71,11 @@ def run(args: argparse.Namespace) -> int:
     out = {**result.summary()}
     if args.compare:
         from dataclasses import replace
-        from ..scenarios import movement_scenario, scenario_plan
-        from ..simulation import run_scenario
+        from ..planning.movement import run_movement
         p = params
         p = replace(p, movement=replace(p.movement, number=result.movement,
                                         **({"d": result.d} if result.movement == 4 else {})))
-        offline = run_scenario(p, scenario_plan(p, movement_scenario(p)))
+        offline = run_movement(p)
         out["offline"] = {"F_max": offline.F_max, "SF": offline.SF, "delta": offline.delta}
     if args.json:
         print(json.dumps(_finite(out)))

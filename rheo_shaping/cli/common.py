@@ -7,8 +7,8 @@ import os
 from pathlib import Path
 from typing import Iterator
 
-from ..config import ConfigError, load_cell
-from ..params import CellParams
+from ..params.config import ConfigError, load_cell
+from ..params.params import CellParams
 from . import UserError
 
 

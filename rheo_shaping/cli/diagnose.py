@@ -8,8 +8,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from ..effects import EFFECT_NAMES
-from ..records import RecordError, read_record
+from ..sheet.effects import EFFECT_NAMES
+from ..records.records import RecordError, read_record
 from . import UserError
 from .common import add_executor_arguments, executor_from_args, output_path
 
@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
     result["wall_time_s"] = time.monotonic() - t0
     process = None
     if scen is not None:
-        from ..config import dump_cell
+        from ..params.config import dump_cell
         from ..diagnosis.engine import process_figures
         scen.write_text("# rheo-shaping diagnose: calibrated baseline + verdict "
                         f"'{diag.verdict}' of {', '.join(diag.records)}\n" + dump_cell(diag.corrected))

@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 from . import UserError
-from ..estimates import Estimate
-from ..material import SPECIMEN_LENGTH_M
-from ..material_data import (
+from ..identification.estimates import Estimate
+from ..material.material import SPECIMEN_LENGTH_M
+from ..identification.material_data import (
     CreepCurve,
     CreepResiduals,
     DataFormatError,
@@ -137,7 +137,7 @@ def _json_doc(method: str, model: str | None, params: dict[str, Estimate], extra
 
 
 def _run_paper(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]:
-    from ..identification import identify_paper, merge_residuals
+    from ..identification.identification import identify_paper, merge_residuals
     creep = merge_residuals(residuals) if residuals else None
     try:
         r = identify_paper(creep, tensile, creep_curves)
@@ -146,7 +146,7 @@ def _run_paper(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]
     params = {"k1": r.k1, "c1": r.c1, "c2": r.c2,
               "k2": Estimate(math.inf, None, None, "N/m", "no series spring in the three-element model")}
     if args.plot:
-        from ..identification_plots import plot_paper
+        from ..identification.identification_plots import plot_paper
         plot_paper(r, args.plot, tensile)
     extra = {"b": r.b.as_dict(), "model_choice": None, "curves": _curve_info(r.curves),
              "creep_tests": len(r.creep) if r.creep is not None else 0,
@@ -159,13 +159,13 @@ def _run_paper(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]
 
 
 def _run_joint(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]:
-    from ..model_choice import identify_joint
+    from ..identification.model_choice import identify_joint
     try:
         r = identify_joint(tensile, residuals, creep_curves, noise_rel=args.noise_rel, noise_abs=args.noise_abs)
     except (ValueError, RuntimeError) as exc:
         raise UserError(str(exc)) from None
     if args.plot:
-        from ..identification_plots import plot_joint
+        from ..identification.identification_plots import plot_joint
         plot_joint(r, args.plot, tensile)
     rows = r.table()
     extra = {"model_choice": {"rule": "BIC", "best_aic": r.best_aic, "best_bic": r.best_bic, "table": rows},

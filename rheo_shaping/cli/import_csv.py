@@ -4,8 +4,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..csv_import import import_csv
-from ..records import RecordError, write_record
+from ..records.csv_import import import_csv
+from ..records.records import RecordError, write_record
 from . import UserError
 
 

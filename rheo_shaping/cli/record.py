@@ -3,13 +3,13 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 
-from ..effects import active_effects
-from ..measurement import MeasurementParams, synthesize_record
-from ..records import RecordError, write_record
-from ..schema import ParameterError, iter_fields, validate_value
+from ..sheet.effects import active_effects
+from ..records.measurement import MeasurementParams, synthesize_record
+from ..records.records import RecordError, write_record
+from ..params.schema import ParameterError, iter_fields, validate_value
 from . import UserError
 from .common import add_params_argument, cell_from_args
 

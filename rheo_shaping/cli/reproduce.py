@@ -74,9 +74,9 @@ class _Progress:
 
 def write_figures(study, out: Path) -> list[Path]:
     """All figures of the study into ``out``; returns their paths."""
-    from ..plots import (plot_movement_history, plot_phase_profiles, plot_sag, plot_speed_comparison,
+    from ..sheet.plots import (plot_movement_history, plot_phase_profiles, plot_sag, plot_speed_comparison,
                          plot_sweep)
-    from ..reproduce import MOVEMENT_NAMES, PAPER
+    from ..study.reproduce import MOVEMENT_NAMES, PAPER
     files = []
     for k, run in study.movements.items():
         name = MOVEMENT_NAMES[int(k)]
@@ -103,7 +103,7 @@ def _pct(ours: float, paper: float) -> str:
 
 
 def table_lines(study) -> list[str]:
-    from ..reproduce import MOVEMENT_NAMES, PAPER
+    from ..study.reproduce import MOVEMENT_NAMES, PAPER
     lines = ["Table 2: paper | ours | difference",
              f"  {'movement':<20s} {'F_max [N]':^27s}   {'SF':^17s}   {'Delta [mm]':^23s}",
              f"  {'':<20s} {'paper':>7s} {'ours':>7s} {'diff':>9s}   {'paper':>5s} {'ours':>5s} "
@@ -151,7 +151,7 @@ def table_lines(study) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..reproduce import DEFAULT_D_VALUES, reproduce
+    from ..study.reproduce import DEFAULT_D_VALUES, reproduce
     params = cell_from_args(args)
     out = _out_dir(args.out, args.force)
     wall = time.perf_counter()

@@ -5,8 +5,9 @@ import argparse
 import json
 from dataclasses import replace
 
-from ..scenarios import movement_scenario, scenario_plan
-from ..simulation import run_scenario
+
+from ..planning.movement import movement_plan
+from ..sheet.simulation import run_scenario
 from .common import add_params_argument, cell_from_args, output_path
 
 
@@ -33,11 +34,11 @@ def run(args: argparse.Namespace) -> int:
     history = None
     if plot is not None:
         history = output_path(str(plot.with_name(plot.stem + "_history.png")), args.force, "plot")
-    plan = scenario_plan(params, movement_scenario(params))
+    plan = movement_plan(params)
     result = run_scenario(params, plan)
     out = {"movement": params.movement.number, **result.summary()}
     if plot is not None:
-        from ..plots import plot_history, plot_profiles
+        from ..sheet.plots import plot_history, plot_profiles
         t_end = result.t[-1]
         plot_profiles(result, [0.0, *plan.knots()[1:-1], t_end], plot,
                       f"movement {params.movement.number}")

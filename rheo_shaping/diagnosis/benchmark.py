@@ -33,14 +33,14 @@ from typing import Callable
 
 import numpy as np
 
-from ..effects import EFFECT_NAMES, EFFECTS
-from ..measurement import MeasurementParams, measure
+from ..sheet.effects import EFFECT_NAMES, EFFECTS
+from ..records.measurement import MeasurementParams, measure
 from ..parallel import run_tasks
-from ..params import CellParams
-from ..record import Record
-from ..scenarios import movement_scenario, scenario_plan
-from ..simulation import run_scenario
-from .baseline import CHAIN, SHEET, step_of, with_sheet
+from ..params.params import CellParams
+from ..records.record import Record
+from ..planning.scenarios import movement_scenario, scenario_plan
+from ..sheet.simulation import run_scenario
+from .baseline import CHAIN, SHEET, with_sheet
 from .signature import KIND_OF_EFFECT
 
 KINDS_PATTERN = ("single", "none", "single", "out_of_library", "single", "none", "single",

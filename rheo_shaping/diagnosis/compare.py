@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..metrics import residual_gap
-from ..params import CellParams
-from ..record import Record
-from ..simulation import PolylinePath, RunResult, run_scenario
+from ..sheet.metrics import residual_gap
+from ..params.params import CellParams
+from ..records.record import Record
+from ..sheet.simulation import PolylinePath, RunResult, run_scenario
 
 #: Width [s] of the moving average applied to the measured pose before it drives the model.
 POSE_WINDOW = 0.4

@@ -43,10 +43,10 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..effects import EFFECT_NAMES, EFFECTS
-from ..params import CellParams
-from ..record import Record
-from ..schema import ParameterError
+from ..sheet.effects import EFFECT_NAMES, EFFECTS
+from ..params.params import CellParams
+from ..records.record import Record
+from ..params.schema import ParameterError
 from . import stats
 from .baseline import CHAIN, SHEET, values as knob_values, with_sheet
 from .compare import RecordData, noise_level, residuals
@@ -746,7 +746,7 @@ def process_figures(nominal: CellParams, corrected: CellParams,
     F_max with Delta <= ``delta_limit``) over ``d_candidates`` (default: the
     cell's d +- 3 mm in 1 mm steps); None when no candidate meets the limit.
     """
-    from ..optimise import run_d
+    from ..study.optimise import run_d
     d0 = nominal.movement.d
     ds = list(d_candidates) if d_candidates is not None else [d0 + k * 1e-3 for k in range(-3, 4)]
     jobs = [(p, d) for p in (nominal, corrected) for d in [d0] + ds]
@@ -768,5 +768,5 @@ def process_figures(nominal: CellParams, corrected: CellParams,
 
 
 def _run_d(args):
-    from ..optimise import run_d
+    from ..study.optimise import run_d
     return run_d(*args)

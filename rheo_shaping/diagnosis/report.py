@@ -92,7 +92,7 @@ def _g(v):
 
 def markdown(diag, figures: dict, process: dict | None = None) -> str:
     """The report (see docs/diagnosis.md for every figure)."""
-    from ..effects import EFFECTS
+    from ..sheet.effects import EFFECTS
     from . import stats
     j = diag.to_json()
     lines = ["# Sim-to-real gap diagnosis", "",

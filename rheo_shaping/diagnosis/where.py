@@ -22,8 +22,7 @@ import math
 
 import numpy as np
 
-from ..geometry import Cake
-from ..tools import tool_shape
+from ..sheet.tools import tool_shape
 
 PLACES = ("top edge", "free span", "tool contact", "cake bottom", "workplane")
 PHASES = ("approach", "forced deformation", "dwell", "release", "settle")

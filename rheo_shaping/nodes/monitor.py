@@ -39,11 +39,11 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 from std_srvs.srv import Trigger
 
-from ..node_params import MonitorNodeParams
-from ..params import CellParams
-from ..abort_budget import abort_horizon, configured_speed_threshold
-from ..schema import ParameterError
-from ..watchdog import StallGuard
+from ..params.node_params import MonitorNodeParams
+from ..params.params import CellParams
+from ..safety.abort_budget import abort_horizon, configured_speed_threshold
+from ..params.schema import ParameterError
+from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters

@@ -1,11 +1,11 @@
 """The ``planner`` node: jerk-limited tool plans, streamed as set-points, with a planned stop.
 
-The plan is the core's: ``scenarios.scenario_plan(params, movement_scenario(params))``
+The plan is the core's: ``movement.movement_plan(params)``
 (the paper's movements 1-4, or movement 0 = the params file's waypoints and
 dwells), a chain of ruckig state-to-state segments, at rest at every waypoint,
 straight lines by phase synchronisation, dwells between.  It is the same plan
 the offline run (``rheo-shaping simulate``) uses.  With ``optimise_d`` the node
-first picks movement 4's d with the core model (:func:`rheo_shaping.optimise.best_d`).
+first picks movement 4's d with the core model (:func:`rheo_shaping.study.optimise.best_d`).
 
 Interlock (safety principle 6, docs/safety-principles.md).  With ``wait_for_monitor`` the planner
 starts only while the monitor's ``/shaping/ready`` heartbeat says ready and is
@@ -13,7 +13,7 @@ younger than ``monitor_timeout`` (steady clock); a heartbeat that stops or
 turns false while the tool moves is treated as an abort.
 
 Streaming.  From the start time t0 (the node clock: simulated time with
-``use_sim_time``) a :class:`~rheo_shaping.stopping.TrajectoryStreamer` gives
+``use_sim_time``) a :class:`~rheo_shaping.planning.stopping.TrajectoryStreamer` gives
 the set-point at t0 + k / ``control_rate``; they are published on
 ``/tool/command``, each stamped with its time (on simulated time, when /clock
 jumps by more than one period, every set-point in between is published, plus
@@ -42,15 +42,16 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from ..clearance import plan_clearance
-from ..node_params import PlannerNodeParams
-from ..optimise import best_d, d_values
-from ..params import CellParams
-from ..planning import MotionLimits, Plan, Waypoint, plan_waypoints
-from ..scenarios import movement_limits, movement_scenario, scenario_plan
-from ..schema import ParameterError
-from ..stopping import TrajectoryStreamer
-from ..watchdog import StallGuard
+from ..planning.clearance import plan_clearance
+from ..params.node_params import PlannerNodeParams
+from ..study.optimise import best_d, d_values
+from ..params.params import CellParams
+from ..planning.planning import MotionLimits, Plan, Waypoint, plan_waypoints
+from ..planning.scenarios import movement_limits, movement_scenario
+from ..planning.movement import movement_plan
+from ..params.schema import ParameterError
+from ..planning.stopping import TrajectoryStreamer
+from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
@@ -162,7 +163,7 @@ class PlannerNode(Node):
                 f"Delta = {choice.delta * 1e3:.3f} mm (limit {s.delta_limit * 1e3:g} mm)")
             cell = replace(cell, movement=replace(cell.movement, d=choice.d))
         try:
-            plan = scenario_plan(cell, movement_scenario(cell)).plan
+            plan = movement_plan(cell).plan
         except (ValueError, RuntimeError) as exc:
             raise ParameterError(f"the movement cannot be planned: {exc}") from None
         self._check_clearance(cell, plan)

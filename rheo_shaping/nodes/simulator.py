@@ -1,6 +1,6 @@
 """The ``simulator`` node: the sheet model of the cell under the streamed tool set-point.
 
-It runs the core (:class:`rheo_shaping.simulation.Simulation`) and publishes
+It runs the core (:class:`rheo_shaping.sheet.simulation.Simulation`) and publishes
 the cell's state (docs/interfaces.md): ``/sheet/profile``, ``/sheet/tensions``,
 ``/sheet/contact_tension``, ``/tool/pose``, ``/tool/wrench``, and
 ``/sheet/markers`` for RViz; its own status on ``/diagnostics``.
@@ -38,16 +38,16 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from ..geometry import Cake
-from ..measurement import MeasurementParams, profile_frame
-from ..metrics import safety_factor
-from ..node_params import SimulatorNodeParams
-from ..params import CellParams
-from ..scenarios import movement_scenario
-from ..sheet import ConvergenceError
-from ..simulation import Simulation
-from ..tools import tool_shape
-from ..watchdog import Freshness
+from ..sheet.geometry import Cake
+from ..records.measurement import MeasurementParams, profile_frame
+from ..sheet.metrics import safety_factor
+from ..params.node_params import SimulatorNodeParams
+from ..params.params import CellParams
+from ..planning.scenarios import movement_scenario
+from ..sheet.sheet import ConvergenceError
+from ..sheet.simulation import Simulation
+from ..sheet.tools import tool_shape
+from ..safety.watchdog import Freshness
 from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
@@ -353,7 +353,7 @@ class SimulatorNode(Node):
         self.pub_wrench.publish(m.wrench_msg(self.sim.tool_force(), t_ns))
 
     def _publish_camera(self, t_ns: int) -> None:
-        """A frame of the simulated camera (rheo_shaping.measurement.profile_frame)."""
+        """A frame of the simulated camera (rheo_shaping.records.measurement.profile_frame)."""
         s = self.settings
         if self._broken or self._camera_rng.random() < s.camera_frame_dropout:
             return

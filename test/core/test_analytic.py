@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from rheo_shaping.analytic import (
+from rheo_shaping.sheet.analytic import (
     discretise_cable,
     elastic_chain_equilibrium,
     inextensible_catenary,

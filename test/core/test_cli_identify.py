@@ -12,9 +12,8 @@ from pathlib import Path
 import pytest
 
 from rheo_shaping.cli import main
-from rheo_shaping.material import maxwell
-from rheo_shaping.material_data import write_tensile_curve
-from rheo_shaping.synthetic_material import synthetic_tensile_curve
+from rheo_shaping.material.material import maxwell
+from rheo_shaping.identification.synthetic_material import synthetic_tensile_curve
 
 REPO = Path(__file__).resolve().parents[2]
 TABLE1 = str(resources.files("rheo_shaping") / "data" / "table1_creep.csv")

@@ -13,10 +13,10 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from rheo_shaping.params import CellParams
-from rheo_shaping.schema import ParameterError
-from rheo_shaping.simulation import PolylinePath, run_scenario
-from rheo_shaping.tools import tool_shape
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.schema import ParameterError
+from rheo_shaping.sheet.simulation import PolylinePath, run_scenario
+from rheo_shaping.sheet.tools import tool_shape
 
 PENETRATION_TOL_M = 1e-5
 
@@ -87,7 +87,7 @@ def test_random_cells_stay_finite_unpenetrated_and_flow_forward(case):
     ("solver.dt_settle", -1e-3), ("movement.speed", float("nan")), ("tool.shape", "hexagon"),
 ])
 def test_invalid_cell_values_are_refused_with_the_parameter_named(name, value):
-    from rheo_shaping.schema import from_flat
+    from rheo_shaping.params.schema import from_flat
     with pytest.raises(ParameterError) as err:
         from_flat(CellParams, {name: value})
     assert f"'{name}'" in str(err.value) and "expected" in str(err.value)
@@ -99,7 +99,7 @@ def test_invalid_cell_values_are_refused_with_the_parameter_named(name, value):
        st.one_of(st.floats(max_value=0.0), st.just(float("nan")), st.just(float("inf")),
                  st.text(max_size=3), st.booleans()))
 def test_random_invalid_values_always_give_a_clear_error(name, value):
-    from rheo_shaping.schema import from_flat
+    from rheo_shaping.params.schema import from_flat
     assume(not (name == "material.c2" and value == float("inf")))   # c2 = inf: no plastic flow, valid
     with pytest.raises(ParameterError) as err:
         from_flat(CellParams, {name: value})

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import yaml
 
-from rheo_shaping.config import dump_cell, load_cell
-from rheo_shaping.params import CellParams
-from rheo_shaping.schema import to_flat
+from rheo_shaping.params.config import dump_cell, load_cell
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.schema import to_flat
 
 CELL_YAML = Path(__file__).resolve().parents[2] / "config" / "cell.yaml"
 
@@ -41,7 +41,7 @@ def test_dump_of_the_default_cell_round_trips(tmp_path):
 def test_the_strip_is_the_papers_2g_spheres_split_in_four():
     """The strip weighs 2e-3 kg per 6.4 mm (paper Sec. 4.1's sphere on its 0.3125 kg/m strip);
     the default cell splits each paper sphere into four masses (docs/model.md, convergence)."""
-    from rheo_shaping.simulation import build_chain
+    from rheo_shaping.sheet.simulation import build_chain
     p = CellParams()
     c, _ = build_chain(p)
     assert p.sheet.mass_per_length == pytest.approx(2e-3 / 6.4e-3, rel=1e-12)

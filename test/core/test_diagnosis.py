@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rheo_shaping.cli import main
-from rheo_shaping.config import load_cell
+from rheo_shaping.params.config import load_cell
 from rheo_shaping.diagnosis import stats
 from rheo_shaping.diagnosis.baseline import CHAIN, SHEET
 from rheo_shaping.diagnosis.benchmark import base_cell, make_case
@@ -21,10 +21,10 @@ from rheo_shaping.diagnosis.engine import diagnose
 from rheo_shaping.diagnosis.evaluate import Task, run_batch
 from rheo_shaping.diagnosis.linear import Solver, Stack
 from rheo_shaping.diagnosis.where import PHASES, phases
-from rheo_shaping.effects import EFFECTS
-from rheo_shaping.measurement import MeasurementParams, synthesize_record
-from rheo_shaping.params import CellParams
-from rheo_shaping.records import write_record
+from rheo_shaping.sheet.effects import EFFECTS
+from rheo_shaping.records.measurement import MeasurementParams, synthesize_record
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.records.records import write_record
 
 #: The benchmark's configuration (the gap test's null is calibrated on it, docs/diagnosis.md).
 N_MASSES, PROCESS_TIME = 31, 70.0

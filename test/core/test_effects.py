@@ -1,4 +1,4 @@
-"""The effects library (rheo_shaping.effects): closed forms where they exist, and each
+"""The effects library (rheo_shaping.sheet.effects): closed forms where they exist, and each
 effect moving the default process's outputs in the physically expected direction."""
 from __future__ import annotations
 
@@ -7,12 +7,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.effects import EFFECT_NAMES, EFFECTS, active_effects, nominal
-from rheo_shaping.geometry import Workplane
-from rheo_shaping.params import CellParams
-from rheo_shaping.scenarios import movement_scenario, scenario_plan
-from rheo_shaping.sheet import ChainConstants, Obstacle, SheetEffects, SheetModel
-from rheo_shaping.simulation import PolylinePath, Simulation, build_chain, run_scenario
+from rheo_shaping.sheet.effects import EFFECT_NAMES, EFFECTS, active_effects, nominal
+from rheo_shaping.sheet.geometry import Workplane
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.sheet.sheet import ChainConstants, Obstacle, SheetEffects, SheetModel
+from rheo_shaping.sheet.simulation import PolylinePath, Simulation, build_chain, run_scenario
 
 G = 9.81
 
@@ -24,7 +24,7 @@ def base():
 
 @pytest.fixture(scope="module")
 def plan(base):
-    return scenario_plan(base, movement_scenario(base))
+    return movement_plan(base)
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Signed distances and normals of the obstacle shapes (rheo_shaping.geometry)."""
+"""Signed distances and normals of the obstacle shapes (rheo_shaping.sheet.geometry)."""
 from __future__ import annotations
 
 import math
@@ -10,15 +10,7 @@ from hypothesis import strategies as st
 from matplotlib.path import Path
 from scipy.spatial import ConvexHull
 
-from rheo_shaping.geometry import (
-    Cake,
-    RoundedConvexPolygon,
-    Workplane,
-    circle,
-    convex_polygon,
-    rounded_rectangle,
-    tool_from_params,
-)
+from rheo_shaping.sheet.geometry import (Cake, Workplane, circle, convex_polygon, rounded_rectangle, tool_from_params)
 
 RNG = np.random.default_rng(20240607)
 

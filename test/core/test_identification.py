@@ -14,27 +14,27 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from rheo_shaping.burgers import Burgers
-from rheo_shaping.closed_forms import tensile_force
-from rheo_shaping.crack import detect_crack
-from rheo_shaping.identification import (
+from rheo_shaping.material.burgers import Burgers
+from rheo_shaping.material.closed_forms import tensile_force
+from rheo_shaping.identification.crack import detect_crack
+from rheo_shaping.identification.identification import (
     c1_from_tensile,
     c2_from_creep,
     identify_paper,
     k1_by_linear_least_squares,
     prepare_tensile,
 )
-from rheo_shaping.joint_fit import FitData, fit_model
-from rheo_shaping.material import ThreeElement, maxwell
-from rheo_shaping.material_data import (
+from rheo_shaping.identification.joint_fit import FitData, fit_model
+from rheo_shaping.material.material import ThreeElement, maxwell
+from rheo_shaping.identification.material_data import (
     DataFormatError,
     TensileCurve,
     read_creep_residuals,
     read_material_file,
     read_tensile_curve,
 )
-from rheo_shaping.model_choice import identify_joint
-from rheo_shaping.synthetic_material import (
+from rheo_shaping.identification.model_choice import identify_joint
+from rheo_shaping.identification.synthetic_material import (
     synthetic_creep_curve,
     synthetic_creep_residuals,
     synthetic_tensile_curve,
@@ -105,7 +105,7 @@ def _exact_curve(m, v=1e-3, t_end=20.0):
 
 @pytest.mark.parametrize("m", [MAXWELL, THREE], ids=["maxwell", "three-element"])
 def test_paper_steps_recover_exact_constants(m):
-    from rheo_shaping.estimates import Estimate
+    from rheo_shaping.identification.estimates import Estimate
     curves = [prepare_tensile(_exact_curve(m))]
     c2 = Estimate(m.c2, 0.0, None, "N s/m")
     c1, _ = c1_from_tensile(curves, c2)

@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.material import ThreeElement, elongation_step, step_coefficients
-from rheo_shaping.params import CellParams
-from rheo_shaping.simulation import Simulation, build_chain
+from rheo_shaping.material.material import ThreeElement, elongation_step, step_coefficients
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.sheet.simulation import Simulation, build_chain
 
 BAD_POSITIVE = [math.nan, 0.0, -1.0, -math.inf]
 

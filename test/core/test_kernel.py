@@ -1,4 +1,4 @@
-"""Parts of the compiled sheet step (rheo_shaping.kernel) against independent references:
+"""Parts of the compiled sheet step (rheo_shaping.sheet.kernel) against independent references:
 the banded Cholesky solve against a dense solve, the level-set curvature of every shape
 kind against a finite difference of its normal, and the batched path against single steps."""
 from __future__ import annotations
@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rheo_shaping import kernel as K
-from rheo_shaping.geometry import Cake, RoundedConvexPolygon, Workplane
-from rheo_shaping.params import CellParams
-from rheo_shaping.scenarios import movement_scenario, scenario_plan
-from rheo_shaping.simulation import Simulation
+from rheo_shaping.sheet import kernel as K
+from rheo_shaping.sheet.geometry import Cake, RoundedConvexPolygon, Workplane
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.sheet.simulation import Simulation
 
 
 @pytest.mark.parametrize("kd", [3, 4])
@@ -75,7 +75,7 @@ def test_curvature_is_the_turning_of_the_normal_along_the_level_set(name):
 
 def test_run_path_takes_the_same_steps_as_single_steps():
     p = CellParams()
-    plan = scenario_plan(p, movement_scenario(p, 4))
+    plan = movement_plan(p, 4)
     a = Simulation(p, tool_start=plan.position(0.0))
     dts, tools = a.schedule(40.0, plan.position(40.0), plan.position)
     rec = a.model.run_path(a.state, dts, tools)

@@ -14,16 +14,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from rheo_shaping import closed_forms as cf
-from rheo_shaping.burgers import (
+from rheo_shaping.material import closed_forms as cf
+from rheo_shaping.material.burgers import (
     Burgers,
     burgers_creep,
     burgers_creep_recovery,
     burgers_elongation_step,
     burgers_tensile_force,
 )
-from rheo_shaping.material import ThreeElement, elongation_step, maxwell, step_coefficients
-from rheo_shaping.response import elongation_response, force_response
+from rheo_shaping.material.material import ThreeElement, elongation_step, maxwell, step_coefficients
+from rheo_shaping.material.response import elongation_response, force_response
 
 V = 1e-3                        # pull speed of the paper [m/s]
 PAPER = maxwell(95.0, 1.30e3)   # paper Sec. 3.4 on the 0.1 m specimen

@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from ruckig import ControlInterface, InputParameter, Ruckig, Synchronization, Trajectory
 
-from rheo_shaping.planning import (
+from rheo_shaping.planning.planning import (
     DEFAULT_LIMITS,
     MIN_MOVE_M,
     MotionLimits,
@@ -20,7 +20,7 @@ from rheo_shaping.planning import (
     plan_waypoints,
     rest_to_rest_time,
 )
-from rheo_shaping.stopping import (
+from rheo_shaping.planning.stopping import (
     TrajectoryStreamer,
     stop_from_state,
     stopping_distance,

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from rheo_shaping.cli import main
-from rheo_shaping.config import dump_cell
-from rheo_shaping.csv_import import import_csv
-from rheo_shaping.effects import EFFECTS
-from rheo_shaping.measurement import MeasurementParams, nodes_at, resample_polyline, synthesize_record
-from rheo_shaping.params import CellParams
-from rheo_shaping.records import RecordError, read_record, read_truth, write_record
+from rheo_shaping.params.config import dump_cell
+from rheo_shaping.records.csv_import import import_csv
+from rheo_shaping.sheet.effects import EFFECTS
+from rheo_shaping.records.measurement import MeasurementParams, nodes_at, resample_polyline, synthesize_record
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.records.records import RecordError, read_record, read_truth, write_record
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 """The paper's study on the default cell, against the PAPER's numbers (issue acceptance).
 
 The reference numbers are written here again on purpose (Table 2, Fig. 18,
-Fig. 19 of the paper), not imported from rheo_shaping.reproduce, so that a
+Fig. 19 of the paper), not imported from rheo_shaping.study.reproduce, so that a
 change of the study or of the default cell cannot move its own goalposts.
 """
 from __future__ import annotations
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from rheo_shaping.cli import main
-from rheo_shaping.params import CellParams
-from rheo_shaping.reproduce import reproduce
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.study.reproduce import reproduce
 
 # Table 2: F_max [N], Delta [m]
 TABLE2 = {"1": (0.845, 2.67e-3), "2": (0.837, 3.01e-3), "3": (1.005, 3.08e-3), "4": (0.658, 4.00e-3)}
@@ -148,13 +148,13 @@ def test_peak_tension_is_resolved_at_twice_the_papers_speed():
     """
     from dataclasses import replace
 
-    from rheo_shaping.params import CellParams
-    from rheo_shaping.scenarios import movement_scenario, scenario_plan
-    from rheo_shaping.simulation import run_scenario
+    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.planning.movement import movement_plan
+    from rheo_shaping.sheet.simulation import run_scenario
 
     p = CellParams()
     p = replace(p, movement=replace(p.movement, number=1, speed=2e-3))
-    plan = scenario_plan(p, movement_scenario(p))
+    plan = movement_plan(p)
     coarse = run_scenario(p, plan)
     fine_params = replace(p, solver=replace(p.solver, dt=p.solver.dt / 25, dt_still=p.solver.dt_still / 25,
                                             max_tool_step=p.solver.max_tool_step / 25))

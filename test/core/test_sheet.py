@@ -6,10 +6,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.analytic import elastic_chain_equilibrium
-from rheo_shaping.geometry import Cake, RoundedConvexPolygon, Workplane
-from rheo_shaping.sheet import ChainConstants, Obstacle, SheetModel
-from rheo_shaping.simulation import settle
+from rheo_shaping.sheet.analytic import elastic_chain_equilibrium
+from rheo_shaping.sheet.geometry import Cake, RoundedConvexPolygon, Workplane
+from rheo_shaping.sheet.sheet import ChainConstants, Obstacle, SheetModel
+from rheo_shaping.sheet.simulation import settle
 
 G = 9.81
 EA = 95.0 * 0.1          # N: k1 times the specimen length (paper's fondant)
@@ -128,8 +128,8 @@ def test_link_pulled_at_constant_rate_follows_eq_5(c1):
 @pytest.mark.parametrize("tool_kind", ["corner_wrap", "flat_pinch"])
 def test_tool_pushing_sheet_against_wall_is_frictionless_and_balanced(tool_kind):
     """Elastic sheet pushed onto the cake wall by a tool: no penetration, normal forces, balance."""
-    from rheo_shaping.params import CellParams
-    from rheo_shaping.simulation import build_chain
+    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.sheet.simulation import build_chain
     p = CellParams()
     p = replace(p, material=replace(p.material, c2=float("inf")))
     c, x0 = build_chain(p)

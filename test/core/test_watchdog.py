@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rheo_shaping.watchdog import Freshness
+from rheo_shaping.safety.watchdog import Freshness
 
 MS = 1_000_000
 

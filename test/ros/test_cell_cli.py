@@ -9,8 +9,8 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from rheo_shaping.scenarios import movement_scenario, scenario_plan  # noqa: E402
-from rheo_shaping.simulation import run_scenario  # noqa: E402
+
+from rheo_shaping.planning.movement import run_movement
 
 from rosutil import BIN  # noqa: E402
 from test_cell_e2e import base_cell  # noqa: E402
@@ -29,7 +29,7 @@ def test_cell_runs_the_default_movement_4_and_matches_the_core():
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     cell = base_cell()
     assert out["movement"] == cell.movement.number == 4
-    offline = run_scenario(cell, scenario_plan(cell, movement_scenario(cell)))
+    offline = run_movement(cell)
     assert out["finished"] and not out["aborted"]
     assert out["F_max"] == pytest.approx(offline.F_max, rel=0.02)
     assert out["delta"] == pytest.approx(offline.delta, abs=0.2e-3)

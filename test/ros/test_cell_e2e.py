@@ -33,16 +33,16 @@ from std_msgs.msg import Float64MultiArray, String  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
-from rheo_shaping.abort_budget import DEFAULT_T_DETECT, abort_budget  # noqa: E402
-from rheo_shaping.config import dump_cell, load_cell  # noqa: E402
-from rheo_shaping.metrics import residual_gap  # noqa: E402
-from rheo_shaping.node_params import MonitorNodeParams  # noqa: E402
+from rheo_shaping.safety.abort_budget import DEFAULT_T_DETECT, abort_budget  # noqa: E402
+from rheo_shaping.params.config import dump_cell, load_cell  # noqa: E402
+from rheo_shaping.sheet.metrics import residual_gap  # noqa: E402
+from rheo_shaping.params.node_params import MonitorNodeParams  # noqa: E402
 from rheo_shaping.nodes import messages as m  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
-from rheo_shaping.scenarios import movement_scenario, scenario_plan  # noqa: E402
-from rheo_shaping.planning import MotionLimits  # noqa: E402
-from rheo_shaping.simulation import build_chain, run_scenario  # noqa: E402
-from rheo_shaping.stopping import stop_from_state, stopping_time  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.planning.movement import movement_plan, run_movement
+from rheo_shaping.planning.planning import MotionLimits  # noqa: E402
+from rheo_shaping.sheet.simulation import build_chain  # noqa: E402
+from rheo_shaping.planning.stopping import stop_from_state, stopping_time  # noqa: E402
 
 from rosutil import REPO, Recorder, motion_bounds, wait_for_publishers  # noqa: E402
 
@@ -153,7 +153,7 @@ def _save(key: str, value: dict) -> None:
 def test_two_step_shaping_matches_the_offline_core(ros, procs, tmp_path):
     cell = base_cell()
     cell = replace(cell, movement=replace(cell.movement, number=4))
-    offline = run_scenario(cell, scenario_plan(cell, movement_scenario(cell)))
+    offline = run_movement(cell)
     params = write_params(tmp_path / "cell.yaml", cell,
                           simulator={"real_time_factor": 20.0, "step_period": 0.01},
                           planner={"autostart": False})
@@ -179,7 +179,7 @@ def test_two_step_shaping_matches_the_offline_core(ros, procs, tmp_path):
     delta = residual_gap(nodes, cell.sheet.thickness)
     # The streamed set-points are the offline plan, sample for sample.
     t, p = c.commands()
-    plan = scenario_plan(cell, movement_scenario(cell)).plan
+    plan = movement_plan(cell).plan
     inside = t <= end
     expected, _, _ = plan.sample_many((t[inside] - t0) / NS)
     assert np.max(np.abs(p[inside] - expected)) < 1e-12
@@ -223,7 +223,7 @@ def aggressive_cell(base: CellParams):
             p = replace(base, movement=replace(mv, number=number, speed=5 * mv.speed,
                                                **{f"end_{number}": tuple(end)}))
             try:
-                r = run_scenario(p, scenario_plan(p, movement_scenario(p)))
+                r = run_movement(p)
             except (RuntimeError, ValueError):
                 break
             if r.F_max > 1.1 * Fb:
@@ -281,7 +281,7 @@ def test_aggressive_plan_is_aborted_before_the_sheet_tears(ros, procs, tmp_path,
     assert np.diff(t).max() <= period_ns, f"set-points missing at {t[np.argmax(np.diff(t))]}"
 
     largest = float(samples[:, 1].max())
-    plan = scenario_plan(cell, movement_scenario(cell)).plan
+    plan = movement_plan(cell).plan
     expected, _, _ = plan.sample_many((t - t0) / NS)
     dev = np.nonzero(np.linalg.norm(p - expected, axis=1) > 1e-9)[0]
     assert dev.size, "the set-points never left the plan"

@@ -19,7 +19,7 @@ from geometry_msgs.msg import PoseStamped  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
 
 from rosutil import Recorder  # noqa: E402
 from test_cell_e2e import Cell, write_params  # noqa: E402

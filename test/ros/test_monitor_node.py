@@ -19,7 +19,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.monitor import MonitorNode  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
 
 from rosutil import Recorder, wait_for_subscribers  # noqa: E402
 

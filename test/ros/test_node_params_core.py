@@ -6,12 +6,12 @@ from dataclasses import replace
 
 import pytest
 
-from rheo_shaping.abort_budget import abort_budget
-from rheo_shaping.config import load_cell
-from rheo_shaping.node_params import NODE_PARAMS, MonitorNodeParams, parameter_table
-from rheo_shaping.optimise import best_d, d_values
-from rheo_shaping.params import CellParams
-from rheo_shaping.schema import to_flat
+from rheo_shaping.safety.abort_budget import abort_budget
+from rheo_shaping.params.config import load_cell
+from rheo_shaping.params.node_params import NODE_PARAMS, MonitorNodeParams, parameter_table
+from rheo_shaping.study.optimise import best_d, d_values
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.schema import to_flat
 
 from rosutil import REPO
 from test_cell_e2e import base_cell
@@ -60,9 +60,9 @@ def test_load_cell_reads_the_wildcard_section_and_node_sections_hold_node_settin
 
 
 def test_shipped_params_files_load_in_the_core_and_their_node_sections_are_valid():
-    from rheo_shaping.config import read_yaml, flatten
-    from rheo_shaping.node_params import ROS_BUILTIN_PARAMETERS
-    from rheo_shaping.schema import from_flat
+    from rheo_shaping.params.config import read_yaml, flatten
+    from rheo_shaping.params.node_params import ROS_BUILTIN_PARAMETERS
+    from rheo_shaping.params.schema import from_flat
     for path in sorted((REPO / "config").glob("*.yaml")):
         load_cell(path)
         data = read_yaml(path)
@@ -79,4 +79,4 @@ def test_docs_parameter_tables_are_current():
     doc = (REPO / "docs" / "ros.md").read_text()
     for name, cls in NODE_PARAMS.items():
         assert parameter_table(cls) in doc, f"docs/ros.md: regenerate the `{name}` table " \
-                                           f"(python -m rheo_shaping.node_params)"
+                                           f"(python -m rheo_shaping.params.node_params)"

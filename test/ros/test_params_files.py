@@ -1,6 +1,6 @@
 """Params files: one rule (rcl's) for the core and the nodes; ``-p`` beats the file.
 
-* The core's loader (rheo_shaping.config) refuses exactly the files ``rclpy.init``
+* The core's loader (rheo_shaping.params.config) refuses exactly the files ``rclpy.init``
   refuses, checked here against the real rcl on each case.
 * A node executable given a file the core refuses exits with code 2 and the core's
   message (the one ``rheo-shaping simulate`` prints), never a traceback.
@@ -18,7 +18,7 @@ rclpy = pytest.importorskip("rclpy")
 
 from rclpy.context import Context  # noqa: E402
 
-from rheo_shaping.config import ConfigError, check_params_file  # noqa: E402
+from rheo_shaping.params.config import ConfigError, check_params_file  # noqa: E402
 
 from rosutil import BIN, REPO  # noqa: E402
 
@@ -141,7 +141,7 @@ OVERRIDES = {
 @pytest.mark.parametrize("node", sorted(OVERRIDES))
 def test_minus_p_beats_the_params_file_for_every_node(ros, procs, node):
     name, in_file, wanted = OVERRIDES[node]
-    from rheo_shaping.config import node_parameters, read_yaml
+    from rheo_shaping.params.config import node_parameters, read_yaml
     file_values = node_parameters(read_yaml(CELL_YAML), node, CELL_YAML)
     assert file_values[name] == in_file, "the shipped file sets it in the node's section"
     args = ["--ros-args", "--params-file", str(CELL_YAML), "-p", f"{name}:={wanted!r}"]

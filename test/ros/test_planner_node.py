@@ -17,9 +17,9 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.planner import PlannerNode  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
-from rheo_shaping.schema import ParameterError  # noqa: E402
-from rheo_shaping.scenarios import movement_scenario, scenario_plan  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.schema import ParameterError  # noqa: E402
+from rheo_shaping.planning.movement import movement_plan
 
 from rosutil import Recorder, motion_bounds, wait_for_subscribers  # noqa: E402
 
@@ -98,7 +98,7 @@ def test_streams_the_cores_plan_and_publishes_it_once(ros):
     [traj] = b.rec["/tool/planned_trajectory"]
     assert list(traj.joint_names) == ["tool_x", "tool_z"] and traj.header.frame_id == "cake"
     t0 = m.stamp_ns(traj.header.stamp)
-    plan = scenario_plan(CellParams(), movement_scenario(CellParams())).plan
+    plan = movement_plan(CellParams()).plan
     last = traj.points[-1].time_from_start
     assert last.sec + last.nanosec / NS == pytest.approx(plan.duration, abs=1e-6)
     t, p = b.commands()
@@ -192,7 +192,7 @@ def test_refuses_a_plan_that_pinches_the_sheet(ros):
 
 
 def test_optimise_d_picks_the_cores_best_d_before_moving(ros):
-    from rheo_shaping.optimise import best_d, d_values
+    from rheo_shaping.study.optimise import best_d, d_values
     settings = {"optimise_d": True, "d_min": 0.012, "d_max": 0.017, "d_step": 0.0025,
                 "delta_limit": 5e-3}
     node = ros.add(PlannerNode(context=ros.context, parameter_overrides=[
@@ -200,4 +200,4 @@ def test_optimise_d_picks_the_cores_best_d_before_moving(ros):
     want = best_d(CellParams(), d_values(0.012, 0.017, 0.0025), 5e-3)
     assert node.cell_used.movement.d == pytest.approx(want.d)
     cell = node.cell_used
-    assert node.plan.start == pytest.approx(scenario_plan(cell, movement_scenario(cell)).plan.start)
+    assert node.plan.start == pytest.approx(movement_plan(cell).plan.start)

@@ -17,13 +17,12 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from rheo_shaping.effects import nominal  # noqa: E402
-from rheo_shaping.measurement import nodes_at  # noqa: E402
-from rheo_shaping.node_params import SimulatorNodeParams  # noqa: E402
+from rheo_shaping.sheet.effects import nominal  # noqa: E402
+from rheo_shaping.records.measurement import nodes_at  # noqa: E402
+from rheo_shaping.params.node_params import SimulatorNodeParams  # noqa: E402
 from rheo_shaping.nodes import topics as T  # noqa: E402
-from rheo_shaping.records import read_record  # noqa: E402
-from rheo_shaping.scenarios import movement_scenario, scenario_plan  # noqa: E402
-from rheo_shaping.simulation import run_scenario  # noqa: E402
+from rheo_shaping.records.records import read_record  # noqa: E402
+from rheo_shaping.planning.movement import movement_plan, run_movement
 
 from rosutil import BIN, Recorder  # noqa: E402
 from test_cell_e2e import base_cell  # noqa: E402
@@ -103,7 +102,7 @@ def test_record_cell_writes_a_record_of_the_run(recorded):
     assert result["finished"] and not result["aborted"]
     # t = 0 is the process start: the tool is at the plan's start then (the simulator
     # places it at the first set-point), and the record covers the whole process.
-    plan = scenario_plan(cell, movement_scenario(cell))
+    plan = movement_plan(cell)
     assert rec.pose_t[0] == 0.0
     np.testing.assert_allclose(rec.pose_xz[0], plan.position(0.0), atol=1e-9)
     assert rec.duration >= cell.movement.process_time - 0.25
@@ -127,7 +126,7 @@ def test_record_cell_frames_are_the_sheet_seen_by_the_camera(recorded):
     out, _ = recorded
     cell = base_cell()
     rec = read_record(out)
-    run = run_scenario(cell, scenario_plan(cell, movement_scenario(cell)))
+    run = run_movement(cell)
     sigma = SimulatorNodeParams().camera_noise
     worst = 0.0
     for t, pts in zip(rec.profile_t, rec.profiles):

@@ -9,12 +9,12 @@ pytest.importorskip("rclpy")
 
 from rclpy.parameter import Parameter  # noqa: E402
 
-from rheo_shaping.node_params import (NODE_PARAMS, MonitorNodeParams,  # noqa: E402
+from rheo_shaping.params.node_params import (NODE_PARAMS, MonitorNodeParams,  # noqa: E402
                                       SimulatorNodeParams)
 from rheo_shaping.nodes.monitor import MonitorNode  # noqa: E402
 from rheo_shaping.nodes.ros_params import SchemaParameters  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
-from rheo_shaping.schema import ParameterError, iter_fields  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.schema import ParameterError, iter_fields  # noqa: E402
 
 from rosutil import BIN  # noqa: E402
 

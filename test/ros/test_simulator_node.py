@@ -18,9 +18,9 @@ from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.simulator import SimulatorNode  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
-from rheo_shaping.scenarios import movement_scenario  # noqa: E402
-from rheo_shaping.simulation import Simulation  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.planning.scenarios import movement_scenario  # noqa: E402
+from rheo_shaping.sheet.simulation import Simulation  # noqa: E402
 
 from rosutil import Recorder, wait_for_publishers, wait_for_subscribers  # noqa: E402
 
