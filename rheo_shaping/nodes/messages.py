@@ -17,10 +17,10 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import ColorRGBA, Float64, Float64MultiArray, Header, MultiArrayDimension
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
+from ..units import NS
 
 FRAME = "cake"
 JOINTS = ("tool_x", "tool_z")
-NS = 1_000_000_000
 
 
 # -- time -----------------------------------------------------------------------

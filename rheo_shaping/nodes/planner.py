@@ -56,8 +56,8 @@ from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
 from .spin import run_node
+from ..units import NS
 
-NS = 1_000_000_000
 #: Most set-points published in one timer call (a huge clock jump skips ahead).
 MAX_BATCH = 5000
 

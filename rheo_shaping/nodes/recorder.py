@@ -35,8 +35,8 @@ from ..records.records import write_record
 from ..params.schema import iter_fields
 from . import messages as m
 from . import topics as T
+from ..units import NS
 
-NS = 1_000_000_000
 #: How close [m] the last tool pose before the start must be to the first set-point for
 #: the cell to count as at rest there.
 REST_TOLERANCE = 1e-4

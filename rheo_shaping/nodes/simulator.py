@@ -52,8 +52,8 @@ from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
 from .spin import run_node
+from ..units import NS
 
-NS = 1_000_000_000
 
 class SimulatorNode(Node):
     """Steps the sheet under /tool/command and publishes the cell's state."""

@@ -24,11 +24,11 @@ import numpy as np
 from ..params.config import ConfigError, dump_cell, load_cell
 from ..params.params import CellParams
 from .record import Record
+from ..units import NS
 
 POSE, PROFILE, WRENCH = "/tool/pose", "/sheet/measured_profile", "/tool/wrench"
 TYPES = {POSE: "geometry_msgs/msg/PoseStamped", PROFILE: "geometry_msgs/msg/PoseArray",
          WRENCH: "geometry_msgs/msg/WrenchStamped"}
-NS = 1_000_000_000
 
 
 class RecordError(ValueError):

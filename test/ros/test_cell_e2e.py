@@ -45,8 +45,8 @@ from rheo_shaping.sheet.simulation import build_chain  # noqa: E402
 from rheo_shaping.planning.stopping import stop_from_state, stopping_time  # noqa: E402
 
 from rosutil import REPO, Recorder, motion_bounds, wait_for_publishers  # noqa: E402
+from rheo_shaping.units import NS  # noqa: E402
 
-NS = 1_000_000_000
 #: The measured figures of the last run, for reports (outside the source tree).
 RESULTS = Path(tempfile.gettempdir()) / "rheo_shaping_e2e_results.json"
 

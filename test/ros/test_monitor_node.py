@@ -22,9 +22,9 @@ from rheo_shaping.nodes.monitor import MonitorNode  # noqa: E402
 from rheo_shaping.params.params import CellParams  # noqa: E402
 
 from rosutil import Recorder, wait_for_subscribers  # noqa: E402
+from rheo_shaping.units import NS  # noqa: E402
 
 F_BREAK = CellParams().material.F_break
-NS = 1_000_000_000
 
 
 class FakeCell:

@@ -22,8 +22,8 @@ from rheo_shaping.params.schema import ParameterError  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan
 
 from rosutil import Recorder, motion_bounds, wait_for_subscribers  # noqa: E402
+from rheo_shaping.units import NS  # noqa: E402
 
-NS = 1_000_000_000
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 

@@ -23,8 +23,8 @@ from rheo_shaping.planning.scenarios import movement_scenario  # noqa: E402
 from rheo_shaping.sheet.simulation import Simulation  # noqa: E402
 
 from rosutil import Recorder, wait_for_publishers, wait_for_subscribers  # noqa: E402
+from rheo_shaping.units import NS  # noqa: E402
 
-NS = 1_000_000_000
 TOPICS = {"/sheet/profile": PoseArray, "/sheet/tensions": Float64MultiArray,
           "/sheet/contact_tension": Float64, "/tool/pose": PoseStamped,
           "/tool/wrench": WrenchStamped, "/sheet/markers": MarkerArray, "/diagnostics": DiagnosticArray}
