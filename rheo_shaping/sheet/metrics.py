@@ -15,6 +15,26 @@ class PeakTension:
     time: float
 
 
+@dataclass(frozen=True)
+class RunSummary:
+    """The figures a run is scored by (paper Table 2), shared by the offline run, the
+    simulator node, the study and the cell runner (SI units)."""
+
+    F_max: float            # N, largest link tension
+    F_max_link: int         # which link (1 = top)
+    F_max_time: float       # s, when
+    SF: float               # F_break / F_max
+    delta: float            # m, residual gap at the bottom
+
+    @classmethod
+    def of(cls, F_break: float, peak: PeakTension, delta: float) -> "RunSummary":
+        return cls(float(peak.value), int(peak.link), float(peak.time),
+                   safety_factor(F_break, peak.value), float(delta))
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
 def peak_tension(times: np.ndarray, tensions: np.ndarray) -> PeakTension:
     """F_max over a run: ``tensions`` is (steps, links) [N]."""
     k, i = np.unravel_index(int(np.argmax(tensions)), tensions.shape)

@@ -26,7 +26,7 @@ import numpy as np
 
 from .drape import make_drape
 from .geometry import Cake, Workplane
-from .metrics import PeakTension, contact_tension, peak_tension, residual_gap, safety_factor
+from .metrics import PeakTension, RunSummary, contact_tension, peak_tension, residual_gap, safety_factor
 from ..params.params import CellParams
 from .sheet import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState, StepRecord
 from .tools import tool_shape
@@ -277,11 +277,14 @@ class RunResult:
     def nodes(self, k: int = -1) -> np.ndarray:
         return np.vstack((self.anchors[0], self.x[k], self.anchors[1]))
 
+    @property
+    def run_summary(self) -> RunSummary:
+        return RunSummary(self.peak.value, self.peak.link, self.peak.time, self.SF, self.delta)
+
     def summary(self) -> dict:
         """The key figures as plain numbers (SI units)."""
-        return {"F_max": self.peak.value, "F_max_link": self.peak.link,
-                "F_max_time": self.peak.time, "SF": self.SF, "delta": self.delta,
-                "steps": int(self.t.size - 1), "wall_time_s": self.wall_time_s}
+        return {**self.run_summary.as_dict(), "steps": int(self.t.size - 1),
+                "wall_time_s": self.wall_time_s}
 
 
 def run_scenario(params: CellParams, path: ToolPath, t_end: float | None = None,

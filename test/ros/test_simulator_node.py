@@ -133,5 +133,5 @@ def test_process_figures_at_process_time(ros):
     while t < 5.0 - 1e-9:       # the node's steps: 1 s of simulated time each (20 x 0.01 x 5)
         t = min(t + 0.2, 5.0)
         ref.advance_to(t, ref.state.tool, on_step=lambda s: ticks.append(float(np.max(s.tension))))
-    assert sim.summary["delta"] == pytest.approx(ref.delta(), abs=1e-6)
-    assert sim.summary["F_max"] == pytest.approx(max(ticks + [peak]), rel=0.02)
+    assert sim.summary.delta == pytest.approx(ref.delta(), abs=1e-6)
+    assert sim.summary.F_max == pytest.approx(max(ticks + [peak]), rel=0.02)
