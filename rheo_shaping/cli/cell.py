@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         p = replace(p, movement=replace(p.movement, number=result.movement,
                                         **({"d": result.d} if result.movement == 4 else {})))
         offline = run_movement(p)
-        out["offline"] = {"F_max": offline.F_max, "SF": offline.SF, "delta": offline.delta}
+        out["offline"] = offline.run_summary.as_dict()
     if args.json:
         print(json.dumps(_finite(out)))
     else:

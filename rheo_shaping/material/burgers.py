@@ -25,14 +25,8 @@ from scipy.linalg import expm
 
 from .closed_forms import _times
 
-from .material import (
-    SPECIMEN_LENGTH_M,
-    ThreeElement,
-    check_non_negative,
-    check_positive,
-    check_time_step,
-    elongation_step,
-)
+from ..params.validators import check_non_negative, check_positive, check_time_step
+from .material import SPECIMEN_LENGTH_M, ThreeElement, elongation_step
 
 
 @dataclass(frozen=True)

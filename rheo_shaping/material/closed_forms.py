@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .material import ThreeElement, check_non_negative, check_positive
+from ..params.validators import check_non_negative, check_positive
+from .material import ThreeElement
 
 
 def _times(t) -> np.ndarray:

@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..params.validators import check_non_negative, check_positive, check_time_step
+
 #: Rest length of the tensile specimen the paper's constants belong to [m].
 SPECIMEN_LENGTH_M = 0.1
 
@@ -53,10 +55,10 @@ class ThreeElement:
     length: float = SPECIMEN_LENGTH_M
 
     def __post_init__(self) -> None:
-        _check_positive("k1 [N/m]", self.k1)
-        _check_non_negative("c1 [N s/m]", self.c1)
-        _check_positive("c2 [N s/m]", self.c2, allow_inf=True)
-        _check_positive("length [m]", self.length)
+        check_positive("k1 [N/m]", self.k1)
+        check_non_negative("c1 [N s/m]", self.c1)
+        check_positive("c2 [N s/m]", self.c2, allow_inf=True)
+        check_positive("length [m]", self.length)
 
     @property
     def is_maxwell(self) -> bool:
@@ -69,7 +71,7 @@ class ThreeElement:
         A spring of constant k over L0 acts as k*L0/l over length l, and so do
         the dashpots (the material's modulus and viscosity are what stay).
         """
-        _check_positive("length [m]", length)
+        check_positive("length [m]", length)
         s = self.length / length
         return ThreeElement(self.k1 * s, self.c1 * s, self.c2 * s, length)
 
@@ -82,58 +84,6 @@ def maxwell(k: float, c: float, length: float = SPECIMEN_LENGTH_M) -> ThreeEleme
     ``ThreeElement(k1=k, c1=0, c2=c, length=length)``.
     """
     return ThreeElement(k, 0.0, c, length)
-
-
-def _show(value) -> str:
-    """``repr`` of a value, numpy scalars shown as plain numbers."""
-    if isinstance(value, np.generic):
-        value = value.item()
-    return repr(value)
-
-
-def check_positive(name: str, value: float, allow_inf: bool = False) -> float:
-    """``float(value)`` if it is a positive number (or ``inf`` when allowed).
-
-    Raises :class:`ValueError` naming the quantity, the value and what was
-    expected: NaN, zero, negative numbers and non-numbers are refused.
-    """
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} = {_show(value)}: expected a positive number") from None
-    if np.isnan(v) or v <= 0.0 or (np.isinf(v) and not allow_inf):
-        expected = "a positive number or inf" if allow_inf else "a positive finite number"
-        raise ValueError(f"{name} = {_show(value)}: expected {expected}")
-    return v
-
-
-def check_non_negative(name: str, value: float) -> float:
-    """``float(value)`` if it is a finite number >= 0, else :class:`ValueError`."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} = {_show(value)}: expected a finite number >= 0") from None
-    if not np.isfinite(v) or v < 0.0:
-        raise ValueError(f"{name} = {_show(value)}: expected a finite number >= 0")
-    return v
-
-
-# The former private names, kept for callers inside the package.
-_check_positive = check_positive
-_check_non_negative = check_non_negative
-
-
-def check_time_step(dt) -> None:
-    """Refuse time steps ``dt`` [s] that are not positive and finite (scalar or array)."""
-    if np.ndim(dt) == 0:
-        if not 0.0 < dt < np.inf:   # also False for NaN
-            raise ValueError(f"time step dt [s] = {_show(dt)}: expected a positive finite number")
-        return
-    d = np.asarray(dt, dtype=float)
-    bad = ~((d > 0.0) & np.isfinite(d))
-    if bad.any():
-        raise ValueError(
-            f"time step dt [s] = {_show(d[bad].flat[0])}: expected positive finite numbers")
 
 
 def step_factors(k1, c1, c2, dt):

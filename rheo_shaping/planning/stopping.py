@@ -19,23 +19,10 @@ from typing import Optional, Sequence
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Synchronization
 
-from rheo_shaping.planning.planning import (
-    DEFAULT_RETRACT_LIMITS,
-    MotionLimits,
-    Plan,
-    Segment,
-    Waypoint,
-    _append_trajectory,
-    _as_float,
-    _axis_scale,
-    _AxisBuilder,
-    _calculate,
-    _check_positive_finite,
-    _finish,
-    _pt,
-    _xz,
-    plan_waypoints,
-)
+from ..params.validators import check_finite, check_non_negative, check_point, check_positive
+from .pieces import AxisBuilder, append_trajectory, as_point, axis_scale, calculate
+from .planning import (DEFAULT_RETRACT_LIMITS, MotionLimits, Plan, Segment, Waypoint,
+                       assemble_plan, plan_waypoints)
 
 __all__ = ["stop_from_state", "stopping_time", "stopping_distance", "TrajectoryStreamer", "STATES"]
 
@@ -49,7 +36,7 @@ def stopping_time(speed: float, limits: MotionLimits) -> float:
     ``v/a + a/j`` if ``v >= a^2/j`` (the deceleration reaches ``a_max``),
     else ``2*sqrt(v/j)``.
     """
-    v = _non_negative("speed [m/s]", speed)
+    v = check_non_negative("speed [m/s]", speed)
     a, j = limits.a_max, limits.j_max
     return v / a + a / j if v >= a * a / j else 2.0 * math.sqrt(v / j)
 
@@ -57,7 +44,7 @@ def stopping_time(speed: float, limits: MotionLimits) -> float:
 def stopping_distance(speed: float, limits: MotionLimits) -> float:
     """Distance [m] travelled during :func:`stopping_time` (the velocity ramp
     is point-symmetric, so it is ``speed * T / 2``)."""
-    return 0.5 * _non_negative("speed [m/s]", speed) * stopping_time(speed, limits)
+    return 0.5 * check_non_negative("speed [m/s]", speed) * stopping_time(speed, limits)
 
 
 def stop_from_state(position: Sequence[float], velocity: Sequence[float],
@@ -73,12 +60,12 @@ def stop_from_state(position: Sequence[float], velocity: Sequence[float],
     pre-profile at full jerk.  The returned plan has one ``"move"`` segment
     labelled ``"stop"`` (none when already at rest).
     """
-    p = _xz("position [m]", position)
-    v = _xz("velocity [m/s]", velocity)
-    a = _xz("acceleration [m/s^2]", acceleration)
-    axes = (_AxisBuilder(p[0]), _AxisBuilder(p[1]))
+    p = check_point("position [m]", position)
+    v = check_point("velocity [m/s]", velocity)
+    a = check_point("acceleration [m/s^2]", acceleration)
+    axes = (AxisBuilder(p[0]), AxisBuilder(p[1]))
     if not v.any() and not a.any():
-        return _finish([], 0.0, limits, p, axes)
+        return assemble_plan([], 0.0, limits, p, axes)
     inp = InputParameter(2)
     inp.control_interface = ControlInterface.Velocity
     inp.current_position = p.tolist()
@@ -88,7 +75,7 @@ def stop_from_state(position: Sequence[float], velocity: Sequence[float],
     inp.target_acceleration = [0.0, 0.0]
     u = v / np.linalg.norm(v) if v.any() else a / np.linalg.norm(a)
     if abs(u[0] * a[1] - u[1] * a[0]) <= COLLINEAR_RTOL * np.linalg.norm(a):
-        c = _axis_scale(u)
+        c = axis_scale(u)
         inp.synchronization = Synchronization.Phase
     else:
         c = np.full(2, math.sqrt(0.5))
@@ -96,10 +83,10 @@ def stop_from_state(position: Sequence[float], velocity: Sequence[float],
     inp.max_velocity = (limits.v_max * c).tolist()  # unused by the velocity interface
     inp.max_acceleration = (limits.a_max * c).tolist()
     inp.max_jerk = (limits.j_max * c).tolist()
-    traj = _calculate(inp)
-    end = _append_trajectory(axes, traj, 0.0)
-    seg = Segment(0.0, traj.duration, "move", _pt(p), _pt(end), "stop")
-    return _finish([seg], traj.duration, limits, p, axes)
+    traj = calculate(inp)
+    end = append_trajectory(axes, traj, 0.0)
+    seg = Segment(0.0, traj.duration, "move", as_point(p), as_point(end), "stop")
+    return assemble_plan([seg], traj.duration, limits, p, axes)
 
 
 #: States of :class:`TrajectoryStreamer`.
@@ -126,13 +113,13 @@ class TrajectoryStreamer:
                  retract_limits: MotionLimits = DEFAULT_RETRACT_LIMITS, *,
                  retract_via: Sequence[Waypoint] = (), initial_xz: Optional[Sequence[float]] = None,
                  jump_tolerance_m: float = 1e-6) -> None:
-        self.home = None if home_xz is None else _xz("home_xz [m]", home_xz)
+        self.home = None if home_xz is None else check_point("home_xz [m]", home_xz)
         self.retract_limits = retract_limits
         self.retract_via = tuple(retract_via)
-        _check_positive_finite("jump_tolerance_m [m]", jump_tolerance_m)
+        check_positive("jump_tolerance_m [m]", jump_tolerance_m)
         self.jump_tolerance_m = float(jump_tolerance_m)
         hold = initial_xz if initial_xz is not None else home_xz
-        self._hold: Optional[np.ndarray] = None if hold is None else _xz("initial_xz [m]", hold)
+        self._hold: Optional[np.ndarray] = None if hold is None else check_point("initial_xz [m]", hold)
         self._known_hold = initial_xz is not None
         self._clear()
 
@@ -180,7 +167,7 @@ class TrajectoryStreamer:
             raise RuntimeError(f"start() needs state 'idle', not {self._state!r} (call reset() first)")
         if not isinstance(plan, Plan):
             raise TypeError(f"plan must be a Plan, got {type(plan).__name__}")
-        t0 = _finite("t0 [s]", t0)
+        t0 = check_finite("t0 [s]", t0)
         if self._hold is not None and self._known_hold:
             jump = float(np.linalg.norm(np.asarray(plan.start) - self._hold))
             if jump > self.jump_tolerance_m:
@@ -193,7 +180,7 @@ class TrajectoryStreamer:
 
     def setpoint(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position [m], velocity [m/s], acceleration [m/s^2] (each (2,)) to command at ``t`` [s]."""
-        t = self._advance(_finite("t [s]", t))
+        t = self._advance(check_finite("t [s]", t))
         if self._phase_plan is None:
             if self._hold is None:
                 raise RuntimeError("no plan and no known position to hold (give home_xz or initial_xz)")
@@ -206,7 +193,7 @@ class TrajectoryStreamer:
         Ignored (already latched) while stopping or holding."""
         if self._state in ("stopping", "holding"):
             return
-        t = self._advance(_finite("t [s]", t))
+        t = self._advance(check_finite("t [s]", t))
         self._abort_time, self._abort_reason = t, reason
         if self._phase_plan is None:  # idle without a plan: nothing moves
             self._state, self._final_state, self._rest_time = "holding", "holding", t
@@ -258,17 +245,3 @@ class TrajectoryStreamer:
             else:
                 self._state = self._final_state
         return t
-
-
-def _finite(name: str, value: float) -> float:
-    v = _as_float(name, value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} = {value!r} is out of range: expected a finite value")
-    return v
-
-
-def _non_negative(name: str, value: float) -> float:
-    v = _as_float(name, value)
-    if not math.isfinite(v) or v < 0.0:
-        raise ValueError(f"{name} = {value!r} is out of range: expected a finite value >= 0")
-    return v

@@ -34,6 +34,8 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+
+from ..params.validators import check_finite
 from scipy.optimize import brentq, root
 
 __all__ = [
@@ -50,15 +52,6 @@ __all__ = [
 
 
 # --------------------------------------------------------------------- helpers
-
-
-def _finite(name: str, value: float, *, positive: bool = False) -> float:
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: {value!r}, expected a finite number")
-    if positive and not v > 0.0:
-        raise ValueError(f"{name}: {value!r}, expected > 0")
-    return v
 
 
 def _initial_reactions(dx: float, dz: float, total_rest_length: float, total_weight: float,
@@ -155,7 +148,7 @@ def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float], re
         raise ValueError(f"stiffness [N/m]: min {k.min()!r}, expected finite values > 0")
     if n and (not np.all(np.isfinite(m)) or np.any(m < 0.0)):
         raise ValueError(f"masses [kg]: min {m.min()!r}, expected finite values >= 0")
-    g = _finite("g [m/s^2]", g)
+    g = check_finite("g [m/s^2]", g)
     if g < 0.0:
         raise ValueError(f"g [m/s^2]: {g!r}, expected >= 0")
 
@@ -289,11 +282,11 @@ def solve_irvine(span: float, height_difference: float, unstretched_length: floa
     """Solve Irvine's two compatibility equations x(L0) = span, z(L0) =
     height_difference for the support reactions (scipy ``root``, then Newton
     polishing to round-off).  ``span`` > 0 [m] (the vertical cable is excluded)."""
-    span = _finite("span [m]", span, positive=True)
-    hd = _finite("height_difference [m]", height_difference)
-    l0 = _finite("unstretched_length [m]", unstretched_length, positive=True)
-    ea = _finite("EA [N]", EA, positive=True)
-    w = _finite("weight_per_length [N/m]", weight_per_length, positive=True)
+    span = check_finite("span [m]", span, positive=True)
+    hd = check_finite("height_difference [m]", height_difference)
+    l0 = check_finite("unstretched_length [m]", unstretched_length, positive=True)
+    ea = check_finite("EA [N]", EA, positive=True)
+    w = check_finite("weight_per_length [N/m]", weight_per_length, positive=True)
 
     h0, v0 = _initial_reactions(span, hd, l0, w * l0, ea / l0)
     # Work in (log H, V / (w L0)) so that H stays positive and both unknowns are O(1).
@@ -335,7 +328,7 @@ def irvine_catenary(span: float, height_difference: float, unstretched_length: f
         z(s) = (w s^2 / 2 - V s) / EA + (T(s) - T(0)) / w
     """
     s_arr = np.asarray(s, dtype=float)
-    l0 = _finite("unstretched_length [m]", unstretched_length, positive=True)
+    l0 = check_finite("unstretched_length [m]", unstretched_length, positive=True)
     if np.any(~np.isfinite(s_arr)) or np.any(s_arr < 0.0) or np.any(s_arr > l0 * (1.0 + 1e-12)):
         raise ValueError(f"s [m]: range [{s_arr.min()!r}, {s_arr.max()!r}], expected within [0, L0 = {l0!r}]")
     return solve_irvine(span, height_difference, l0, EA, weight_per_length).position(s_arr)
@@ -394,10 +387,10 @@ def discretise_cable(span: float, height_difference: float, unstretched_length: 
     n = int(n_masses)
     if n != n_masses or n < 1:
         raise ValueError(f"n_masses: {n_masses!r}, expected an integer >= 1")
-    l0 = _finite("unstretched_length [m]", unstretched_length, positive=True)
-    ea = _finite("EA [N]", EA, positive=True)
-    w = _finite("weight_per_length [N/m]", weight_per_length)
-    g = _finite("g [m/s^2]", g, positive=True)
+    l0 = check_finite("unstretched_length [m]", unstretched_length, positive=True)
+    ea = check_finite("EA [N]", EA, positive=True)
+    w = check_finite("weight_per_length [N/m]", weight_per_length)
+    g = check_finite("g [m/s^2]", g, positive=True)
     seg = l0 / (n + 1)
     return LumpedCable(
         anchor_a=np.zeros(2),

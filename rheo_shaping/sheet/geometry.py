@@ -38,6 +38,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..params.validators import check_finite
+
 __all__ = [
     "Cake",
     "Workplane",
@@ -45,7 +47,6 @@ __all__ = [
     "circle",
     "rounded_rectangle",
     "convex_polygon",
-    "tool_from_params",
 ]
 
 
@@ -73,17 +74,6 @@ def _distance(shape: Any, points: Any, offset: Sequence[float]) -> tuple[np.ndar
         object.__setattr__(shape, "_table", table)
     d, n, _ = kernel.shape_eval_many(kind, len(verts), table, rad, p, ox, oz)
     return d, n
-
-
-def _check_finite(name: str, value: float, *, positive: bool = False, non_negative: bool = False) -> float:
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: {value!r}, expected a finite number")
-    if positive and not v > 0.0:
-        raise ValueError(f"{name}: {value!r}, expected > 0")
-    if non_negative and not v >= 0.0:
-        raise ValueError(f"{name}: {value!r}, expected >= 0")
-    return v
 
 
 def _check_n_points(n_points: int, minimum: int) -> int:
@@ -153,9 +143,9 @@ class Cake:
     _centre: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        h = _check_finite("height [m]", self.height, positive=True)
-        r = _check_finite("fillet_radius [m]", self.fillet_radius, non_negative=True)
-        tl = _check_finite("top_length [m]", self.top_length, positive=True)
+        h = check_finite("height [m]", self.height, positive=True)
+        r = check_finite("fillet_radius [m]", self.fillet_radius, non_negative=True)
+        tl = check_finite("top_length [m]", self.top_length, positive=True)
         if r > h:
             raise ValueError(f"fillet_radius [m]: {self.fillet_radius!r}, expected <= height = {h!r}")
         if r > tl:
@@ -207,8 +197,8 @@ class Workplane:
     x_max: float = 0.3
 
     def __post_init__(self) -> None:
-        lo = _check_finite("x_min [m]", self.x_min)
-        hi = _check_finite("x_max [m]", self.x_max)
+        lo = check_finite("x_min [m]", self.x_min)
+        hi = check_finite("x_max [m]", self.x_max)
         if not hi > lo:
             raise ValueError(f"x_max [m]: {self.x_max!r}, expected > x_min = {lo!r}")
 
@@ -262,7 +252,7 @@ class RoundedConvexPolygon:
             raise ValueError(f"vertices: shape {np.shape(self.vertices)}, expected (K, 2) with K >= 1 [m]")
         if not np.all(np.isfinite(v)):
             raise ValueError(f"vertices: {v.tolist()!r}, expected finite numbers [m]")
-        r = _check_finite("radius [m]", self.radius, non_negative=True)
+        r = check_finite("radius [m]", self.radius, non_negative=True)
         k = v.shape[0]
         if k <= 2 and r <= 0.0:
             raise ValueError(f"radius [m]: {self.radius!r}, expected > 0 for a polygon of {k} vertex(es)")
@@ -306,16 +296,16 @@ class RoundedConvexPolygon:
     @classmethod
     def circle(cls, radius: float) -> "RoundedConvexPolygon":
         """Disc of radius ``radius`` [m] centred on the reference point."""
-        _check_finite("radius [m]", radius, positive=True)
+        check_finite("radius [m]", radius, positive=True)
         return cls(((0.0, 0.0),), float(radius))
 
     @classmethod
     def rounded_rectangle(cls, width: float, height: float, corner_radius: float = 0.0) -> "RoundedConvexPolygon":
         """Rectangle ``width`` (x) by ``height`` (z) [m] centred on the reference
         point, corners rounded with ``corner_radius`` [m] <= min(width, height) / 2."""
-        w = _check_finite("width [m]", width, positive=True)
-        h = _check_finite("height [m]", height, positive=True)
-        r = _check_finite("corner_radius [m]", corner_radius, non_negative=True)
+        w = check_finite("width [m]", width, positive=True)
+        h = check_finite("height [m]", height, positive=True)
+        r = check_finite("corner_radius [m]", corner_radius, non_negative=True)
         if r > 0.5 * min(w, h):
             raise ValueError(f"corner_radius [m]: {corner_radius!r}, expected <= min(width, height) / 2 = "
                              f"{0.5 * min(w, h)!r}")
@@ -398,15 +388,3 @@ def convex_polygon(vertices: Any, radius: float = 0.0) -> RoundedConvexPolygon:
     """Convex polygon tool (vertices (K, 2) [m], CCW) grown by ``radius`` [m]."""
     return RoundedConvexPolygon.convex_polygon(vertices, radius)
 
-
-def tool_from_params(p: Any) -> RoundedConvexPolygon:
-    """Tool from an object with the fields of ``params.ToolParams``
-    (``shape`` in circle / rounded_rectangle / polygon, ``radius``, ``width``,
-    ``height``, ``corner_radius``, ``vertices`` as x0, z0, x1, z1, ...)."""
-    if p.shape == "circle":
-        return circle(p.radius)
-    if p.shape == "rounded_rectangle":
-        return rounded_rectangle(p.width, p.height, p.corner_radius)
-    if p.shape == "polygon":
-        return convex_polygon(p.vertices, p.corner_radius)
-    raise ValueError(f"tool shape: {p.shape!r}, expected one of 'circle', 'rounded_rectangle', 'polygon'")

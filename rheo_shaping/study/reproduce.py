@@ -88,9 +88,7 @@ class MovementRun:
         return self.result.delta
 
     def summary(self) -> dict:
-        out = {"F_max": self.F_max, "SF": self.SF, "delta": self.delta,
-               "F_max_link": self.result.peak.link, "F_max_time": self.result.peak.time,
-               "speed": self.speed, "dwell": self.dwell,
+        out = {**self.result.run_summary.as_dict(), "speed": self.speed, "dwell": self.dwell,
                "peaks": [{"time": t, "F": f} for t, f in self.peaks],
                "first_contact": _finite_or_none(self.first_contact),
                "last_contact": _finite_or_none(self.last_contact),

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -10,7 +11,9 @@ from hypothesis import strategies as st
 from matplotlib.path import Path
 from scipy.spatial import ConvexHull
 
-from rheo_shaping.sheet.geometry import (Cake, Workplane, circle, convex_polygon, rounded_rectangle, tool_from_params)
+from rheo_shaping.params.params import ToolParams
+from rheo_shaping.sheet.geometry import Cake, Workplane, circle, convex_polygon, rounded_rectangle
+from rheo_shaping.sheet.tools import tool_shape
 
 RNG = np.random.default_rng(20240607)
 
@@ -236,16 +239,15 @@ def test_tool_validation_errors():
         circle(0.01).signed_distance(np.zeros((3, 3)))
 
 
-def test_tool_from_params_duck_typed():
-    class P:
-        shape, radius, width, height, corner_radius = "polygon", 0.01, 0.02, 0.04, 0.001
-        vertices = (0.0, 0.0, 0.02, 0.0, 0.02, 0.04, 0.0, 0.04)
-    t = tool_from_params(P())
+def test_tool_shape_from_params():
+    """The one tool-shape builder (sheet.tools.tool_shape) for each ToolParams shape."""
+    tool = ToolParams(shape="polygon", radius=0.01, width=0.02, height=0.04,
+                      corner_radius=0.001, vertices=(0.0, 0.0, 0.02, 0.0, 0.02, 0.04, 0.0, 0.04))
+    t = tool_shape(tool)
     assert t.n_vertices == 4 and t.radius == 0.001
-    P.shape = "rounded_rectangle"
-    assert tool_from_params(P()) == rounded_rectangle(0.02, 0.04, 0.001)
-    P.shape = "circle"
-    assert tool_from_params(P()) == circle(0.01)
+    assert tool_shape(replace(tool, shape="rounded_rectangle")) == rounded_rectangle(0.02, 0.04,
+                                                                                    0.001)
+    assert tool_shape(replace(tool, shape="circle")) == circle(0.01)
 
 
 # ----------------------------------------------------------- hypothesis
