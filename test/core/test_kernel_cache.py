@@ -97,7 +97,7 @@ def _check_cache(tmp_path: Path) -> None:
     cache = home / ".cache" / "rheo_shaping" / "numba"
     assert f"CACHE_DIR {cache}" in first.stdout
     saved = sorted(p.name for p in cache.rglob("*.nbi"))
-    assert any(name.startswith("kernel.advance-") for name in saved), saved
+    assert any(name.startswith("step.advance-") for name in saved), saved
     assert any(p.suffix == ".nbc" for p in cache.rglob("*.nbc"))
     # nothing was written into the install
     written = [p for p in site.rglob("*") if p.suffix in (".nbi", ".nbc")]
