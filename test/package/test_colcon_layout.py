@@ -144,7 +144,7 @@ def node_domain(claim_ros_domain) -> int:
     """A ROS_DOMAIN_ID of its own for the start/stop tests.
 
     Earlier ROS tests of the session SIGKILL node processes named ``planner`` and
-    ``simulator`` (test/ros/test_faults.py). DDS keeps such a participant in the
+    ``simulator`` (test/nodes/test_faults.py). DDS keeps such a participant in the
     graph until its lease runs out (20 s with Fast DDS), and a ghost ``planner``
     would let the test signal the new process before it has even started rclpy.
     A fresh domain holds only the nodes started here.
@@ -212,7 +212,7 @@ def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain,
 # -- colcon test ------------------------------------------------------------------------
 #: A small, fast subset of the ROS-free tests for colcon test (a bare `colcon test`
 #: runs setup.cfg's testpaths, all of test/core).
-COLCON_TEST_SUBSET = ("test/core/test_params_file_rule.py", "test/package/test_package_manifest.py",
+COLCON_TEST_SUBSET = ("test/params/test_params_file_rule.py", "test/package/test_package_manifest.py",
                       "test/package/test_launch_files.py")
 
 

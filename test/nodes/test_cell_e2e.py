@@ -24,17 +24,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 pytest.importorskip("rclpy")
 
-from geometry_msgs.msg import PoseArray, PoseStamped  # noqa: E402
-from std_msgs.msg import Float64MultiArray, String  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
 from rheo_shaping.safety.abort_budget import DEFAULT_T_DETECT, abort_budget  # noqa: E402
-from rheo_shaping.params.config import dump_cell, load_cell  # noqa: E402
 from rheo_shaping.sheet.metrics import residual_gap  # noqa: E402
 from rheo_shaping.params.node_params import MonitorNodeParams  # noqa: E402
 from rheo_shaping.nodes import messages as m  # noqa: E402
@@ -44,103 +38,13 @@ from rheo_shaping.planning.planning import MotionLimits  # noqa: E402
 from rheo_shaping.sheet.simulation import build_chain  # noqa: E402
 from rheo_shaping.planning.stopping import stop_from_state, stopping_time  # noqa: E402
 
-from rosutil import REPO, Recorder, motion_bounds, wait_for_publishers  # noqa: E402
+from _support.cells import base_cell, write_params  # noqa: E402,F401
+from _support.rigs import Cell  # noqa: E402
+from _support.ros import REPO, motion_bounds, wait_for_publishers  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
 #: The measured figures of the last run, for reports (outside the source tree).
 RESULTS = Path(tempfile.gettempdir()) / "rheo_shaping_e2e_results.json"
-
-
-def base_cell() -> CellParams:
-    path = REPO / "config" / "cell.yaml"
-    return load_cell(path) if path.exists() else CellParams()
-
-
-def write_params(path: Path, cell: CellParams, simulator=None, planner=None, monitor=None) -> Path:
-    data = yaml.safe_load(dump_cell(cell))
-    for name, section in (("simulator", simulator), ("planner", planner), ("monitor", monitor)):
-        if section:
-            data[name] = {"ros__parameters": section}
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    return path
-
-
-class Cell:
-    """The three processes and a recording test node."""
-
-    def __init__(self, ros, procs, params, sim_time: bool = True):
-        self.ros, self.procs = ros, procs
-        files = [a for p in (params if isinstance(params, list) else [params])
-                 for a in ("--params-file", str(p))]
-        follow = ["-p", "use_sim_time:=true"] if sim_time else []
-        self.sim = procs("simulator", "--ros-args", *files)
-        self.planner = procs("planner", "--ros-args", *files, *follow)
-        self.monitor = procs("monitor", "--ros-args", *files, *follow)
-        self.node = ros.node("e2e_observer")
-        self.rec = Recorder(self.node, {
-            "/sheet/profile": PoseArray, "/sheet/tensions": Float64MultiArray,
-            "/tool/command": PoseStamped, "/tool/pose": PoseStamped,
-            "/tool/planned_trajectory": (JointTrajectory, True),
-            "/shaping/planner_state": (String, True), "/shaping/abort": (String, True)})
-
-    def logs(self) -> str:
-        return "\n".join(f"--- {p.exe} ---\n{p.text()[-4000:]}" for p in self.procs.all)
-
-    def wait(self, predicate, timeout, what):
-        t0 = time.monotonic()
-        while not predicate():
-            for p in self.procs.all:
-                if p.proc.poll() is not None:
-                    pytest.fail(f"{p.exe} exited with {p.proc.returncode} while waiting for {what}\n"
-                                + self.logs())
-            if time.monotonic() - t0 > timeout:
-                pytest.fail(f"timed out after {timeout:g} s waiting for {what}\n" + self.logs())
-            self.ros.executor.spin_once(timeout_sec=0.01)
-        return time.monotonic() - t0
-
-    def start(self):
-        """Matched endpoints and the interlock first, then ~/start."""
-        wait_for_publishers(self.ros, self.node, ["/sheet/profile", "/sheet/tensions", "/tool/pose",
-                                                  "/shaping/planner_state"], timeout=60.0)
-        self.wait(lambda: len(self.rec["/sheet/tensions"]) >= 3 and len(self.rec["/sheet/profile"]) >= 3,
-                  60.0, "sheet data reaching the test")
-        self.wait(lambda: self.state() == "idle", 60.0, "the planner (autostart off) to be idle")
-        client = self.node.create_client(Trigger, "/planner/start")
-        self.wait(client.service_is_ready, 30.0, "/planner/start")
-        future = client.call_async(Trigger.Request())
-        self.wait(future.done, 10.0, "/planner/start response")
-        assert future.result().success, future.result().message
-
-    def state(self) -> str:
-        s = self.rec.last("/shaping/planner_state")
-        return s.data if s else ""
-
-    def stop_all(self):
-        codes = {p.exe: p.stop() for p in self.procs.all}
-        assert all(c == 0 for c in codes.values()), f"exit codes {codes}\n" + self.logs()
-
-    # -- what the topics say ---------------------------------------------------------
-    def t0(self) -> int:
-        return m.stamp_ns(self.rec["/tool/planned_trajectory"][0].header.stamp)
-
-    def tension_samples(self):
-        """(stamp of the profile published with it, largest tension) per /sheet/tensions message.
-
-        /sheet/tensions has no header: the simulator publishes /sheet/profile and then
-        /sheet/tensions in the same step, so each tension message is paired with the
-        profile that arrived before it."""
-        out, stamp = [], None
-        for topic, i in self.rec.order:
-            if topic == "/sheet/profile":
-                stamp = m.stamp_ns(self.rec[topic][i].header.stamp)
-            elif topic == "/sheet/tensions" and stamp is not None:
-                out.append((stamp, float(np.max(self.rec[topic][i].data))))
-        return np.array(out, dtype=float).reshape(-1, 2)
-
-    def commands(self):
-        cmds = self.rec["/tool/command"]
-        return (np.array([m.stamp_ns(c.header.stamp) for c in cmds], dtype=np.int64),
-                np.array([m.pose_xz(c) for c in cmds]).reshape(-1, 2))
 
 
 def _save(key: str, value: dict) -> None:

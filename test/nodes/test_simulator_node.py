@@ -22,7 +22,7 @@ from rheo_shaping.params.params import CellParams  # noqa: E402
 from rheo_shaping.planning.scenarios import movement_scenario  # noqa: E402
 from rheo_shaping.sheet.simulation import Simulation  # noqa: E402
 
-from rosutil import Recorder, wait_for_publishers, wait_for_subscribers  # noqa: E402
+from _support.ros import Recorder, wait_for_publishers, wait_for_subscribers  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
 TOPICS = {"/sheet/profile": PoseArray, "/sheet/tensions": Float64MultiArray,

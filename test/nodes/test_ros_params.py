@@ -16,7 +16,7 @@ from rheo_shaping.nodes.ros_params import SchemaParameters  # noqa: E402
 from rheo_shaping.params.params import CellParams  # noqa: E402
 from rheo_shaping.params.schema import ParameterError, iter_fields  # noqa: E402
 
-from rosutil import BIN  # noqa: E402
+from _support.ros import BIN  # noqa: E402
 
 
 def test_every_node_setting_has_description_unit_and_range():

@@ -20,7 +20,7 @@ from rclpy.context import Context  # noqa: E402
 
 from rheo_shaping.params.config import ConfigError, check_params_file  # noqa: E402
 
-from rosutil import BIN, REPO  # noqa: E402
+from _support.ros import BIN, REPO  # noqa: E402
 
 CELL_YAML = REPO / "config" / "cell.yaml"
 

@@ -20,7 +20,7 @@ pytest.importorskip("rclpy")
 
 from rheo_shaping.nodes import topics as T  # noqa: E402
 
-from rosutil import BIN, Recorder  # noqa: E402
+from _support.ros import BIN, Recorder  # noqa: E402
 
 CELLS = {"/cellA": 31, "/cellB": 15}
 #: Two cells share the busy machine: 10x real time keeps each step well inside the

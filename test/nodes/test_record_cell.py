@@ -24,8 +24,8 @@ from rheo_shaping.nodes import topics as T  # noqa: E402
 from rheo_shaping.records.records import read_record  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan, run_movement
 
-from rosutil import BIN, Recorder  # noqa: E402
-from test_cell_e2e import base_cell  # noqa: E402
+from _support.ros import BIN, Recorder  # noqa: E402
+from _support.cells import base_cell  # noqa: E402
 
 NSPACE = "/rec"
 TIMEOUT_S = 300.0

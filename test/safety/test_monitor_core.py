@@ -1,6 +1,6 @@
 """The monitor's abort rules, without ROS (rheo_shaping.safety.monitor.TensionMonitor).
 
-Every rule the ``monitor`` node enforces is decided here; test/ros/test_monitor_node.py
+Every rule the ``monitor`` node enforces is decided here; test/nodes/test_monitor_node.py
 checks that the node feeds it over DDS.  Times are integer nanoseconds.
 """
 from __future__ import annotations

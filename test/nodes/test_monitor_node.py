@@ -8,85 +8,19 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
-from geometry_msgs.msg import PoseArray, WrenchStamped  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from rclpy.duration import Duration  # noqa: E402
-from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import Bool, Float64, Float64MultiArray, String  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
-from rheo_shaping.nodes.monitor import MonitorNode  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
 
-from rosutil import Recorder, wait_for_subscribers  # noqa: E402
+from _support.rigs import F_BREAK, FakeCell, get_ready, listen, make_monitor  # noqa: E402
+from _support.ros import Recorder  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
-
-F_BREAK = CellParams().material.F_break
-
-
-class FakeCell:
-    """Publishes /clock (simulated time it controls) and the tension/stamped topics."""
-
-    def __init__(self, ros):
-        self.ros = ros
-        self.node = ros.node("fake_cell")
-        q = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                       deadline=Duration(seconds=0.05))
-        self.clock = self.node.create_publisher(Clock, "/clock", 1)
-        self.tensions = self.node.create_publisher(Float64MultiArray, "/sheet/tensions", q)
-        self.contact = self.node.create_publisher(Float64, "/sheet/contact_tension", q)
-        self.profile = self.node.create_publisher(PoseArray, "/sheet/profile", 10)
-        self.wrench = self.node.create_publisher(WrenchStamped, "/tool/wrench", 10)
-        self.t_ns = 10 * NS
-
-    def publish(self, tension=0.2, contact=0.1, stamp_ns=None, dt=0.05):
-        """One sample of the cell at simulated time t (advanced by dt)."""
-        self.t_ns += int(dt * NS)
-        self.clock.publish(m.clock_msg(self.t_ns))
-        stamp = self.t_ns if stamp_ns is None else stamp_ns
-        self.profile.publish(m.profile_msg([[0.01, 0.05]], stamp))
-        self.wrench.publish(m.wrench_msg([0.0, 0.0], stamp))
-        values = tension if isinstance(tension, list) else [0.1, tension, 0.05]
-        self.tensions.publish(m.tensions_msg(values))
-        self.contact.publish(m.float_msg(contact))
-
-    def stream(self, seconds, **kw):
-        """Publish samples every 20 ms of wall time for ``seconds``, spinning meanwhile."""
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.publish(**kw)
-            self.ros.spin_for(0.02)
-
 
 @pytest.fixture
 def cell(ros):
     return FakeCell(ros)
-
-
-def make_monitor(ros, **settings):
-    settings.setdefault("abort_ratio", 0.6)      # fixed: no core runs for the budget (tested below)
-    overrides = [Parameter("use_sim_time", value=True)]
-    overrides += [Parameter(k, value=v) for k, v in settings.items()]
-    return ros.add(MonitorNode(context=ros.context, parameter_overrides=overrides))
-
-
-def listen(ros):
-    node = ros.node("monitor_listener")
-    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    rec = Recorder(node, {"/shaping/ready": Bool, "/diagnostics": DiagnosticArray})
-    rec.add("/shaping/abort", String, latched)
-    return node, rec
-
-
-def get_ready(ros, monitor, cell):
-    wait_for_subscribers(ros, cell.tensions)
-    wait_for_subscribers(ros, cell.profile)
-    ros.spin_until(lambda: monitor.ready, 10.0, "monitor ready",
-                   every=lambda: cell.publish())
 
 
 def test_ready_heartbeat_and_diagnostics(ros, cell):

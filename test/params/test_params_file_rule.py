@@ -1,5 +1,5 @@
 """The core's params-file rule without ROS (rcl's rule, checked against rcl in
-test/ros/test_params_files.py): what it refuses, with file, key, value and what was expected."""
+test/nodes/test_params_files.py): what it refuses, with file, key, value and what was expected."""
 from __future__ import annotations
 
 import pytest

@@ -21,7 +21,7 @@ from rheo_shaping.params.params import CellParams  # noqa: E402
 from rheo_shaping.params.schema import ParameterError  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan
 
-from rosutil import Recorder, motion_bounds, wait_for_subscribers  # noqa: E402
+from _support.ros import Recorder, motion_bounds, wait_for_subscribers  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,

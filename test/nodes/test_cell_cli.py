@@ -12,8 +12,8 @@ pytest.importorskip("rclpy")
 
 from rheo_shaping.planning.movement import run_movement
 
-from rosutil import BIN  # noqa: E402
-from test_cell_e2e import base_cell  # noqa: E402
+from _support.ros import BIN  # noqa: E402
+from _support.cells import base_cell  # noqa: E402
 
 
 def _run(*args, timeout=120):

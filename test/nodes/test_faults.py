@@ -21,9 +21,10 @@ from std_msgs.msg import String  # noqa: E402
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.params.params import CellParams  # noqa: E402
 
-from rosutil import Recorder  # noqa: E402
-from test_cell_e2e import Cell, write_params  # noqa: E402
-from test_monitor_node import FakeCell, get_ready, make_monitor  # noqa: E402
+from _support.ros import Recorder  # noqa: E402
+from _support.cells import write_params  # noqa: E402
+from _support.rigs import Cell  # noqa: E402
+from _support.rigs import FakeCell, get_ready, make_monitor  # noqa: E402
 
 MAX_AGE, PERIOD, SLACK = 0.3, 0.02, 0.1
 
