@@ -60,7 +60,8 @@ class Venv:
     def wanted_stamp(self) -> str:
         """Hash of everything whose change requires a re-install."""
         h = hashlib.sha256()
-        for path in _requirement_files(self.requirements) + [ROOT / "setup.py", ROOT / "setup.cfg"]:
+        for path in _requirement_files(self.requirements) + [ROOT / "setup.py",
+                                                             ROOT / "setup.cfg"]:
             h.update(f"{path.relative_to(ROOT)}\n".encode())
             h.update(path.read_bytes() if path.exists() else b"<missing>")
         return h.hexdigest()
@@ -136,7 +137,8 @@ def base_python() -> str:
     found = shutil.which(name)
     if found:
         return found
-    raise SystemExit(f"[dev] the virtualenvs need {name} (the ROS 2 Jazzy wheels are built for it); "
+    raise SystemExit(f"[dev] the virtualenvs need {name} (the ROS 2 Jazzy wheels are built for "
+                     "it); "
                      f"this is Python {_pyver()} and no {name} is on PATH")
 
 
@@ -150,7 +152,8 @@ def say(msg: str) -> None:
 
 # pip on some machines is configured with local index directories that do not
 # exist for most packages; it then warns once per package. Such lines are noise.
-_PIP_NOISE = re.compile(r"^WARNING: Location '.*' is ignored: it is neither a file nor a directory\.$")
+_PIP_NOISE = re.compile(
+    r"^WARNING: Location '.*' is ignored: it is neither a file nor a directory\.$")
 
 
 def run_checked(cmd: list[str]) -> None:

@@ -44,7 +44,8 @@ CASES = {
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    ap.add_argument("--json", action="store_true",
+                    help="print one JSON object instead of the table")
     args = ap.parse_args(argv)
     base = CellParams()
     plan = movement_plan(base)
@@ -61,19 +62,25 @@ def main(argv=None) -> int:
         wall = time.perf_counter() - t0
         rows.append({"effect": name, "value": label,
                      "F_max_change": r.F_max / nominal.F_max - 1.0, "delta_m": r.delta,
-                     "profile_change_m": float(np.max(np.linalg.norm(r.x[-1] - nominal.x[-1], axis=1))),
+                     "profile_change_m": float(np.max(np.linalg.norm(r.x[-1] - nominal.x[-1],
+                                                                     axis=1))),
                      "wall_s": wall})
-    out = {"n_masses": base.sheet.n_masses, "nominal": {"F_max_N": nominal.F_max, "delta_m": nominal.delta,
-                                                        "wall_s": wall0}, "effects": rows}
+    out = {"n_masses": base.sheet.n_masses,
+           "nominal": {"F_max_N": nominal.F_max, "delta_m": nominal.delta,
+                       "wall_s": wall0}, "effects": rows}
     if args.json:
         print(json.dumps(out, indent=1))
         return 0
-    print(f"movement 4 of the default cell (N = {base.sheet.n_masses}): F_max {nominal.F_max:.4f} N, "
+    print(f"movement 4 of the default cell (N = {base.sheet.n_masses}): F_max {nominal.F_max:.4f} "
+          "N, "
           f"Delta {nominal.delta * 1e3:.2f} mm, {wall0:.2f} s")
-    print(f"| effect | value | F_max | Delta | largest change of the final profile | wall time (nominal {wall0:.2f} s) |")
+    print(
+        "| effect | value | F_max | Delta | largest change of the final profile | wall time "
+        f"(nominal {wall0:.2f} s) |")
     print("|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['effect']} | {r['value']} | {r['F_max_change'] * 100:+.1f} % | {r['delta_m'] * 1e3:.2f} mm | "
+        print(f"| {r['effect']} | {r['value']} | {r['F_max_change'] * 100:+.1f} % | "
+              f"{r['delta_m'] * 1e3:.2f} mm | "
               f"{r['profile_change_m'] * 1e3:.1f} mm | {r['wall_s']:.2f} s |")
     return 0
 

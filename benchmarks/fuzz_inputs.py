@@ -110,7 +110,8 @@ def mutate_params(text: str, rng: random.Random, canary: Path) -> str:
                 _delete(data, path)
                 leaves = list(_leaves(data)) or [("x",)]
             elif op == "extra":
-                _set(data, path[:-1] + (rng.choice(["speed", "k", "n_masses2", "", "ros__parameters"]),),
+                _set(data,
+                     path[:-1] + (rng.choice(["speed", "k", "n_masses2", "", "ros__parameters"]),),
                      rng.uniform(-1, 1))
             elif op == "unwrap":
                 data = {k: v.get("ros__parameters", v) if isinstance(v, dict) else v
@@ -222,7 +223,8 @@ def mutate_record(base: Path, dest: Path, rng: random.Random, canary: Path) -> s
         sc = dest / "scenario.yaml"
         text = sc.read_text()
         sc.write_text(mutate_params(text, rng, canary) if kind == "scenario"
-                      else text.replace("k1: 95.0", "k1: " + rng.choice(TAGS).format(canary=canary)))
+                      else text.replace("k1: 95.0",
+                                        "k1: " + rng.choice(TAGS).format(canary=canary)))
     else:
         _rewrite_messages(base, dest, kind, rng)
     return kind

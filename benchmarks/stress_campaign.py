@@ -120,14 +120,16 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
         data["/**/planner"] = {"ros__parameters": {"use_sim_time": True, "autostart": True}}
         data["/**/monitor"] = {"ros__parameters": {"use_sim_time": True}}
         params.write_text(yaml.safe_dump(data, sort_keys=False))
-        env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        env = dict(os.environ, ROS_DOMAIN_ID=str(domain),
+                   ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                    FASTDDS_BUILTIN_TRANSPORTS="UDPv4", RCUTILS_LOGGING_BUFFERED_STREAM="0")
         logs = {n: Path(tmp) / f"{n}.log" for n in ("simulator", "planner", "monitor")}
         procs = {}
         for n, log in logs.items():
             procs[n] = subprocess.Popen([*prefix, str(BIN / n), "--ros-args", "--params-file",
                                          str(params)], stdout=open(log, "w"),
-                                        stderr=subprocess.STDOUT, env=env, stdin=subprocess.DEVNULL,
+                                        stderr=subprocess.STDOUT, env=env,
+                                        stdin=subprocess.DEVNULL,
                                         start_new_session=True)
         t0 = time.monotonic()
         done = False
@@ -175,9 +177,12 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
         "reason": reason, "largest_N": largest, "finished": True, "wall_time_s": None,
         "false_abort": bool(aborted and offline.F_max < thr),
         "missed": bool(offline.F_max >= thr and not aborted),
-        "cross_to_abort_s": (abort_t - t_cross) if (abort_t is not None and t_cross is not None) else None,
-        "cross_to_rest_s": (rest_t - t_cross) if (rest_t is not None and t_cross is not None) else None,
-        "abort_to_rest_s": (rest_t - abort_t) if (rest_t is not None and abort_t is not None) else None,
+        "cross_to_abort_s": ((abort_t - t_cross) if (abort_t is not None and t_cross is not None)
+                             else None),
+        "cross_to_rest_s": ((rest_t - t_cross) if (rest_t is not None and t_cross is not None)
+                            else None),
+        "abort_to_rest_s": ((rest_t - abort_t) if (rest_t is not None and abort_t is not None)
+                            else None),
         "max_tension_after_abort_N": largest if aborted else None,
     })
     row["tore"] = bool(largest >= cell.material.F_break)
@@ -224,7 +229,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--domain", type=int, default=120, help="first ROS domain id to claim")
     ap.add_argument("--timeout", type=float, default=120.0, help="wall time per loss run [s]")
     ap.add_argument("--json", action="store_true")
-    ap.add_argument("--save", metavar="FILE", help="write every run to FILE (JSON); never overwritten")
+    ap.add_argument("--save", metavar="FILE",
+                    help="write every run to FILE (JSON); never overwritten")
     args = ap.parse_args(argv)
     conditions = [c for c in args.conditions.split(",") if c]
     bad = [c for c in conditions if c not in ("idle", "cpu", "loss")]

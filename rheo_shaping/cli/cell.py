@@ -17,15 +17,20 @@ from .common import add_params_argument, cell_from_args
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("cell", help="run the ROS 2 shaping cell (simulator, planner, monitor) in one process",
-                       description="Run the shaping cell's ROS 2 nodes (simulator, planner, monitor) in "
-                                   "one process, faster than real time, and print F_max [N], SF and "
-                                   "Delta [m] of the process.  The params file is a ROS --params-file: "
+    p = sub.add_parser("cell", help="run the ROS 2 shaping cell (simulator, planner, monitor) in "
+                                    "one process",
+                       description="Run the shaping cell's ROS 2 nodes (simulator, planner, "
+                                   "monitor) in "
+                                   "one process, faster than real time, and print F_max [N], SF "
+                                   "and "
+                                   "Delta [m] of the process.  The params file is a ROS "
+                                   "--params-file: "
                                    "the cell in '/**', node settings in 'simulator', 'planner', "
                                    "'monitor' sections.")
     add_params_argument(p)
     p.add_argument("--movement", type=int, choices=(0, 1, 2, 3, 4),
-                   help="paper movement (1 vertical, 2 horizontal, 3 inclined, 4 two-step; 0 the params "
+                   help="paper movement (1 vertical, 2 horizontal, 3 inclined, 4 two-step; 0 the "
+                        "params "
                         "file's waypoints); default: the params file's movement.number")
     p.add_argument("--real-time-factor", type=float, default=50.0, metavar="X",
                    help="simulated seconds per wall-clock second (default 50; the run slows down "
@@ -47,7 +52,8 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     params = cell_from_args(args)            # the cell part of the file, checked without ROS
     if not (0.0 < args.real_time_factor <= 1000.0):
-        raise UserError(f"--real-time-factor = {args.real_time_factor:g}: expected a value in (0, 1000]")
+        raise UserError(
+            f"--real-time-factor = {args.real_time_factor:g}: expected a value in (0, 1000]")
     if not args.timeout > 0:
         raise UserError(f"--timeout = {args.timeout:g}: expected a value > 0")
     try:
@@ -59,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
     say = None if (args.quiet or args.json) else (lambda msg: print(msg, flush=True))
     try:
         result = run_cell(args.params, movement=args.movement,
-                          real_time_factor=args.real_time_factor, timeout=args.timeout, progress=say,
+                          real_time_factor=args.real_time_factor, timeout=args.timeout,
+                          progress=say,
                           log_level="info" if args.verbose else "warn",
                           namespace=_namespace(args.namespace))
     except ParameterError as exc:
@@ -85,12 +92,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"movement {result.movement}: {state}; process {result.process_time:g} s (run to "
               f"{result.extra['run_time']:.1f} s) in {result.wall_time_s:.1f} s wall, "
               f"x{result.achieved_factor:.0f} real time")
-        print(f"  F_max = {result.F_max:.4f} N in link {result.F_max_link} at t = {result.F_max_time:.1f} s")
+        print(
+            f"  F_max = {result.F_max:.4f} N in link {result.F_max_link} at t = "
+            f"{result.F_max_time:.1f} s")
         print(f"  SF    = {result.SF:.3f}  (F_break = {result.F_break:g} N)")
         print(f"  Delta = {result.delta * 1e3:.2f} mm  (quality limit 5 mm)")
         if args.compare:
             o = out["offline"]
-            print(f"  offline (core, same plan): F_max = {o['F_max']:.4f} N ({(result.F_max / o['F_max'] - 1) * 100:+.2f} %), "
+            print(f"  offline (core, same plan): F_max = {o['F_max']:.4f} N "
+                  f"({(result.F_max / o['F_max'] - 1) * 100:+.2f} %), "
                   f"SF = {o['SF']:.3f}, Delta = {o['delta'] * 1e3:.2f} mm "
                   f"({(result.delta - o['delta']) * 1e3:+.3f} mm)")
     if not result.finished:

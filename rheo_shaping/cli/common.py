@@ -14,7 +14,8 @@ from . import UserError
 
 def add_params_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--params", metavar="FILE",
-                        help="params YAML of the cell (ROS --params-file format); default: the default cell")
+                        help="params YAML of the cell (ROS --params-file format); default: the "
+                             "default cell")
 
 
 def cell_from_args(args: argparse.Namespace) -> CellParams:

@@ -48,7 +48,8 @@ class CrackDetection:
 
 def detect_crack(t, F, window_s: float = 1.0, hold_s: float = 1.0,
                  drop_fraction: float = 0.03) -> CrackDetection:
-    """Find crack initiation in a tensile curve ``F`` [N] at times ``t`` [s] (rule in the module doc)."""
+    """Find crack initiation in a tensile curve ``F`` [N] at times ``t`` [s] (rule in the module
+    doc)."""
     t = np.asarray(t, dtype=float)
     F = np.asarray(F, dtype=float)
     n = t.size
@@ -60,7 +61,8 @@ def detect_crack(t, F, window_s: float = 1.0, hold_s: float = 1.0,
     dt = float(np.median(np.diff(tp)))
     w = max(5, int(round(window_s / dt)) | 1)
     smooth = median_filter(Fp, size=w, mode="nearest")
-    noise = float(np.median(np.abs(np.diff(Fp)))) / 0.954   # MAD of differences -> sd for Gaussian noise
+    # MAD of differences -> sd for Gaussian noise
+    noise = float(np.median(np.abs(np.diff(Fp)))) / 0.954
     run_max = np.maximum.accumulate(smooth)
     tol = np.maximum(drop_fraction * np.abs(run_max), 4.0 * noise)
     below = smooth < run_max - tol
@@ -72,4 +74,5 @@ def detect_crack(t, F, window_s: float = 1.0, hold_s: float = 1.0,
         return CrackDetection(n, False, None, None, None)
     j_drop = int(starts[0])
     j_peak = int(np.argmax(smooth[: j_drop + 1]))
-    return CrackDetection(i0 + j_peak + 1, True, float(tp[j_peak]), float(smooth[j_peak]), float(tp[j_drop]))
+    return CrackDetection(i0 + j_peak + 1, True, float(tp[j_peak]), float(smooth[j_peak]),
+                          float(tp[j_drop]))

@@ -149,7 +149,8 @@ class InitialForce:
     window_s: float
 
 
-def initial_force(curve: PreparedCurve, fraction: float = 0.4, min_points: int = 8) -> InitialForce | None:
+def initial_force(curve: PreparedCurve, fraction: float = 0.4,
+                  min_points: int = 8) -> InitialForce | None:
     """Extrapolate the start of the pull to F(0+) [N] (Eq. 11's left side).
 
     A cubic in t is fitted to the pull samples in the first ``fraction`` of
@@ -174,7 +175,8 @@ def initial_force(curve: PreparedCurve, fraction: float = 0.4, min_points: int =
     return InitialForce(float(coef[3]), math.sqrt(var), curve.speed, curve.length, float(window))
 
 
-def c1_from_tensile(curves: list[PreparedCurve], c2: Estimate) -> tuple[Estimate, list[InitialForce]]:
+def c1_from_tensile(curves: list[PreparedCurve],
+                    c2: Estimate) -> tuple[Estimate, list[InitialForce]]:
     """Step 2, Eq. 11: c1 [N s/m] from F(0+) of the tensile curves.
 
     ``a = F0/v`` [N s/m] is averaged over the curves (weights 1/se^2, on the
@@ -195,7 +197,8 @@ def c1_from_tensile(curves: list[PreparedCurve], c2: Estimate) -> tuple[Estimate
     se_c2 = c2.se or 0.0
     q = 1.96
     if a >= C2:
-        return Estimate.missing("N s/m", f"F(0)/v = {a:.4g} N s/m >= c2: no three-element explanation"), fits
+        return Estimate.missing("N s/m", f"F(0)/v = {a:.4g} N s/m >= c2: no three-element "
+                                         "explanation"), fits
 
     def c1_of(a_: float) -> float:
         a_ = min(max(a_, 0.0), 0.999999 * C2)
@@ -213,8 +216,10 @@ def c1_from_tensile(curves: list[PreparedCurve], c2: Estimate) -> tuple[Estimate
 
 
 # ----------------------------------------------------------------- step 3
-def eq13_points(curves: list[PreparedCurve], c1: float, c2: float) -> tuple[np.ndarray, np.ndarray]:
-    """Pooled (X, Y) of Eq. 13 over the pull samples, with the points without a logarithm dropped."""
+def eq13_points(curves: list[PreparedCurve], c1: float,
+                c2: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pooled (X, Y) of Eq. 13 over the pull samples, with the points without a logarithm
+    dropped."""
     Xs, Ys = [], []
     for c in curves:
         s = SPECIMEN_LENGTH_M / c.length            # constants of this curve's length
@@ -259,8 +264,10 @@ def k1_by_linear_least_squares(curves: list[PreparedCurve], c1: Estimate,
     k1 = b * (C1 + C2)
     h2 = 1e-4 * C2
     dk_dc2 = (k1_of(C1, C2 + h2) - k1_of(C1, C2 - h2)) / (2 * h2)
-    dk_dc1 = (k1_of(C1 + h2, C2) - k1) / h2 if C1 < h2 else (k1_of(C1 + h2, C2) - k1_of(C1 - h2, C2)) / (2 * h2)
-    se_k1 = math.sqrt(((C1 + C2) * se_b) ** 2 + (dk_dc2 * (c2.se or 0.0)) ** 2 + (dk_dc1 * (c1.se or 0.0)) ** 2)
+    dk_dc1 = (k1_of(C1 + h2, C2) - k1) / \
+        h2 if C1 < h2 else (k1_of(C1 + h2, C2) - k1_of(C1 - h2, C2)) / (2 * h2)
+    se_k1 = math.sqrt(((C1 + C2) * se_b) ** 2 + (dk_dc2 * (c2.se or 0.0))
+                      ** 2 + (dk_dc1 * (c1.se or 0.0)) ** 2)
     note = f"Eq. 12-13 over {n} points; b = {b:.4g} +- {se_b:.2g} 1/s"
     return (symmetric(k1, se_k1, "N/m", n - 1, note, lower=0.0),
             symmetric(b, se_b, "1/s", n - 1, "Eq. 12-13", lower=0.0))
@@ -293,7 +300,8 @@ def identify_paper(creep: CreepResiduals | None, tensile: list[TensileCurve] = (
     if from_curves is not None:
         tables.append(from_curves)
     if not tables:
-        raise ValueError("the paper's method needs creep residuals (Eq. 10): a creep residual table, "
+        raise ValueError("the paper's method needs creep residuals (Eq. 10): a creep residual "
+                         "table, "
                          "or creep curves that end unloaded")
     data = merge_residuals(tables)
     c2 = c2_from_creep(data)

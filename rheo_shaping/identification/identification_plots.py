@@ -23,7 +23,8 @@ from .model_choice import JointIdentification
 _COLOURS = {"maxwell": "tab:blue", "three-element": "tab:orange", "burgers": "tab:green"}
 
 
-def _discarded(ax, tensile: list[TensileCurve], offsets: list[float | None], keeps: list[int]) -> None:
+def _discarded(ax, tensile: list[TensileCurve], offsets: list[float | None],
+               keeps: list[int]) -> None:
     for c, off, keep in zip(tensile, offsets, keeps):
         ax.plot(c.t[keep:], c.force[keep:] - (off or 0.0), ".", ms=1.5, color="0.75")
 
@@ -44,20 +45,24 @@ def plot_joint(result: JointIdentification, path: str | os.PathLike,
     fig = Figure(figsize=(4.2 * ncol, 10.0))
     gs = fig.add_gridspec(3, ncol)
     ax = fig.add_subplot(gs[0, :])
-    ax.set_title(f"tensile curves (fitted offset removed; grey: after crack) and fits; chosen: {result.model}")
+    ax.set_title(
+        "tensile curves (fitted offset removed; grey: after crack) and fits; chosen: "
+        f"{result.model}")
     if data.curves:
         offs = ([o.value for o in fits[result.model].offsets] if result.model is not None
                 else [c.offset or 0.0 for c in data.curves])
         if tensile:
             _discarded(ax, list(tensile), offs, [c.crack.keep for c in data.curves])
         for i, c in enumerate(data.curves):
-            ax.plot(c.t, c.force - offs[i], ".", ms=2, color="k", label="data (kept)" if i == 0 else None)
+            ax.plot(c.t, c.force - offs[i], ".", ms=2, color="k",
+                    label="data (kept)" if i == 0 else None)
             if c.crack.found:
                 ax.axvline(c.crack.t_crack, color="r", lw=0.5, ls=":")
         for m, f in fits.items():
             for i, c in enumerate(data.curves):
                 tt = np.linspace(min(c.t[0], 0.0), c.t[-1], 400)
-                ax.plot(tt, model_tensile_force(f.material(c.length), tt, c.speed), color=_COLOURS[m],
+                ax.plot(tt, model_tensile_force(f.material(c.length), tt, c.speed),
+                        color=_COLOURS[m],
                         lw=1, label=m if i == 0 else None)
         ax.legend(fontsize=8)
     ax.set_xlabel("t [s]")
@@ -79,7 +84,8 @@ def plot_joint(result: JointIdentification, path: str | os.PathLike,
         cr = data.residuals
         compliance = cr.residual / (cr.force * cr.t1) * cr.length / SPECIMEN_LENGTH_M
         c2 = result.params["c2"]
-        ax.plot(np.arange(1, compliance.size + 1), 1.0 / compliance, "o", color="k", label="F t1/x per test")
+        ax.plot(np.arange(1, compliance.size + 1), 1.0 /
+                compliance, "o", color="k", label="F t1/x per test")
         ax.axhline(c2.value, color="tab:red", label=f"c2 = {c2.value:.4g} N s/m")
         if c2.ci95 is not None and None not in c2.ci95:
             ax.axhspan(c2.ci95[0], c2.ci95[1], color="tab:red", alpha=0.15, label="95 % interval")
@@ -103,20 +109,23 @@ def plot_joint(result: JointIdentification, path: str | os.PathLike,
 
 def plot_paper(result: PaperIdentification, path: str | os.PathLike,
                tensile: list[TensileCurve] = ()) -> None:
-    """Eq. 5 against the curves, the Eq. 12-13 regression, residuals, creep spread, into ``path``."""
+    """Eq. 5 against the curves, the Eq. 12-13 regression, residuals, creep spread, into
+    ``path``."""
     fig = Figure(figsize=(11.0, 8.0))
     axs = fig.subplots(2, 2)
     ok = result.k1.value is not None and result.c1.value is not None
     ax = axs[0, 0]
     ax.set_title("tensile curves (offset removed) and Eq. 5")
     if tensile:
-        _discarded(ax, list(tensile), [c.offset for c in result.curves], [c.crack.keep for c in result.curves])
+        _discarded(ax, list(tensile), [c.offset for c in result.curves], [
+                   c.crack.keep for c in result.curves])
     for i, c in enumerate(result.curves):
         ax.plot(c.t, c.zeroed_force, ".", ms=2, color="k", label="data (kept)" if i == 0 else None)
         if ok:
             m = ThreeElement(result.k1.value, result.c1.value, result.c2.value).scaled(c.length)
             tt = np.linspace(0.0, c.t[-1], 300)
-            ax.plot(tt, tensile_force(m, tt, c.speed), color="tab:red", label="Eq. 5" if i == 0 else None)
+            ax.plot(tt, tensile_force(m, tt, c.speed),
+                    color="tab:red", label="Eq. 5" if i == 0 else None)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("F [N]")
     if result.curves:
@@ -137,15 +146,18 @@ def plot_paper(result: PaperIdentification, path: str | os.PathLike,
         for c in result.curves:
             m = ThreeElement(result.k1.value, result.c1.value, result.c2.value).scaled(c.length)
             p = c.pull
-            ax.plot(c.t[p], c.zeroed_force[p] - tensile_force(m, c.t[p], c.speed), ".", ms=2, color="k")
+            ax.plot(c.t[p], c.zeroed_force[p] - tensile_force(m,
+                    c.t[p], c.speed), ".", ms=2, color="k")
         ax.axhline(0.0, color="tab:red", lw=0.5)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("F residual [N]")
     ax = axs[1, 1]
     cr = result.creep
     if cr is not None:
-        ax.plot(np.arange(1, len(cr) + 1), cr.residual * 1e3, "o", color="k", label="residual x2(inf)")
-        ax.axhline(cr.residual.mean() * 1e3, color="tab:red", label=f"mean; c2 = {result.c2.value:.4g} N s/m")
+        ax.plot(np.arange(1, len(cr) + 1), cr.residual * 1e3,
+                "o", color="k", label="residual x2(inf)")
+        ax.axhline(cr.residual.mean() * 1e3, color="tab:red",
+                   label=f"mean; c2 = {result.c2.value:.4g} N s/m")
         ax.set_xlabel("creep test")
         ax.set_ylabel("residual elongation [mm] (0.1 m)")
         ax.legend(fontsize=8)

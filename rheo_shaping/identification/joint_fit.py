@@ -3,7 +3,8 @@
 Beyond the paper (Sec. 3.4 identifies the constants one at a time).  One
 model -- Maxwell, three-element or Burgers -- is fitted at once to
 
-* tensile curves up to crack initiation (:func:`rheo_shaping.identification.identification.prepare_tensile`),
+* tensile curves up to crack initiation
+(:func:`rheo_shaping.identification.identification.prepare_tensile`),
   each with its own load-cell offset as a nuisance parameter: the model force
   is 0 at rest (``t <= 0``) and Eq. 5 (Burgers: its closed form) during the
   pull, plus the offset;
@@ -118,7 +119,8 @@ def _material(model: str, p: dict, length: float) -> "ThreeElement | Burgers":
         m = ThreeElement(p["k1"], p["c1"], p["c2"], SPECIMEN_LENGTH_M)
     else:
         j2 = p["j2"]
-        m = Burgers(p["k1"], p["c1"], p["c2"], math.inf if j2 == 0.0 else 1.0 / j2, SPECIMEN_LENGTH_M)
+        m = Burgers(p["k1"], p["c1"], p["c2"], math.inf if j2 ==
+                    0.0 else 1.0 / j2, SPECIMEN_LENGTH_M)
     return m if length == SPECIMEN_LENGTH_M else m.scaled(length)
 
 
@@ -216,9 +218,11 @@ def _initial_sigma(problem: _Problem, data: FitData) -> np.ndarray:
             s.append(1.0)
         elif name == "creep residuals":
             r = data.residuals.residual
-            s.append(float(np.std(r, ddof=1)) if r.size > 1 and np.std(r) > 0 else 0.03 * float(np.mean(r)))
+            s.append(float(np.std(r, ddof=1)) if r.size >
+                     1 and np.std(r) > 0 else 0.03 * float(np.mean(r)))
         else:
-            s.append(0.01 * max(float(np.max(np.abs(c.elongation))) for c in data.creep_curves) + 1e-12)
+            s.append(0.01 * max(float(np.max(np.abs(c.elongation)))
+                     for c in data.creep_curves) + 1e-12)
     return np.array(s)
 
 
@@ -240,14 +244,16 @@ def _starts(model: str, base: dict, previous: "ModelFit | None") -> list[dict]:
         starts += [dict(k1=k1, c1=f * c2, c2=c2, j2=0.0, offsets=offs) for f in (0.05, 0.3, 1.0)]
     else:
         c1 = starts[0]["c1"] if starts else 0.0
-        starts += [dict(k1=k1, c1=max(c1, 0.2 * c2), c2=c2, j2=f / k1, offsets=offs) for f in (0.3, 1.0, 3.0)]
+        starts += [dict(k1=k1, c1=max(c1, 0.2 * c2), c2=c2, j2=f / k1, offsets=offs)
+                   for f in (0.3, 1.0, 3.0)]
     return starts
 
 
 # ------------------------------------------------------------------ fit
 def fit_model(model: str, data: FitData, previous: "ModelFit | None" = None,
               max_rounds: int = 10) -> ModelFit:
-    """Fit ``model`` to ``data`` (see the module doc); ``previous``: a nested model's fit to start from."""
+    """Fit ``model`` to ``data`` (see the module doc); ``previous``: a nested model's fit to start
+    from."""
     if model not in MODELS:
         raise ValueError(f"model = {model!r}: expected one of {', '.join(MODELS)}")
     if data.residuals is None and not data.has_shape:
@@ -255,7 +261,8 @@ def fit_model(model: str, data: FitData, previous: "ModelFit | None" = None,
     base = starting_values(data)
     names = PARAMETERS[model]
     nc = len(data.curves)
-    scale = np.array([{"k1": base["k1"], "c1": base["c2"], "c2": base["c2"], "j2": 1.0 / base["k1"]}[n]
+    scale = np.array([{"k1": base["k1"], "c1": base["c2"], "c2": base["c2"],
+                       "j2": 1.0 / base["k1"]}[n]
                       for n in names] + [0.01] * nc)
     lower = np.array([1e-9 if n in ("k1", "c2") else 0.0 for n in names] + [-np.inf] * nc)
     upper = np.full(lower.shape, np.inf)
@@ -268,7 +275,8 @@ def fit_model(model: str, data: FitData, previous: "ModelFit | None" = None,
 
     def solve(u0: np.ndarray, sig: np.ndarray):
         return least_squares(prob.whitened, u0, args=(sig,), bounds=(lower, upper), method="trf",
-                             x_scale=1.0, ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=400 * (len(u0) + 1))
+                             x_scale=1.0, ftol=1e-12, xtol=1e-12, gtol=1e-12,
+                             max_nfev=400 * (len(u0) + 1))
 
     best = None
     for s in _starts(model, base, previous):
@@ -323,9 +331,11 @@ def _summarise(model, data, prob, res, sigma_ml, sizes, scale, lower) -> ModelFi
     params: dict[str, Estimate] = {}
     for i, n in enumerate(names):
         if unident[i]:
-            params[n] = Estimate(float(theta[i]), None, None, UNITS[n], "not identifiable from these data")
+            params[n] = Estimate(float(theta[i]), None, None, UNITS[n],
+                                 "not identifiable from these data")
         else:
-            params[n] = symmetric(float(theta[i]), float(se[i]), UNITS[n], dof, f"joint fit ({model})", lower=0.0)
+            params[n] = symmetric(float(theta[i]), float(se[i]), UNITS[n],
+                                  dof, f"joint fit ({model})", lower=0.0)
     if model == "burgers" and params["j2"].value * params["k1"].value < 1e-6:
         # 1/k2 on its bound: the Burgers fit is the three-element fit, and at
         # j2 = 0 a small series compliance looks like a change of k1 and c1
@@ -334,7 +344,8 @@ def _summarise(model, data, prob, res, sigma_ml, sizes, scale, lower) -> ModelFi
         for n in ("k1", "c1"):
             if params[n].se is None:
                 params[n] = Estimate(params[n].value, None, None, UNITS[n],
-                                     "not separable from 1/k2 at its bound 0 (see the three-element fit)")
+                                     "not separable from 1/k2 at its bound 0 (see the "
+                                     "three-element fit)")
     if "c1" not in params:
         params["c1"] = Estimate(0.0, None, None, UNITS["c1"], "fixed at 0 by the Maxwell model")
     if model == "burgers":
@@ -349,7 +360,8 @@ def _summarise(model, data, prob, res, sigma_ml, sizes, scale, lower) -> ModelFi
         loglik -= 0.5 * b.n * (math.log(2 * math.pi * max(b.rss / b.n, 1e-300)) + 1.0)
     loglik -= float(sum(np.sum(np.log(w)) for w in prob.weights))   # tensile weights (data-only)
     k = theta.size + len(blocks)
-    return ModelFit(model, params, offsets, loglik, k, N, -2 * loglik + 2 * k, -2 * loglik + k * math.log(N),
+    return ModelFit(model, params, offsets, loglik, k, N, -2 * loglik + 2 * k,
+                    -2 * loglik + k * math.log(N),
                     blocks, theta, bool(res.success), str(res.message))
 
 
@@ -359,7 +371,8 @@ def _k2_from_j2(j2: Estimate) -> Estimate:
     if v is None or v <= 0.0:
         hi_j = None if j2.ci95 is None else j2.ci95[1]
         lo_k = None if not hi_j else 1.0 / hi_j
-        return Estimate(math.inf, None, (lo_k, None), "N/m", "j2 = 0: no series spring (three-element)")
+        return Estimate(math.inf, None, (lo_k, None), "N/m", "j2 = 0: no series spring "
+                                                             "(three-element)")
     se = None if j2.se is None else j2.se / v ** 2
     ci = None
     if j2.ci95 is not None:

@@ -138,9 +138,11 @@ def _parse(path: str | os.PathLike) -> tuple[dict, list[str], list[tuple[int, li
             header, header_line = fields, no
             for i, name in enumerate(fields, start=1):
                 if not name:
-                    raise DataFormatError(f"{_where(path, no, i)}: empty column name in the header")
+                    raise DataFormatError(
+                        f"{_where(path, no, i)}: empty column name in the header")
                 if fields.index(name) != i - 1:
-                    raise DataFormatError(f"{_where(path, no, i, name)}: column name repeated in the header")
+                    raise DataFormatError(
+                        f"{_where(path, no, i, name)}: column name repeated in the header")
             continue
         rows.append((no, fields))
     if header is None:
@@ -157,7 +159,8 @@ def _meta_float(path, meta: dict, key: str, default: float | None) -> float | No
     except ValueError:
         v = math.nan
     if not (math.isfinite(v) and v > 0.0):
-        raise DataFormatError(f"{_where(path, no)}: metadata {key} = {value!r}: expected a positive number")
+        raise DataFormatError(
+            f"{_where(path, no)}: metadata {key} = {value!r}: expected a positive number")
     return v
 
 
@@ -165,7 +168,8 @@ def _columns(path, header: list[str], header_line: int, rows, required: tuple[st
              checks: dict[str, str]) -> dict[str, np.ndarray]:
     missing = [c for c in required if c not in header]
     if missing:
-        raise DataFormatError(f"{_where(path, header_line)}: header {','.join(header)} lacks column(s) "
+        raise DataFormatError(f"{_where(path, header_line)}: header {','.join(header)} lacks "
+                              "column(s) "
                               f"{', '.join(missing)} (expected {', '.join(required)})")
     if not rows:
         raise DataFormatError(f"{path}: no data lines after the header (line {header_line})")
@@ -174,19 +178,22 @@ def _columns(path, header: list[str], header_line: int, rows, required: tuple[st
     for k, (no, fields) in enumerate(rows):
         if len(fields) != len(header):
             col = min(len(fields), len(header)) + 1
-            raise DataFormatError(f"{_where(path, no, col)}: {len(fields)} fields, expected {len(header)} "
+            raise DataFormatError(f"{_where(path, no, col)}: {len(fields)} fields, expected "
+                                  f"{len(header)} "
                                   f"(header {','.join(header)})")
         for c, i in idx.items():
             s = fields[i]
             try:
                 v = float(s)
             except ValueError:
-                raise DataFormatError(f"{_where(path, no, i + 1, c)}: {s!r} is not a number") from None
+                raise DataFormatError(
+                    f"{_where(path, no, i + 1, c)}: {s!r} is not a number") from None
             rule = checks.get(c, "finite")
             ok = math.isfinite(v) and (rule == "finite" or (rule == "positive" and v > 0.0)
                                        or (rule == "non-negative" and v >= 0.0))
             if not ok:
-                raise DataFormatError(f"{_where(path, no, i + 1, c)}: {s!r}: expected a {rule} number")
+                raise DataFormatError(
+                    f"{_where(path, no, i + 1, c)}: {s!r}: expected a {rule} number")
             out[c][k] = v
     return out
 
@@ -196,7 +203,8 @@ def _increasing(path, rows, header: list[str], t: np.ndarray, name: str = "t_s")
     if bad.size:
         k = int(bad[0]) + 1
         col = header.index(name) + 1
-        raise DataFormatError(f"{_where(path, rows[k][0], col, name)}: {t[k]!r} is not after the previous "
+        raise DataFormatError(f"{_where(path, rows[k][0], col, name)}: {t[k]!r} is not after the "
+                              "previous "
                               f"sample {t[k - 1]!r} (time must increase strictly)")
 
 
@@ -217,7 +225,8 @@ def read_creep_residuals(path: str | os.PathLike) -> CreepResiduals:
                     {"F_N": "positive", "t1_s": "positive", "x_residual_m": "positive"})
     labels = tuple(f[header.index("test")] for _, f in rows) if "test" in header else ()
     return CreepResiduals(cols["F_N"], cols["t1_s"], cols["x_residual_m"],
-                          _meta_float(path, meta, "length_m", SPECIMEN_LENGTH_M), str(path), labels)
+                          _meta_float(path, meta, "length_m", SPECIMEN_LENGTH_M), str(path),
+                          labels)
 
 
 def read_creep_curve(path: str | os.PathLike) -> CreepCurve:
@@ -229,7 +238,8 @@ def read_creep_curve(path: str | os.PathLike) -> CreepCurve:
     if "force_hold" in meta:
         hold, no = meta["force_hold"]
         if hold not in ("step", "linear"):
-            raise DataFormatError(f"{_where(path, no)}: metadata force_hold = {hold!r}: expected step or linear")
+            raise DataFormatError(
+                f"{_where(path, no)}: metadata force_hold = {hold!r}: expected step or linear")
     return CreepCurve(cols["t_s"], cols["F_N"], cols["x_m"],
                       _meta_float(path, meta, "length_m", SPECIMEN_LENGTH_M), hold, str(path))
 
@@ -246,12 +256,15 @@ def read_tensile_curve(path: str | os.PathLike, speed: float | None = None,
     cols = _columns(path, header, hl, rows, TENSILE_COLUMNS, {})
     _increasing(path, rows, header, cols["t_s"])
     file_speed = _meta_float(path, meta, "speed_m_per_s", None)
-    if file_speed is not None and speed is not None and not math.isclose(file_speed, speed, rel_tol=1e-9):
-        raise DataFormatError(f"{_where(path, meta['speed_m_per_s'][1])}: speed_m_per_s = {file_speed!r} "
+    if file_speed is not None and speed is not None and not math.isclose(file_speed, speed,
+                                                                         rel_tol=1e-9):
+        raise DataFormatError(f"{_where(path, meta['speed_m_per_s'][1])}: speed_m_per_s = "
+                              f"{file_speed!r} "
                               f"contradicts the speed given, {speed!r} m/s")
     v = speed if speed is not None else (file_speed if file_speed is not None else default_speed)
     if v is None:
-        raise DataFormatError(f"{path}: no pull speed (give it, or a '# speed_m_per_s: ...' comment)")
+        raise DataFormatError(
+            f"{path}: no pull speed (give it, or a '# speed_m_per_s: ...' comment)")
     if not (math.isfinite(v) and v > 0.0):
         raise DataFormatError(f"{path}: speed = {v!r} m/s: expected a positive number")
     if not (cols["t_s"] > 0.0).any():
@@ -261,7 +274,8 @@ def read_tensile_curve(path: str | os.PathLike, speed: float | None = None,
 
 
 def material_file_kind(path: str | os.PathLike) -> str:
-    """``"creep_residuals"``, ``"creep_curve"``, ``"tensile_curve"`` or ``"unknown"`` (by the header)."""
+    """``"creep_residuals"``, ``"creep_curve"``, ``"tensile_curve"`` or ``"unknown"`` (by the
+    header)."""
     return _kind(_parse(path)[1])
 
 
@@ -276,8 +290,10 @@ def read_material_file(path: str | os.PathLike, speed: float | None = None,
         return read_creep_curve(path)
     if kind == "tensile_curve":
         return read_tensile_curve(path, speed, default_speed)
-    raise DataFormatError(f"{_where(path, hl)}: header {','.join(header)} is none of the known formats "
-                          f"({','.join(CREEP_RESIDUAL_COLUMNS)} | {','.join(CREEP_CURVE_COLUMNS)} | "
+    raise DataFormatError(f"{_where(path, hl)}: header {','.join(header)} is none of the known "
+                          "formats "
+                          f"({','.join(CREEP_RESIDUAL_COLUMNS)} | {','.join(CREEP_CURVE_COLUMNS)} "
+                          "| "
                           f"{','.join(TENSILE_COLUMNS)})")
 
 

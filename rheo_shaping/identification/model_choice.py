@@ -56,8 +56,10 @@ class JointIdentification:
         w = {m: math.exp(-0.5 * (f.aic - amin)) for m, f in self.fits.items()}
         tot = sum(w.values())
         for m, f in self.fits.items():
-            rows.append({"model": m, "k": f.k, "n": f.n, "loglik": f.loglik, "aic": f.aic, "bic": f.bic,
-                         "delta_aic": f.aic - amin, "delta_bic": f.bic - bmin, "akaike_weight": w[m] / tot})
+            rows.append({"model": m, "k": f.k, "n": f.n, "loglik": f.loglik, "aic": f.aic,
+                         "bic": f.bic,
+                         "delta_aic": f.aic - amin, "delta_bic": f.bic - bmin,
+                         "akaike_weight": w[m] / tot})
         return rows
 
 
@@ -87,15 +89,19 @@ def identify_joint(tensile: list[TensileCurve] = (), residuals: list[CreepResidu
     best_aic = min(fits, key=lambda m: fits[m].aic)
     best_bic = min(fits, key=lambda m: fits[m].bic)
     if best_aic != best_bic:
-        notes.append(f"AIC prefers {best_aic}, BIC prefers {best_bic}: the extra element is weakly supported")
+        notes.append(
+            f"AIC prefers {best_aic}, BIC prefers {best_bic}: the extra element is weakly "
+            "supported")
     chosen = fits[best_bic]
     params = {k: v for k, v in chosen.params.items() if k in ("k1", "c1", "c2", "k2")}
-    params.setdefault("k2", Estimate(math.inf, None, None, "N/m", "no series spring in this model"))
+    params.setdefault("k2", Estimate(math.inf, None, None,
+                      "N/m", "no series spring in this model"))
     if best_bic == "maxwell" and "three-element" in fits:
         c1 = fits["three-element"].params["c1"]
         hi = None if c1.ci95 is None else c1.ci95[1]
         params["c1"] = Estimate(0.0, c1.se, (0.0, hi), "N s/m",
-                                f"Maxwell chosen (c1 = 0); the three-element fit gives c1 = {c1.value:.3g} N s/m")
+                                "Maxwell chosen (c1 = 0); the three-element fit gives c1 = "
+                                f"{c1.value:.3g} N s/m")
     for m, f in fits.items():
         lost = [n for n in ("k1", "c1", "c2", "j2") if n in f.params and f.params[n].se is None
                 and f.params[n].value is not None and not (n == "j2" and f.params[n].value == 0.0)
@@ -103,9 +109,12 @@ def identify_joint(tensile: list[TensileCurve] = (), residuals: list[CreepResidu
         if lost:
             notes.append(f"{m}: {', '.join(lost)} not identifiable from these data")
     te = fits.get("three-element")
-    if te is not None and te.params["c1"].se is None and any(c.offset is None for c in data.curves):
-        notes.append("c1 and the load-cell offsets are confounded: without samples at rest (t <= 0) "
-                     "or creep data a start-up jump F(0) (Eq. 11) looks like an offset, so the Maxwell "
+    if (te is not None and te.params["c1"].se is None
+            and any(c.offset is None for c in data.curves)):
+        notes.append("c1 and the load-cell offsets are confounded: without samples at rest (t <= "
+                     "0) "
+                     "or creep data a start-up jump F(0) (Eq. 11) looks like an offset, so the "
+                     "Maxwell "
                      "constants hold only if the load cell was zeroed")
     for m, f in fits.items():
         if not f.success:

@@ -43,12 +43,16 @@ class SyntheticTensile:
     true_force: np.ndarray
 
 
-def synthetic_tensile_curve(material: "ThreeElement | Burgers", speed: float = 1e-3, *, seed: int = 0,
+def synthetic_tensile_curve(material: "ThreeElement | "
+                                      "Burgers", speed: float = 1e-3, *, seed: int = 0,
                             rate_hz: float = 10.0, t_rest: float = 5.0, F_break: float = 1.04,
-                            break_spread: float = 0.0, t_propagation: float = 10.0, t_after: float = 5.0,
+                            break_spread: float = 0.0, t_propagation: float = 10.0,
+                            t_after: float = 5.0,
                             t_max: float = 120.0, noise_rel: float = 0.01, noise_abs: float = 1e-3,
-                            offset: float | None = None, offset_sd: float = 0.02) -> SyntheticTensile:
-    """One synthetic tensile test (see the module doc); ``offset=None`` draws it (sd ``offset_sd`` [N])."""
+                            offset: float | None = None,
+                            offset_sd: float = 0.02) -> SyntheticTensile:
+    """One synthetic tensile test (see the module doc); ``offset=None`` draws it (sd ``offset_sd``
+    [N])."""
     check_positive("speed [m/s]", speed)
     check_positive("rate_hz [1/s]", rate_hz)
     check_non_negative("t_rest [s]", t_rest)
@@ -62,7 +66,8 @@ def synthetic_tensile_curve(material: "ThreeElement | Burgers", speed: float = 1
     n_rest = int(round(t_rest * rate_hz))
     t_pull = np.arange(0, int(round(t_max * rate_hz)) + 1) * dt
     F_pull = elongation_response(material, t_pull, speed * t_pull).force
-    F_b = F_break * (1.0 + break_spread * rng.standard_normal()) if np.isfinite(F_break) else np.inf
+    F_b = F_break * (1.0 + break_spread * rng.standard_normal()
+                     ) if np.isfinite(F_break) else np.inf
     hit = np.flatnonzero(F_pull >= F_b)
     if hit.size:
         i_b = int(hit[0])
@@ -71,7 +76,8 @@ def synthetic_tensile_curve(material: "ThreeElement | Burgers", speed: float = 1
         t_pull = np.arange(0, n_end + 1) * dt
         F_pull = np.concatenate([F_pull[: i_b + 1], np.zeros(n_end - i_b)])
         after = t_pull > t_b
-        F_pull[after] = F_pull[i_b] * np.clip(1.0 - (t_pull[after] - t_b) / t_propagation, 0.0, None)
+        F_pull[after] = F_pull[i_b] * \
+            np.clip(1.0 - (t_pull[after] - t_b) / t_propagation, 0.0, None)
         F_crack: float | None = float(F_pull[i_b])
     else:
         t_b, F_crack = None, None
@@ -88,16 +94,19 @@ def synthetic_tensile_curve(material: "ThreeElement | Burgers", speed: float = 1
 
 def synthetic_tensile_set(material: "ThreeElement | Burgers", speeds=(1e-3,), n_per_speed: int = 5,
                           seed: int = 0, **kw) -> list[SyntheticTensile]:
-    """``n_per_speed`` synthetic tensile curves at each of ``speeds`` [m/s], seeds ``seed, seed+1, ...``."""
+    """``n_per_speed`` synthetic tensile curves at each of ``speeds`` [m/s], seeds ``seed, seed+1,
+    ...``."""
     out = []
     for i, v in enumerate(np.repeat(np.asarray(speeds, dtype=float), n_per_speed)):
         out.append(synthetic_tensile_curve(material, float(v), seed=seed + i, **kw))
     return out
 
 
-def synthetic_creep_residuals(material: "ThreeElement | Burgers", force: float = 0.5, t1: float = 60.0,
+def synthetic_creep_residuals(material: "ThreeElement | "
+                                        "Burgers", force: float = 0.5, t1: float = 60.0,
                               n: int = 10, sd: float = 0.83e-3, seed: int = 0) -> CreepResiduals:
-    """``n`` creep residuals F t1/c2 (Eq. 9) [m] plus Gaussian scatter ``sd`` [m] (Table 1's is 0.83 mm)."""
+    """``n`` creep residuals F t1/c2 (Eq. 9) [m] plus Gaussian scatter ``sd`` [m] (Table 1's is
+    0.83 mm)."""
     check_positive("force [N]", force)
     check_positive("t1 [s]", t1)
     check_non_negative("sd [m]", sd)
@@ -110,10 +119,12 @@ def synthetic_creep_residuals(material: "ThreeElement | Burgers", force: float =
 def synthetic_creep_curve(material: "ThreeElement | Burgers", force: float = 0.5, t1: float = 60.0,
                           t_end: float = 120.0, rate_hz: float = 2.0, sd: float = 2e-4,
                           seed: int = 0) -> CreepCurve:
-    """A creep-recovery curve: ``force`` [N] from 0 to ``t1`` [s], then 0; elongation noise ``sd`` [m]."""
+    """A creep-recovery curve: ``force`` [N] from 0 to ``t1`` [s], then 0; elongation noise ``sd``
+    [m]."""
     check_positive("t_end [s]", t_end)
     rng = np.random.default_rng(seed)
     t = np.arange(0, int(round(t_end * rate_hz)) + 1) / rate_hz
     F = np.where(t < t1, force, 0.0)
     x = force_response(material, t, F, hold="step").elongation + sd * rng.standard_normal(t.size)
-    return CreepCurve(t, F, x, material.length, "step", source=f"synthetic (seed {seed}) from {material!r}")
+    return CreepCurve(t, F, x, material.length, "step", source=f"synthetic (seed {seed}) from "
+                                                               f"{material!r}")

@@ -22,7 +22,8 @@ def _times(t) -> np.ndarray:
     t = np.asarray(t, dtype=float)
     if np.isnan(t).any() or (t < 0.0).any():
         bad = t[np.isnan(t) | (t < 0.0)].flat[0]
-        raise ValueError(f"time t [s] = {float(bad)!r}: expected t >= 0 (from the start of the loading)")
+        raise ValueError(
+            f"time t [s] = {float(bad)!r}: expected t >= 0 (from the start of the loading)")
     return t
 
 
@@ -143,7 +144,8 @@ def c1_from_initial_force(F0: float, c2: float, speed: float) -> float:
     if F0 <= 0.0:
         return 0.0
     if F0 >= c2 * v:
-        raise ValueError(f"initial force F0 [N] = {F0!r}: expected F0 < c2 v = {c2 * v!r} N (Eq. 11)")
+        raise ValueError(
+            f"initial force F0 [N] = {F0!r}: expected F0 < c2 v = {c2 * v!r} N (Eq. 11)")
     return c2 * F0 / (c2 * v - F0)
 
 

@@ -51,18 +51,22 @@ def check_history(t, values, name: str, unit: str) -> tuple[np.ndarray, np.ndarr
     t = np.asarray(t, dtype=float)
     y = np.asarray(values, dtype=float)
     if t.ndim != 1 or t.size == 0:
-        raise ValueError(f"time samples t [s] with shape {t.shape}: expected a non-empty 1-D array")
+        raise ValueError(
+            f"time samples t [s] with shape {t.shape}: expected a non-empty 1-D array")
     if y.shape != t.shape:
-        raise ValueError(f"{name} [{unit}] with shape {y.shape}: expected the shape of t, {t.shape}")
+        raise ValueError(
+            f"{name} [{unit}] with shape {y.shape}: expected the shape of t, {t.shape}")
     for arr, label, u in ((t, "time t", "s"), (y, name, unit)):
         bad = ~np.isfinite(arr)
         if bad.any():
             i = int(np.argmax(bad))
-            raise ValueError(f"{label} [{u}] = {float(arr[i])!r} at sample {i}: expected a finite number")
+            raise ValueError(
+                f"{label} [{u}] = {float(arr[i])!r} at sample {i}: expected a finite number")
     steps = np.diff(t)
     if (steps <= 0.0).any():
         i = int(np.argmax(steps <= 0.0)) + 1
-        raise ValueError(f"time t [s] = {float(t[i])!r} at sample {i}: expected it to be greater than "
+        raise ValueError(f"time t [s] = {float(t[i])!r} at sample {i}: expected it to be greater "
+                         "than "
                          f"the previous sample {float(t[i - 1])!r} (strictly increasing)")
     return t, y
 
@@ -102,7 +106,8 @@ def _kv_hold(k1: float, c1: float, e1: float, F0: float, slope: float, h: float)
     lam_h = k1 * h / c1
     eps = math.exp(-lam_h)
     # h - (1 - eps)/lam = h (1 - g), g = (1 - eps)/(lam h); series for small lam h
-    one_minus_g = lam_h / 2.0 - lam_h * lam_h / 6.0 if lam_h < 1e-4 else 1.0 + math.expm1(-lam_h) / lam_h
+    one_minus_g = lam_h / 2.0 - lam_h * lam_h / \
+        6.0 if lam_h < 1e-4 else 1.0 + math.expm1(-lam_h) / lam_h
     return eps * e1 + (F0 / k1) * (-math.expm1(-lam_h)) + (slope / k1) * h * one_minus_g
 
 
@@ -118,7 +123,9 @@ def force_response(material: "ThreeElement | Burgers", t, force, hold: str = "li
     t, Fs = check_history(t, force, "force", "N")
     if (Fs < 0.0).any():
         i = int(np.argmax(Fs < 0.0))
-        raise ValueError(f"force [N] = {float(Fs[i])!r} at sample {i}: expected >= 0 (the unit carries tension only)")
+        raise ValueError(
+            f"force [N] = {float(Fs[i])!r} at sample {i}: expected >= 0 (the unit carries tension "
+            "only)")
     k1, c1, c2 = material.k1, material.c1, material.c2
     j2 = material.j2 if isinstance(material, Burgers) else 0.0
     n = t.size

@@ -44,5 +44,6 @@ def monitor() -> int:
 if __name__ == "__main__":  # pragma: no cover - python -m rheo_shaping.nodes.entry NODE ...
     name = sys.argv.pop(1) if len(sys.argv) > 1 else ""
     if name not in ("simulator", "planner", "monitor"):
-        sys.exit("usage: python -m rheo_shaping.nodes.entry simulator|planner|monitor [--ros-args ...]")
+        sys.exit(
+            "usage: python -m rheo_shaping.nodes.entry simulator|planner|monitor [--ros-args ...]")
     sys.exit(_run(name))

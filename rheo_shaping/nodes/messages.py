@@ -129,7 +129,8 @@ def diagnostics_msg(ns: int, name: str, level: str, message: str, values: dict,
                     hardware_id: str = "shaping_cell") -> DiagnosticArray:
     status = DiagnosticStatus(level=LEVELS[level], name=name, message=message,
                               hardware_id=hardware_id,
-                              values=[KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()])
+                              values=[KeyValue(key=str(k), value=_fmt(v)) for k,
+                                      v in values.items()])
     msg = DiagnosticArray(status=[status])
     msg.header.stamp = time_msg(ns)
     return msg

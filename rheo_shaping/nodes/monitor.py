@@ -122,7 +122,8 @@ class MonitorNode(Node):
         self.budget = {"r": r, "horizon": self.horizon, "sigma": s.noise_sigma,
                        "rows": [(row.movement, row.F_max, row.r) for row in rows]}
         self.get_logger().info(
-            f"abort_ratio 0: safety principle 4 at {cell.movement.speed * 1e3:g} mm/s: r = {r:.3f} N/s "
+            f"abort_ratio 0: safety principle 4 at {cell.movement.speed * 1e3:g} mm/s: r = "
+            f"{r:.3f} N/s "
             f"(movements 1-4, core), F_abort = {Fb:g} - {r:.3f} x {self.horizon:.3f} - "
             f"3 x {s.noise_sigma:g} = {F_abort:.4f} N, ratio {self.ratio:.3f}")
 
@@ -152,7 +153,8 @@ class MonitorNode(Node):
             self._abort(f"no abort threshold after the parameter change: {exc}")   # fail safe
             return
         self._configure()
-        self.get_logger().info(f"parameters {sorted(names)} changed: abort at {self.threshold:.4f} N, "
+        self.get_logger().info(f"parameters {sorted(names)} changed: abort at "
+                               f"{self.threshold:.4f} N, "
                                f"trend horizon {self.horizon:.3f} s")
 
     def _publisher(self, topic: T.Topic):

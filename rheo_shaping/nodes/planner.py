@@ -159,7 +159,8 @@ class PlannerNode(Node):
             except ValueError as exc:
                 raise ParameterError(f"optimise_d: {exc}") from None
             self.get_logger().info(
-                f"optimise_d: d = {choice.d * 1e3:.2f} mm, predicted F_max = {choice.F_max:.4f} N, "
+                f"optimise_d: d = {choice.d * 1e3:.2f} mm, predicted F_max = {choice.F_max:.4f} "
+                "N, "
                 f"Delta = {choice.delta * 1e3:.3f} mm (limit {s.delta_limit * 1e3:g} mm)")
             cell = replace(cell, movement=replace(cell.movement, d=choice.d))
         try:
@@ -246,7 +247,8 @@ class PlannerNode(Node):
         if self._tool_pose is None or self._hold is not None:
             return ""
         tol = self.settings.start_tolerance
-        for name, where in (("home", self.cell_used.tool.home), ("the plan's start", self.plan.start)):
+        for name, where in (("home", self.cell_used.tool.home),
+                            ("the plan's start", self.plan.start)):
             if np.hypot(*(self._tool_pose - np.asarray(where, float))) <= tol:
                 return ""
         x, z = self._tool_pose
@@ -281,9 +283,11 @@ class PlannerNode(Node):
 
     def _on_start(self, request, response):
         if self.streamer is not None:
-            response.success, response.message = False, f"already started ({self._state}); ~/reset first"
+            response.success = False
+            response.message = f"already started ({self._state}); ~/reset first"
         elif self.aborted:
-            response.success, response.message = False, f"aborted ({self.abort_reason}); ~/reset first"
+            response.success = False
+            response.message = f"aborted ({self.abort_reason}); ~/reset first"
         else:
             self._start_requested = True
             if self._tool_away():
@@ -306,8 +310,9 @@ class PlannerNode(Node):
         self._start_failed = ""
         self._set_state("idle" if not self.settings.autostart else "waiting")
         response.success = True
-        response.message = "re-armed" + (f"; the tool holds at ({self._hold[0]:.4f}, {self._hold[1]:.4f}) m"
-                                          if self._hold is not None else "")
+        response.message = "re-armed" + (f"; the tool holds at ({self._hold[0]:.4f}, "
+                                         f"{self._hold[1]:.4f}) m"
+                                         if self._hold is not None else "")
         self.get_logger().info(f"reset: {response.message}")
         return response
 
@@ -360,7 +365,8 @@ class PlannerNode(Node):
                                       retract_limits=self._retract_limits())
         streamer.start(plan, now_ns / NS)
         self.streamer, self._t0_ns, self._k, self._last_cmd_ns = streamer, now_ns, 0, None
-        self.pub_trajectory.publish(m.trajectory_msg(plan, now_ns, self.settings.trajectory_period))
+        self.pub_trajectory.publish(m.trajectory_msg(
+            plan, now_ns, self.settings.trajectory_period))
         self.get_logger().info(f"starting the plan at t = {now_ns / NS:.3f} s "
                                f"({plan.duration:.1f} s, {len(plan.segments)} segments)")
         self._stream()

@@ -73,12 +73,14 @@ class SimulatorNode(Node):
         self.pub_markers = pub(T.MARKERS)
         self.pub_diag = pub(T.DIAGNOSTICS)
         self.pub_camera = pub(T.MEASURED_PROFILE)
-        self.pub_clock = None                  # only while this node is the clock (_configure_time)
+        # only while this node is the clock (_configure_time)
+        self.pub_clock = None
         self.create_subscription(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name, self._on_command,
                                  T.TOOL_COMMAND.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
-        self._t_ns = 0                 # time of the latest computed state (node or simulated clock)
+        # time of the latest computed state (node or simulated clock)
+        self._t_ns = 0
         self._pending = False          # a step is due (lockstep may hold it back)
         self._waits = 0                # lockstep waits so far
         self._late_steps = 0           # steps taken without their set-point (stream lost/late)
@@ -93,11 +95,13 @@ class SimulatorNode(Node):
         self.achieved_factor = math.nan
         self._configure_time()
         self._new_run()
-        self._timer = self.create_timer(self.settings.step_period, self._on_timer, clock=self._steady)
+        self._timer = self.create_timer(self.settings.step_period,
+                                        self._on_timer, clock=self._steady)
         mode = (f"simulated time x{self.settings.real_time_factor:g}, publishing /clock"
                 if self._sim_clock else "wall-clock time")
         self.get_logger().info(
-            f"simulator up: {self.cell.sheet.n_masses} masses, movement {self.cell.movement.number}, "
+            f"simulator up: {self.cell.sheet.n_masses} masses, movement "
+            f"{self.cell.movement.number}, "
             f"{mode}, step {self._dt_ns / NS:g} s every {self.settings.step_period:g} s")
 
     def _publisher(self, topic: T.Topic, qos=None):
@@ -360,7 +364,8 @@ class SimulatorNode(Node):
             level, message = "OK", f"process time {st.t:.1f} s"
         else:
             level, message = "OK", f"process done at {self._run_cell.movement.process_time:g} s"
-        values = {"process_time": float(st.t), "tool_x": float(st.tool[0]), "tool_z": float(st.tool[1]),
+        values = {"process_time": float(st.t), "tool_x": float(st.tool[0]),
+                  "tool_z": float(st.tool[1]),
                   "tension_max": float(np.max(self.run.tensions())),
                   "F_max": float(self.peak.value) if self.started else 0.0,
                   "real_time_factor": self.settings.real_time_factor,

@@ -104,7 +104,8 @@ def sections(data: dict, path: str | Path = "") -> dict[str, dict[str, Any]]:
             name = f"{prefix}/{key}" if prefix else str(key)
             if not isinstance(value, dict):
                 where = f"section '{prefix}' has no 'ros__parameters': " if prefix else ""
-                example = f"{prefix.rsplit('/', 1)[-1]}: {{{key}: ...}}" if prefix else f"{key}: ..."
+                example = (f"{prefix.rsplit('/', 1)[-1]}: {{{key}: ...}}" if prefix
+                           else f"{key}: ...")
                 raise ConfigError(
                     f"{path}: {where}'{key}' = {value!r} sits where rcl expects a node "
                     f"section; expected parameters under '<node>: ros__parameters:', e.g. "

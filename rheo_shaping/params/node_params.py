@@ -1,7 +1,8 @@
 """Settings of the ROS 2 nodes (simulator, planner, monitor): one schema for
 the nodes, the params YAML and the one-process runner (``rheo-shaping cell``).
 
-Like :mod:`rheo_shaping.params.params`, every field carries a :class:`~rheo_shaping.params.schema.Spec`
+Like :mod:`rheo_shaping.params.params`, every field carries a
+:class:`~rheo_shaping.params.schema.Spec`
 (description, unit, range); ``rheo_shaping/nodes/ros_params.py`` turns them into
 ROS parameters with descriptors and range checks.  The names are plain (no
 section prefix): they live in the node's own section of the params file
@@ -32,11 +33,13 @@ class SimulatorNodeParams:
         lo_open=True)
     step_period: float = param(
         0.02, "wall-clock period of the step timer; each step advances simulated time by "
-        "real_time_factor x step_period (the core sub-steps within it)", "s", 0.0, 1.0, lo_open=True)
+        "real_time_factor x step_period (the core sub-steps within "
+        "it)", "s", 0.0, 1.0, lo_open=True)
     publish_period: float = param(
         0.05, "simulated time between published sheet states (0: every step)", "s", 0.0, 10.0)
     publish_markers: bool = param(True, "publish /sheet/markers for RViz")
-    marker_period: float = param(0.2, "wall-clock time between /sheet/markers", "s", 0.0, 60.0, lo_open=True)
+    marker_period: float = param(
+        0.2, "wall-clock time between /sheet/markers", "s", 0.0, 60.0, lo_open=True)
     publish_clock: bool = param(
         False, "publish /clock (simulated time) even when real_time_factor is 1")
     lockstep: bool = param(
@@ -56,12 +59,14 @@ class SimulatorNodeParams:
         "requesting a shorter one (the monitor requests max_data_age) gets no data", "s",
         0.0, 60.0, lo_open=True)
     diagnostics_period: float = param(
-        1.0, "wall-clock time between the simulator's /diagnostics status", "s", 0.0, 60.0, lo_open=True)
+        1.0, "wall-clock time between the simulator's /diagnostics "
+             "status", "s", 0.0, 60.0, lo_open=True)
     progress_period: float = param(
         10.0, "process time between progress lines in the log (0: none)", "s", 0.0, 3600.0)
     camera: bool = param(
         True, "publish sheet/measured_profile: a simulated camera with the measurement model of "
-        "rheo-shaping record (rheo_shaping.records.measurement: points along the centreline, noise, "
+        "rheo-shaping record (rheo_shaping.records.measurement: points along the centreline, "
+        "noise, "
         "dropouts), stamped with the state's time")
     camera_rate: float = param(2.0, "camera frames per second of process time", "Hz", 0.0, 100.0,
                                lo_open=True)
@@ -96,11 +101,14 @@ class PlannerNodeParams:
         1.0, "wall-clock age of the monitor's last ready heartbeat beyond which it counts as "
         "lost", "s", 0.0, 60.0, lo_open=True)
     retract_speed: float = param(
-        1e-3, "tool speed of the slow retract to home after an abort", "m/s", 0.0, 0.1, lo_open=True)
+        1e-3, "tool speed of the slow retract to home after an "
+              "abort", "m/s", 0.0, 0.1, lo_open=True)
     retract_accel: float = param(
-        2.5e-3, "tool acceleration limit of the retract after an abort", "m/s^2", 0.0, 10.0, lo_open=True)
+        2.5e-3, "tool acceleration limit of the retract after an "
+                "abort", "m/s^2", 0.0, 10.0, lo_open=True)
     retract_jerk: float = param(
-        2.5e-2, "tool jerk limit of the retract after an abort", "m/s^3", 0.0, 1000.0, lo_open=True)
+        2.5e-2, "tool jerk limit of the retract after an "
+                "abort", "m/s^3", 0.0, 1000.0, lo_open=True)
     clearance_factor: float = param(
         1.0, "refuse a plan whose tool comes closer to the cake or the workplane than "
         "clearance_factor x sheet.thickness: it would pinch the sheet, whose tension then jumps "
@@ -113,9 +121,11 @@ class PlannerNodeParams:
         "F_max with Delta <= delta_limit, paper Fig. 18)")
     d_min: float = param(0.010, "smallest d tried by optimise_d", "m", 0.0, 1.0)
     d_max: float = param(0.020, "largest d tried by optimise_d", "m", 0.0, 1.0)
-    d_step: float = param(0.0005, "spacing of the d values tried by optimise_d", "m", 0.0, 1.0, lo_open=True)
+    d_step: float = param(0.0005, "spacing of the d values tried by optimise_d",
+                          "m", 0.0, 1.0, lo_open=True)
     delta_limit: float = param(
-        5e-3, "quality limit on the residual gap Delta for optimise_d", "m", 0.0, 1.0, lo_open=True)
+        5e-3, "quality limit on the residual gap Delta for "
+              "optimise_d", "m", 0.0, 1.0, lo_open=True)
     optimise_workers: int = param(
         1, "processes used by optimise_d (1: in the node's process)", "", 1, 64)
 
@@ -138,10 +148,12 @@ class MonitorNodeParams:
         0.005, "1-sigma noise of the tension data budgeted by abort_ratio 0 (simulated data: "
         "none; a load cell's)", "N", 0.0, 10.0)
     warn_ratio: float = param(
-        0.8, "diagnostics WARN from this fraction of the abort threshold", "", 0.0, 1.0, lo_open=True)
+        0.8, "diagnostics WARN from this fraction of the abort "
+             "threshold", "", 0.0, 1.0, lo_open=True)
     max_data_age: float = param(
         0.5, "longest time without tension data (wall-clock age of the newest sample on a "
-        "steady clock, and the QoS deadline requested); longer: abort", "s", 0.0, 60.0, lo_open=True)
+        "steady clock, and the QoS deadline requested); longer: "
+        "abort", "s", 0.0, 60.0, lo_open=True)
     max_stamp_age: float = param(
         2.0, "oldest header stamp accepted on /sheet/profile and /tool/wrench, against the "
         "node's clock (a source replaying old data); older: abort. On simulated time keep it "
@@ -183,7 +195,8 @@ NODE_PARAMETER_NAMES: frozenset[str] = frozenset(
     fi.name for cls in NODE_PARAMS.values() for fi in iter_fields(cls))
 
 #: Parameters every rclpy node has, which may appear in a params file.
-ROS_BUILTIN_PARAMETERS: frozenset[str] = frozenset({"use_sim_time", "start_type_description_service"})
+ROS_BUILTIN_PARAMETERS: frozenset[str] = frozenset(
+    {"use_sim_time", "start_type_description_service"})
 
 
 def parameter_table(cls: type) -> str:

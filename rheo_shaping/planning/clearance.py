@@ -21,7 +21,8 @@ from ..sheet.tools import tool_shape
 
 @dataclass(frozen=True)
 class Clearance:
-    """Smallest gap [m] between tool and mould, where the tool was (x, z) [m], when [s], and what."""
+    """Smallest gap [m] between tool and mould, where the tool was (x, z) [m], when [s], and
+    what."""
 
     gap: float
     at: tuple[float, float]
@@ -29,20 +30,25 @@ class Clearance:
     obstacle: str
 
 
-def plan_clearance(params: CellParams, plan: Plan, step: float = 2e-4, n_outline: int = 96) -> Clearance:
-    """The smallest tool-to-mould gap along ``plan`` (sampled every ``step`` [m] of travel or less)."""
+def plan_clearance(params: CellParams, plan: Plan, step: float = 2e-4,
+                   n_outline: int = 96) -> Clearance:
+    """The smallest tool-to-mould gap along ``plan`` (sampled every ``step`` [m] of travel or
+    less)."""
     v = max(plan.max_speed, 1e-12)
     dt = min(step / v, max(plan.duration, 1e-9))
-    times = np.unique(np.concatenate([np.arange(0.0, plan.duration, dt), plan.knots(), [plan.duration]]))
+    times = np.unique(np.concatenate(
+        [np.arange(0.0, plan.duration, dt), plan.knots(), [plan.duration]]))
     pos, _, _ = plan.sample_many(times)
     outline = tool_shape(params.tool).outline(n_outline)               # (K, 2) about the reference
     pts = (pos[:, None, :] + outline[None, :, :]).reshape(-1, 2)
     c = params.cake
     best = None
-    for name, shape in (("cake", Cake(c.height, c.fillet_radius, c.radius)), ("workplane", Workplane())):
+    for name, shape in (("cake", Cake(c.height, c.fillet_radius, c.radius)),
+                        ("workplane", Workplane())):
         d, _ = shape.signed_distance(pts)
         d = d.reshape(len(times), -1).min(axis=1)
         k = int(np.argmin(d))
         if best is None or d[k] < best.gap:
-            best = Clearance(float(d[k]), (float(pos[k, 0]), float(pos[k, 1])), float(times[k]), name)
+            best = Clearance(float(d[k]), (float(pos[k, 0]),
+                             float(pos[k, 1])), float(times[k]), name)
     return best

@@ -60,7 +60,8 @@ class Pieces:
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "_t0_list", self.t0.tolist())
         object.__setattr__(
-            self, "_rows", list(zip(self.p0.tolist(), self.v0.tolist(), self.a0.tolist(), self.j.tolist()))
+            self, "_rows", list(zip(self.p0.tolist(), self.v0.tolist(),
+                                self.a0.tolist(), self.j.tolist()))
         )
 
 
@@ -130,7 +131,8 @@ def check_phase_synchronised(traj: Trajectory, d: np.ndarray) -> None:
             raise RuntimeError(f"ruckig did not phase-synchronise the segment: {t0} vs {t1}")
 
 
-def append_trajectory(axes: tuple[AxisBuilder, AxisBuilder], traj: Trajectory, t_start: float) -> np.ndarray:
+def append_trajectory(axes: tuple[AxisBuilder, AxisBuilder], traj: Trajectory,
+                      t_start: float) -> np.ndarray:
     """Copy a single-section ruckig trajectory that ends at rest into the axis
     builders, shifted by ``t_start`` [s]; returns its end position (2,) [m]."""
     end = np.empty(2)

@@ -73,7 +73,8 @@ class Waypoint:
     z: float
     dwell_s: float = 0.0
     label: str = ""
-    limits: "MotionLimits | None" = None   # limits of the move to this waypoint (default: the plan's)
+    # limits of the move to this waypoint (default: the plan's)
+    limits: "MotionLimits | None" = None
 
     def __post_init__(self) -> None:
         check_finite("Waypoint.x [m]", self.x)
@@ -81,7 +82,8 @@ class Waypoint:
         v = check_number("Waypoint.dwell_s [s]", self.dwell_s)
         if not math.isfinite(v) or v < 0.0:
             raise ValueError(
-                f"Waypoint.dwell_s [s] = {self.dwell_s!r} is out of range: expected a finite value >= 0"
+                f"Waypoint.dwell_s [s] = {self.dwell_s!r} is out of range: expected a finite "
+                "value >= 0"
             )
 
     @property
@@ -127,7 +129,8 @@ class Plan:
 
     # -- sampling ---------------------------------------------------------
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position [m], velocity [m/s], acceleration [m/s^2], each (2,), at time ``t`` [s] (clamped)."""
+        """Position [m], velocity [m/s], acceleration [m/s^2], each (2,), at time ``t`` [s]
+        (clamped)."""
         t = float(t)
         if math.isnan(t):
             raise ValueError("Plan.sample: t is NaN")
@@ -234,11 +237,13 @@ def plan_waypoints(
         if float(np.linalg.norm(target - p)) > MIN_MOVE_M:
             traj = line_trajectory(p, target, wp.limits or limits)
             p = append_trajectory(axes, traj, t)
-            segments.append(Segment(t, t + traj.duration, "move", nominal, as_point(target), move_label))
+            segments.append(Segment(t, t + traj.duration, "move",
+                            nominal, as_point(target), move_label))
             t += traj.duration
             nominal = as_point(target)
         if wp.dwell_s > 0.0:
-            segments.append(Segment(t, t + wp.dwell_s, "dwell", as_point(target), as_point(target), dwell_label))
+            segments.append(Segment(t, t + wp.dwell_s, "dwell",
+                            as_point(target), as_point(target), dwell_label))
             t += wp.dwell_s
     return assemble_plan(segments, t, limits, start_xz, axes)
 
@@ -252,7 +257,8 @@ def rest_to_rest_time(distance: float, limits: MotionLimits) -> float:
     """
     d = check_number("distance [m]", distance)
     if not math.isfinite(d) or d < 0.0:
-        raise ValueError(f"distance [m] = {distance!r} is out of range: expected a finite value >= 0")
+        raise ValueError(
+            f"distance [m] = {distance!r} is out of range: expected a finite value >= 0")
     v, a, j = limits.v_max, limits.a_max, limits.j_max
     if v >= a * a / j:  # a_max is reached on the way to v_max
         if d >= v * (v / a + a / j):
@@ -269,8 +275,9 @@ def rest_to_rest_time(distance: float, limits: MotionLimits) -> float:
 
 
 def assemble_plan(segments: list[Segment], duration: float, limits: MotionLimits,
-            start_xz: Sequence[float], axes: tuple[AxisBuilder, AxisBuilder]) -> Plan:
-    return Plan(tuple(segments), float(duration), limits, as_point(start_xz), (axes[0].build(), axes[1].build()))
+                  start_xz: Sequence[float], axes: tuple[AxisBuilder, AxisBuilder]) -> Plan:
+    return Plan(tuple(segments), float(duration), limits, as_point(start_xz),
+                (axes[0].build(), axes[1].build()))
 
 
 def _labels(wp: Waypoint, i: int, label_phases: bool) -> tuple[str, str]:

@@ -58,7 +58,8 @@ def movement_scenario(params: CellParams, number: int | None = None,
     if number in (1, 2, 3):
         start = tuple(getattr(mv, f"start_{number}"))
         end = tuple(getattr(mv, f"end_{number}"))
-        return Scenario(start, (Move(end, speed, dwell, "forced"), Move(start, back, 0.0, "retract")))
+        return Scenario(start,
+                        (Move(end, speed, dwell, "forced"), Move(start, back, 0.0, "retract")))
     if number == 4:
         d = mv.d if d is None else float(d)
         x_v = d + tool_inner_offset(params)
@@ -74,10 +75,12 @@ def movement_scenario(params: CellParams, number: int | None = None,
         pts = np.asarray(mv.waypoints, float).reshape(-1, 2)
         dwells = list(mv.dwells) + [0.0] * (len(pts) - len(mv.dwells))
         home = tuple(params.tool.home)
-        moves = [Move(tuple(p), speed, dw, f"waypoint_{i}") for i, (p, dw) in enumerate(zip(pts, dwells))]
+        moves = [Move(tuple(p), speed, dw, f"waypoint_{i}")
+                 for i, (p, dw) in enumerate(zip(pts, dwells))]
         moves.append(Move(home, back, 0.0, "retract"))
         return Scenario(home, tuple(moves))
-    raise ValueError(f"parameter 'movement.number' = {number!r} is invalid: expected 0, 1, 2, 3 or 4")
+    raise ValueError(
+        f"parameter 'movement.number' = {number!r} is invalid: expected 0, 1, 2, 3 or 4")
 
 
 def scenario_polyline(scenario: Scenario) -> PolylinePath:
@@ -102,7 +105,8 @@ def scenario_plan(params: CellParams, scenario: Scenario) -> "ScenarioPlan":
     """The scenario as one jerk-limited ruckig plan (rest at every waypoint)."""
     waypoints = [Waypoint(float(m.target[0]), float(m.target[1]), m.dwell, m.label,
                           movement_limits(params, m.speed)) for m in scenario.moves]
-    plan = plan_waypoints(scenario.start, waypoints, movement_limits(params, params.movement.speed),
+    plan = plan_waypoints(scenario.start, waypoints,
+                          movement_limits(params, params.movement.speed),
                           label_phases=False)
     return ScenarioPlan(plan)
 

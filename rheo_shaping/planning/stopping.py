@@ -1,6 +1,7 @@
 """Planned, jerk-limited stops (IEC 60204-1 category 2) and the online streamer.
 
-Safety principles 3-5 (docs/safety-principles.md): an abort latches, the stop is planned (ruckig from
+Safety principles 3-5 (docs/safety-principles.md): an abort latches, the stop is planned (ruckig
+from
 the current state to rest within the limits, then hold), and the monitor
 budgets its threshold with the stopping time.  No ROS imports here.
 
@@ -111,7 +112,8 @@ class TrajectoryStreamer:
 
     def __init__(self, home_xz: Optional[Sequence[float]] = None,
                  retract_limits: MotionLimits = DEFAULT_RETRACT_LIMITS, *,
-                 retract_via: Sequence[Waypoint] = (), initial_xz: Optional[Sequence[float]] = None,
+                 retract_via: Sequence[Waypoint] = (),
+                 initial_xz: Optional[Sequence[float]] = None,
                  jump_tolerance_m: float = 1e-6) -> None:
         self.home = None if home_xz is None else check_point("home_xz [m]", home_xz)
         self.retract_limits = retract_limits
@@ -119,7 +121,8 @@ class TrajectoryStreamer:
         check_positive("jump_tolerance_m [m]", jump_tolerance_m)
         self.jump_tolerance_m = float(jump_tolerance_m)
         hold = initial_xz if initial_xz is not None else home_xz
-        self._hold: Optional[np.ndarray] = None if hold is None else check_point("initial_xz [m]", hold)
+        self._hold: Optional[np.ndarray] = None if hold is None else check_point(
+            "initial_xz [m]", hold)
         self._known_hold = initial_xz is not None
         self._clear()
 
@@ -164,7 +167,8 @@ class TrajectoryStreamer:
         """Run ``plan`` from time ``t0`` [s].  Only from ``idle``; the plan must
         start where the tool holds (within ``jump_tolerance_m``) if that is known."""
         if self._state != "idle":
-            raise RuntimeError(f"start() needs state 'idle', not {self._state!r} (call reset() first)")
+            raise RuntimeError(
+                f"start() needs state 'idle', not {self._state!r} (call reset() first)")
         if not isinstance(plan, Plan):
             raise TypeError(f"plan must be a Plan, got {type(plan).__name__}")
         t0 = check_finite("t0 [s]", t0)
@@ -179,11 +183,13 @@ class TrajectoryStreamer:
         self._state, self._final_state = "running", "done"
 
     def setpoint(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position [m], velocity [m/s], acceleration [m/s^2] (each (2,)) to command at ``t`` [s]."""
+        """Position [m], velocity [m/s], acceleration [m/s^2] (each (2,)) to command at ``t``
+        [s]."""
         t = self._advance(check_finite("t [s]", t))
         if self._phase_plan is None:
             if self._hold is None:
-                raise RuntimeError("no plan and no known position to hold (give home_xz or initial_xz)")
+                raise RuntimeError(
+                    "no plan and no known position to hold (give home_xz or initial_xz)")
             return self._hold.copy(), np.zeros(2), np.zeros(2)
         return self._phase_plan.sample(t - self._phase_t0)
 
@@ -204,9 +210,11 @@ class TrajectoryStreamer:
         self._rest_time = t + self._stop.duration
         self._queue = []
         if retract:
-            waypoints = [*self.retract_via, Waypoint(float(self.home[0]), float(self.home[1]), label="home")]
+            waypoints = [*self.retract_via,
+                         Waypoint(float(self.home[0]), float(self.home[1]), label="home")]
             rest = self._stop.end
-            self._queue.append(("retracting", plan_waypoints(rest, waypoints, self.retract_limits)))
+            self._queue.append(("retracting", plan_waypoints(
+                rest, waypoints, self.retract_limits)))
         self._phase_plan, self._phase_t0 = self._stop, t
         self._state, self._final_state = "stopping", "holding"
         self._advance(t)

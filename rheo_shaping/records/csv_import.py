@@ -36,7 +36,8 @@ def read_table(path: str | Path, columns: tuple[str, ...]) -> np.ndarray:
     header = [h.strip() for h in rows[0]]
     missing = [c for c in columns if c not in header]
     if missing:
-        raise RecordError(f"{p}: line 1: missing column '{missing[0]}' (header {','.join(header)}; "
+        raise RecordError(f"{p}: line 1: missing column '{missing[0]}' (header "
+                          f"{','.join(header)}; "
                           f"expected {','.join(columns)})")
     idx = [header.index(c) for c in columns]
     out = []
@@ -50,9 +51,11 @@ def read_table(path: str | Path, columns: tuple[str, ...]) -> np.ndarray:
             try:
                 v = float(row[i])
             except ValueError:
-                raise RecordError(f"{p}: line {line}, column '{c}': {row[i]!r} is not a number") from None
+                raise RecordError(
+                    f"{p}: line {line}, column '{c}': {row[i]!r} is not a number") from None
             if not math.isfinite(v):
-                raise RecordError(f"{p}: line {line}, column '{c}': {row[i]!r} is not a finite number")
+                raise RecordError(
+                    f"{p}: line {line}, column '{c}': {row[i]!r} is not a finite number")
             vals.append(v)
         out.append(vals)
     a = np.array(out, float).reshape(-1, len(columns))
@@ -82,5 +85,7 @@ def import_csv(scenario_yaml: str | Path, pose_csv: str | Path, profile_csv: str
     if len(frames) < 2:
         raise RecordError(f"{profile_csv}: {len(frames)} profile frame(s); expected at least 2")
     data = {"/tool/pose": [tuple(r) for r in pose], "/sheet/measured_profile": frames,
-            "/tool/wrench": [tuple(r) for r in read_table(wrench_csv, ("t", "fx", "fz"))] if wrench_csv else []}
+            "/tool/wrench": [tuple(r) for r in read_table(wrench_csv,
+                                                          ("t", "fx",
+                                                           "fz"))] if wrench_csv else []}
     return _assemble(scenario, data, name or Path(pose_csv).stem, Path(pose_csv).parent)

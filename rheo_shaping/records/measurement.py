@@ -24,18 +24,27 @@ from ..sheet.simulation import RunResult, run_scenario
 
 @dataclass(frozen=True)
 class MeasurementParams:
-    """How the cell's sensors see a run (defaults: a 2 Hz vision system, a robot at 50 Hz, a load cell)."""
+    """How the cell's sensors see a run (defaults: a 2 Hz vision system, a robot at 50 Hz, a load
+    cell)."""
 
     profile_rate: float = param(2.0, "vision frames per second", "Hz", 0.0, 1000.0, lo_open=True)
-    profile_spacing: float = param(3e-3, "spacing of the vision points along the sheet's centreline", "m", 0.0, 0.1, lo_open=True)
-    profile_noise: float = param(3e-4, "standard deviation of each vision point (x and z)", "m", 0.0, 0.01)
+    profile_spacing: float = param(
+        3e-3, "spacing of the vision points along the sheet's "
+              "centreline", "m", 0.0, 0.1, lo_open=True)
+    profile_noise: float = param(
+        3e-4, "standard deviation of each vision point (x and z)", "m", 0.0, 0.01)
     frame_dropout: float = param(0.05, "fraction of vision frames lost", "", 0.0, 0.9)
     point_dropout: float = param(0.02, "fraction of points lost within a frame", "", 0.0, 0.9)
-    pose_rate: float = param(50.0, "tool pose samples per second (the robot's report)", "Hz", 0.0, 10000.0, lo_open=True)
-    pose_noise: float = param(5e-5, "standard deviation of the reported tool pose (x and z)", "m", 0.0, 0.01)
+    pose_rate: float = param(
+        50.0, "tool pose samples per second (the robot's "
+              "report)", "Hz", 0.0, 10000.0, lo_open=True)
+    pose_noise: float = param(
+        5e-5, "standard deviation of the reported tool pose (x and z)", "m", 0.0, 0.01)
     wrench: bool = param(True, "record the load cell's force on the tool")
-    wrench_rate: float = param(50.0, "load cell samples per second", "Hz", 0.0, 10000.0, lo_open=True)
-    wrench_noise: float = param(0.01, "standard deviation of the measured force (x and z)", "N", 0.0, 10.0)
+    wrench_rate: float = param(50.0, "load cell samples per second",
+                               "Hz", 0.0, 10000.0, lo_open=True)
+    wrench_noise: float = param(
+        0.01, "standard deviation of the measured force (x and z)", "N", 0.0, 10.0)
     start_stamp: float = param(
         0.0, "stamp of the process start (e.g. 1.7e9); 0: the wall-clock time the record is "
         "written, as a real cell's stamps are (a zero stamp is a fault to the monitor)", "s",
@@ -43,7 +52,8 @@ class MeasurementParams:
 
 
 def resample_polyline(nodes: np.ndarray, spacing: float, phase: float) -> np.ndarray:
-    """Points every ``spacing`` [m] of arc length along ``nodes`` (K, 2), the first at ``phase`` [m]."""
+    """Points every ``spacing`` [m] of arc length along ``nodes`` (K, 2), the first at ``phase``
+    [m]."""
     seg = np.hypot(*np.diff(nodes, axis=0).T)
     s = np.concatenate(([0.0], np.cumsum(seg)))
     targets = np.arange(phase, s[-1], spacing)
@@ -51,7 +61,8 @@ def resample_polyline(nodes: np.ndarray, spacing: float, phase: float) -> np.nda
 
 
 def nodes_at(run: RunResult, t: float) -> np.ndarray:
-    """The sheet's centreline (bond, masses, bond) at time ``t`` [s], linear between solver steps."""
+    """The sheet's centreline (bond, masses, bond) at time ``t`` [s], linear between solver
+    steps."""
     k = int(np.clip(np.searchsorted(run.t, t), 1, run.t.size - 1))
     t0, t1 = run.t[k - 1], run.t[k]
     w = 0.0 if t1 <= t0 else float(np.clip((t - t0) / (t1 - t0), 0.0, 1.0))
@@ -74,7 +85,8 @@ def measure(run: RunResult, path, params: CellParams, measurement: MeasurementPa
     ms = measurement
     t_end = float(run.t[-1])
     pose_t = np.arange(0.0, t_end + 1e-9, 1.0 / ms.pose_rate)
-    pose = np.array([path.position(t) for t in pose_t]) + rng.normal(0.0, ms.pose_noise, (pose_t.size, 2))
+    pose = np.array([path.position(t) for t in pose_t]) + \
+        rng.normal(0.0, ms.pose_noise, (pose_t.size, 2))
     frame_t = np.arange(0.0, t_end + 1e-9, 1.0 / ms.profile_rate)
     frame_t = frame_t[rng.random(frame_t.size) >= ms.frame_dropout]
     profiles = []
@@ -92,7 +104,8 @@ def measure(run: RunResult, path, params: CellParams, measurement: MeasurementPa
 
 def synthesize_record(params: CellParams, measurement: MeasurementParams = MeasurementParams(),
                       seed: int | None = None, name: str = "") -> tuple[Record, RunResult]:
-    """Run the cell of ``params`` (effects on as set) and measure it; returns the record and the true run."""
+    """Run the cell of ``params`` (effects on as set) and measure it; returns the record and the
+    true run."""
     path = movement_plan(params)
     run = run_scenario(params, path)
     rng = np.random.default_rng(seed)

@@ -54,7 +54,8 @@ def _pose(ts, x: float, z: float):
 
 def write_record(record: Record, out_dir: str | Path, truth: CellParams | None = None,
                  start_stamp: float | None = None, force: bool = False) -> Path:
-    """Write ``record`` as a rosbag2 MCAP directory ``out_dir`` with scenario.yaml (and truth.yaml).
+    """Write ``record`` as a rosbag2 MCAP directory ``out_dir`` with scenario.yaml (and
+    truth.yaml).
 
     ``start_stamp`` [s] is the stamp of t = 0; None or 0: the wall-clock time now (whole
     seconds), as a real cell's record has (a zero stamp is a fault to the monitor).
@@ -82,14 +83,17 @@ def write_record(record: Record, out_dir: str | Path, truth: CellParams | None =
                                       for n in ("WrenchStamped", "Wrench", "Vector3"))
     messages = []   # (stamp_ns, connection key, message)
     for t, (x, z) in zip(record.pose_t, record.pose_xz):
-        messages.append((t, POSE, PoseStamped(header=_header(ts, start_stamp + t), pose=_pose(ts, x, z))))
+        messages.append((t, POSE, PoseStamped(header=_header(
+            ts, start_stamp + t), pose=_pose(ts, x, z))))
     for t, pts in zip(record.profile_t, record.profiles):
         messages.append((t, PROFILE, PoseArray(header=_header(ts, start_stamp + t),
                                                poses=[_pose(ts, x, z) for x, z in pts])))
     if record.has_wrench:
         for t, (fx, fz) in zip(record.wrench_t, record.wrench_xz):
-            w = Wrench(force=Vector3(x=float(fx), y=0.0, z=float(fz)), torque=Vector3(x=0.0, y=0.0, z=0.0))
-            messages.append((t, WRENCH, WrenchStamped(header=_header(ts, start_stamp + t), wrench=w)))
+            w = Wrench(force=Vector3(x=float(fx), y=0.0, z=float(fz)),
+                       torque=Vector3(x=0.0, y=0.0, z=0.0))
+            messages.append((t, WRENCH, WrenchStamped(
+                header=_header(ts, start_stamp + t), wrench=w)))
     messages.sort(key=lambda m: m[0])
     with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conns = {topic: writer.add_connection(topic, TYPES[topic], typestore=ts)
@@ -98,7 +102,8 @@ def write_record(record: Record, out_dir: str | Path, truth: CellParams | None =
             stamp = int(round((start_stamp + t) * NS))
             writer.write(conns[topic], stamp, ts.serialize_cdr(msg, TYPES[topic]))
     (out / "scenario.yaml").write_text(
-        "# The nominal cell of this run (rheo_shaping params schema).\n" + dump_cell(record.scenario))
+        "# The nominal cell of this run (rheo_shaping params "
+        "schema).\n" + dump_cell(record.scenario))
     if truth is not None:
         (out / "truth.yaml").write_text(
             "# For benchmarks only: the cell with the effects that made this synthetic run.\n"
@@ -139,7 +144,8 @@ def read_record(path: str | Path) -> Record:
                 if conn.topic == POSE:
                     data[POSE].append((_stamp(msg), msg.pose.position.x, msg.pose.position.z))
                 elif conn.topic == PROFILE:
-                    pts = np.array([[q.position.x, q.position.z] for q in msg.poses], float).reshape(-1, 2)
+                    pts = np.array([[q.position.x, q.position.z]
+                                   for q in msg.poses], float).reshape(-1, 2)
                     data[PROFILE].append((_stamp(msg), pts))
                 else:
                     f = msg.wrench.force
@@ -147,7 +153,8 @@ def read_record(path: str | Path) -> Record:
     except RecordError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds for a broken bag
-        raise RecordError(f"record {p}: cannot be read as a rosbag2 bag ({type(exc).__name__}: {exc})") from None
+        raise RecordError(
+            f"record {p}: cannot be read as a rosbag2 bag ({type(exc).__name__}: {exc})") from None
     for topic in (POSE, PROFILE):
         if len(data[topic]) < 2:
             raise RecordError(f"record {p}: topic {topic} ({TYPES[topic]}) is required and has "

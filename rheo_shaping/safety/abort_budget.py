@@ -1,4 +1,5 @@
-"""The monitor's abort threshold budget (safety principle 4, docs/safety-principles.md), from the core.
+"""The monitor's abort threshold budget (safety principle 4, docs/safety-principles.md), from
+the core.
 
 With r the largest tension rate the cell can reach, t_detect the time from a
 tension sample to the planner's reaction and t_stop the tool's jerk-limited
@@ -83,16 +84,19 @@ class AbortBudget:
 
     def table(self) -> str:
         """The rows and the bound as Markdown."""
-        lines = ["| movement | speed | F_max [N] | r [N/s] | t_stop [s] | r (t_detect + t_stop) [N] |",
+        lines = ["| movement | speed | F_max [N] | r [N/s] | t_stop [s] | r (t_detect + t_stop) "
+                 "[N] |",
                  "|---|---|---|---|---|---|"]
         for row in self.rows:
             lines.append(f"| {row.movement} | {row.speed_factor:g}x = {row.speed * 1e3:g} mm/s | "
                          f"{row.F_max:.3f} | {row.r:.3f} | {row.t_stop:.2f} | "
                          f"{row.margin(self.t_detect):.3f} |")
         lines += ["",
-                  f"F_break = {self.F_break:g} N, r = {self.r:.3f} N/s, t_detect = {self.t_detect:g} s, "
+                  f"F_break = {self.F_break:g} N, r = {self.r:.3f} N/s, t_detect = "
+                  f"{self.t_detect:g} s, "
                   f"t_stop = {self.t_stop:.2f} s, sigma = {self.sigma:g} N",
-                  f"F_abort <= {self.F_break:g} - {self.r:.3f} x ({self.t_detect:g} + {self.t_stop:.2f})"
+                  f"F_abort <= {self.F_break:g} - {self.r:.3f} x ({self.t_detect:g} + "
+                  f"{self.t_stop:.2f})"
                   f" - 3 x {self.sigma:g} = {self.F_abort_max:.3f} N, "
                   f"abort_ratio <= {self.ratio_max:.3f} "
                   f"(each rate with its own speed's t_stop: <= {self.ratio_max_per_row:.3f})"]

@@ -27,7 +27,6 @@ from ..params.node_params import MonitorNodeParams
 from ..units import NS
 
 
-
 class TensionMonitor:
     """The monitor's safety state machine; ``on_abort(reason)`` is called once per abort."""
 

@@ -47,7 +47,8 @@ class Freshness:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.timeout) and self.timeout > 0.0):
-            raise ValueError(f"timeout = {self.timeout!r} s is invalid: expected a finite value > 0")
+            raise ValueError(
+                f"timeout = {self.timeout!r} s is invalid: expected a finite value > 0")
         self._guard = StallGuard(0.5 * self.timeout)
 
     def received(self, now_ns: int) -> None:

@@ -116,7 +116,8 @@ def _chain_walk(hv: np.ndarray, a: np.ndarray, rest: np.ndarray, inv_k: np.ndarr
     return seg, t, end, j
 
 
-def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float], rest_lengths: Sequence[float],
+def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float],
+                        rest_lengths: Sequence[float],
                         stiffness: Sequence[float], masses: Sequence[float], g: float = 9.81,
                         tol: float = 1e-15, max_iter: int = 200) -> ChainEquilibrium:
     """Exact equilibrium of N masses ``masses`` (N,) [kg] joined by N + 1 links
@@ -139,7 +140,8 @@ def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float], re
         raise ValueError(f"anchor_b: {anchor_b!r}, expected finite (x, z) [m]")
     n = m.size
     if rest.size != n + 1:
-        raise ValueError(f"rest_lengths: {rest.size} values, expected N + 1 = {n + 1} (N = {n} masses)")
+        raise ValueError(
+            f"rest_lengths: {rest.size} values, expected N + 1 = {n + 1} (N = {n} masses)")
     if k.size != n + 1:
         raise ValueError(f"stiffness: {k.size} values, expected N + 1 = {n + 1} (N = {n} masses)")
     if not np.all(np.isfinite(rest)) or np.any(rest <= 0.0):
@@ -155,8 +157,10 @@ def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float], re
     inv_k = 1.0 / k
     chord = float(np.hypot(*(b - a)))
     if g * float(m.sum()) == 0.0 and float(rest.sum()) >= chord:
-        raise ValueError(f"weightless chain of rest length {float(rest.sum())!r} m between anchors {chord!r} m "
-                         "apart: every link would be slack (tension-only links need rest length < chord)")
+        raise ValueError(f"weightless chain of rest length {float(rest.sum())!r} m between "
+                         f"anchors {chord!r} m "
+                         "apart: every link would be slack (tension-only links need rest length < "
+                         "chord)")
     w_before = g * np.concatenate(([0.0], np.cumsum(m)))       # weight hung before link i [N]
     total_w = float(w_before[-1])
     dx, dz = (b - a).tolist()
@@ -173,7 +177,8 @@ def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float], re
         try:
             step = -np.linalg.solve(j, res)
         except np.linalg.LinAlgError as exc:
-            raise RuntimeError(f"elastic chain: singular Jacobian at H = {hv[0]!r} N, V = {hv[1]!r} N") from exc
+            raise RuntimeError(
+                f"elastic chain: singular Jacobian at H = {hv[0]!r} N, V = {hv[1]!r} N") from exc
         alpha = 1.0
         while True:
             trial = hv + alpha * step
@@ -197,7 +202,8 @@ def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float], re
     t_min = float(t.min())
     if not t_min > 1e-9 * max(total_w, abs(float(hv[0])), 1e-300):
         i = int(np.argmin(t))
-        raise ValueError(f"link {i} would be slack (tension {t_min:.3e} N): a tension-only link cannot "
+        raise ValueError(f"link {i} would be slack (tension {t_min:.3e} N): a tension-only link "
+                         "cannot "
                          "carry this configuration")
     pos = a + np.cumsum(seg, axis=0)[:n]
     return ChainEquilibrium(positions=pos, tensions=t, lengths=rest + t * inv_k, H=float(hv[0]),
@@ -253,7 +259,8 @@ def _asinh_sum(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where(same, np.arcsinh(a) + np.arcsinh(b), np.where(den != 0.0, mixed, 0.0))
 
 
-def _irvine_xz(s: np.ndarray, h: float, v: float, ea: float, w: float) -> tuple[np.ndarray, np.ndarray]:
+def _irvine_xz(s: np.ndarray, h: float, v: float, ea: float,
+               w: float) -> tuple[np.ndarray, np.ndarray]:
     """Irvine's closed form with z up, s from support A (H > 0)."""
     ta = math.hypot(h, v)
     ts = np.hypot(h, w * s - v)
@@ -263,14 +270,16 @@ def _irvine_xz(s: np.ndarray, h: float, v: float, ea: float, w: float) -> tuple[
     return x, z
 
 
-def _irvine_residual(hv: np.ndarray, span: float, hd: float, l0: float, ea: float, w: float) -> tuple:
+def _irvine_residual(hv: np.ndarray, span: float, hd: float, l0: float, ea: float,
+                     w: float) -> tuple:
     h, v = float(hv[0]), float(hv[1])
     if not h > 0.0:
         return np.array([np.nan, np.nan]), np.full((2, 2), np.nan)
     x, z = _irvine_xz(np.array(l0), h, v, ea, w)
     ta, tb = math.hypot(h, v), math.hypot(h, w * l0 - v)
     j = np.empty((2, 2))
-    j[0, 0] = l0 / ea + float(_asinh_sum((w * l0 - v) / h, v / h)) / w - ((w * l0 - v) / tb + v / ta) / w
+    j[0, 0] = l0 / ea + float(_asinh_sum((w * l0 - v) / h, v / h)) / \
+        w - ((w * l0 - v) / tb + v / ta) / w
     j[0, 1] = (h / w) * (1.0 / ta - 1.0 / tb)
     j[1, 0] = (h / w) * (1.0 / tb - 1.0 / ta)
     j[1, 1] = -l0 / ea - ((w * l0 - v) / tb + v / ta) / w
@@ -313,11 +322,13 @@ def solve_irvine(span: float, height_difference: float, unstretched_length: floa
     if not err <= 1e-12:
         raise RuntimeError(f"Irvine catenary: support mismatch {err:.3e} m, expected <= 1e-12 m "
                            f"({sol.message})")
-    return IrvineCable(span=span, height_difference=hd, L0=l0, EA=ea, w=w, H=math.exp(y[0]), V=y[1] * wl)
+    return IrvineCable(span=span, height_difference=hd, L0=l0, EA=ea, w=w, H=math.exp(y[0]),
+                       V=y[1] * wl)
 
 
 def irvine_catenary(span: float, height_difference: float, unstretched_length: float, EA: float,
-                    weight_per_length: float, s: Sequence[float] | float) -> tuple[np.ndarray, np.ndarray]:
+                    weight_per_length: float,
+                    s: Sequence[float] | float) -> tuple[np.ndarray, np.ndarray]:
     """Positions (x, z) [m] at Lagrangian coordinates ``s`` in [0, L0] [m] of
     Irvine's elastic catenary between (0, 0) and (span, height_difference).
 
@@ -330,7 +341,8 @@ def irvine_catenary(span: float, height_difference: float, unstretched_length: f
     s_arr = np.asarray(s, dtype=float)
     l0 = check_finite("unstretched_length [m]", unstretched_length, positive=True)
     if np.any(~np.isfinite(s_arr)) or np.any(s_arr < 0.0) or np.any(s_arr > l0 * (1.0 + 1e-12)):
-        raise ValueError(f"s [m]: range [{s_arr.min()!r}, {s_arr.max()!r}], expected within [0, L0 = {l0!r}]")
+        raise ValueError(
+            f"s [m]: range [{s_arr.min()!r}, {s_arr.max()!r}], expected within [0, L0 = {l0!r}]")
     return solve_irvine(span, height_difference, l0, EA, weight_per_length).position(s_arr)
 
 
@@ -343,7 +355,7 @@ def inextensible_catenary(span: float, height_difference: float, length: float,
         raise ValueError(f"length [m]: {length!r}, expected > chord = {math.hypot(l, h)!r}")
     target = math.sqrt(big_l * big_l - h * h)
     # 2 a sinh(l / 2a) = target; the left side decreases from inf to l as a grows
-    f = lambda a: 2.0 * a * math.sinh(l / (2.0 * a)) - target
+    f = lambda a: 2.0 * a * math.sinh(l / (2.0 * a)) - target  # noqa: E731
     a_lo = l / (2.0 * math.asinh(target / l) + 2.0)
     while f(a_lo) < 0.0:
         a_lo *= 0.5

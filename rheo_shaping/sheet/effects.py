@@ -25,8 +25,8 @@ class Effect:
     unit: tuple[str, ...]
     off: tuple[float, ...]                     # values that switch it off
     bounds: tuple[tuple[float, float], ...]    # fit range per parameter
-    realistic: tuple[tuple[float, float], ...] # magnitude range of real cells (benchmark draws;
-                                               # tool_offset and mass_error: |value|, random sign)
+    realistic: tuple[tuple[float, float], ...]  # magnitude range of real cells (benchmark draws;
+    # tool_offset and mass_error: |value|, random sign)
 
     @property
     def n_params(self) -> int:
@@ -86,4 +86,5 @@ def active_effects(params: CellParams) -> list[str]:
 def nominal(params: CellParams) -> CellParams:
     """``params`` with every effect off (the nominal model)."""
     return replace(params, effects=replace(EffectsParams(),
-                                           power_law_ref_tension=params.effects.power_law_ref_tension))
+                                           power_law_ref_tension=(
+                                               params.effects.power_law_ref_tension)))

@@ -50,7 +50,6 @@ __all__ = [
 ]
 
 
-
 def _as_points(points: Any) -> np.ndarray:
     """Points as a float (M, 2) array; a single (2,) point becomes (1, 2)."""
     p = np.asarray(points, dtype=float)
@@ -96,7 +95,9 @@ def _sample_pieces(kinds: list[tuple], lengths: np.ndarray, n_points: int,
     pos = np.flatnonzero(lengths > 0.0)
     n_free = n_points - len(pos) - (0 if closed else 1)
     if n_free < 0:
-        raise ValueError(f"n_points: {n_points}, expected >= {len(pos) + (0 if closed else 1)} for this outline")
+        raise ValueError(
+            f"n_points: {n_points}, expected >= {len(pos) + (0 if closed else 1)} for this "
+            "outline")
     share = n_free * lengths[pos] / lengths[pos].sum()
     extra = np.floor(share).astype(int)
     rest = n_free - extra.sum()
@@ -147,13 +148,16 @@ class Cake:
         r = check_finite("fillet_radius [m]", self.fillet_radius, non_negative=True)
         tl = check_finite("top_length [m]", self.top_length, positive=True)
         if r > h:
-            raise ValueError(f"fillet_radius [m]: {self.fillet_radius!r}, expected <= height = {h!r}")
+            raise ValueError(
+                f"fillet_radius [m]: {self.fillet_radius!r}, expected <= height = {h!r}")
         if r > tl:
-            raise ValueError(f"fillet_radius [m]: {self.fillet_radius!r}, expected <= top_length = {tl!r}")
+            raise ValueError(
+                f"fillet_radius [m]: {self.fillet_radius!r}, expected <= top_length = {tl!r}")
         # The region is the quadrant {x <= -r, z <= h - r} grown by a disc of radius r.
         object.__setattr__(self, "_centre", np.array([-r, h - r]))
 
-    def signed_distance(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    def signed_distance(self, points: Any,
+                        offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance ``d`` (M,) [m] and outward unit normal ``n`` (M, 2)."""
         return _distance(self, points, offset)
 
@@ -202,7 +206,8 @@ class Workplane:
         if not hi > lo:
             raise ValueError(f"x_max [m]: {self.x_max!r}, expected > x_min = {lo!r}")
 
-    def signed_distance(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    def signed_distance(self, points: Any,
+                        offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance ``d = z - offset_z`` (M,) [m] and normal (0, 1) (M, 2)."""
         return _distance(self, points, offset)
 
@@ -249,13 +254,15 @@ class RoundedConvexPolygon:
         if v.ndim == 1 and v.size % 2 == 0 and v.size > 0:
             v = v.reshape(-1, 2)
         if v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 1:
-            raise ValueError(f"vertices: shape {np.shape(self.vertices)}, expected (K, 2) with K >= 1 [m]")
+            raise ValueError(
+                f"vertices: shape {np.shape(self.vertices)}, expected (K, 2) with K >= 1 [m]")
         if not np.all(np.isfinite(v)):
             raise ValueError(f"vertices: {v.tolist()!r}, expected finite numbers [m]")
         r = check_finite("radius [m]", self.radius, non_negative=True)
         k = v.shape[0]
         if k <= 2 and r <= 0.0:
-            raise ValueError(f"radius [m]: {self.radius!r}, expected > 0 for a polygon of {k} vertex(es)")
+            raise ValueError(
+                f"radius [m]: {self.radius!r}, expected > 0 for a polygon of {k} vertex(es)")
         e = np.roll(v, -1, axis=0) - v
         len2 = np.einsum("ij,ij->i", e, e)
         if k >= 2:
@@ -263,7 +270,8 @@ class RoundedConvexPolygon:
             short = np.flatnonzero(np.sqrt(len2) <= 1e-12 * scale)
             if short.size:
                 i = int(short[0])
-                raise ValueError(f"vertices: vertex {i} {v[i].tolist()} repeats vertex {(i + 1) % k} "
+                raise ValueError(f"vertices: vertex {i} {v[i].tolist()} repeats vertex "
+                                 f"{(i + 1) % k} "
                                  f"{v[(i + 1) % k].tolist()}, expected distinct vertices")
         if k >= 3:
             e_next = np.roll(e, -1, axis=0)
@@ -272,16 +280,20 @@ class RoundedConvexPolygon:
             turn = np.arctan2(cross, dot)
             tol = 1e-12 * len2.max()
             if np.all(cross < -tol):
-                raise ValueError(f"vertices: {v.tolist()!r} are clockwise, expected counter-clockwise "
+                raise ValueError(f"vertices: {v.tolist()!r} are clockwise, expected "
+                                 "counter-clockwise "
                                  "(reverse their order)")
             bad = np.flatnonzero(cross <= tol)
             if bad.size:
                 i = (int(bad[0]) + 1) % k
-                raise ValueError(f"vertices: vertex {i} {v[i].tolist()} turns clockwise or is collinear "
-                                 f"(cross product {cross[bad[0]]:.3g} m^2), expected a strictly convex "
+                raise ValueError(f"vertices: vertex {i} {v[i].tolist()} turns clockwise or is "
+                                 "collinear "
+                                 f"(cross product {cross[bad[0]]:.3g} m^2), expected a strictly "
+                                 "convex "
                                  "counter-clockwise polygon")
             if abs(turn.sum() - 2.0 * math.pi) > 1e-6:
-                raise ValueError(f"vertices: {v.tolist()!r} wind {turn.sum() / (2 * math.pi):.3g} times, "
+                raise ValueError(f"vertices: {v.tolist()!r} wind {turn.sum() / (2 * math.pi):.3g} "
+                                 "times, "
                                  "expected a simple convex polygon (winding once)")
         object.__setattr__(self, "vertices", tuple(tuple(float(c) for c in row) for row in v))
         object.__setattr__(self, "radius", r)
@@ -300,14 +312,16 @@ class RoundedConvexPolygon:
         return cls(((0.0, 0.0),), float(radius))
 
     @classmethod
-    def rounded_rectangle(cls, width: float, height: float, corner_radius: float = 0.0) -> "RoundedConvexPolygon":
+    def rounded_rectangle(cls, width: float, height: float,
+                          corner_radius: float = 0.0) -> "RoundedConvexPolygon":
         """Rectangle ``width`` (x) by ``height`` (z) [m] centred on the reference
         point, corners rounded with ``corner_radius`` [m] <= min(width, height) / 2."""
         w = check_finite("width [m]", width, positive=True)
         h = check_finite("height [m]", height, positive=True)
         r = check_finite("corner_radius [m]", corner_radius, non_negative=True)
         if r > 0.5 * min(w, h):
-            raise ValueError(f"corner_radius [m]: {corner_radius!r}, expected <= min(width, height) / 2 = "
+            raise ValueError(f"corner_radius [m]: {corner_radius!r}, expected <= min(width, "
+                             "height) / 2 = "
                              f"{0.5 * min(w, h)!r}")
         a, b = 0.5 * w - r, 0.5 * h - r
         if a <= 1e-12 * w and b <= 1e-12 * h:
@@ -331,7 +345,8 @@ class RoundedConvexPolygon:
     def n_vertices(self) -> int:
         return int(self._v.shape[0])
 
-    def signed_distance(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    def signed_distance(self, points: Any,
+                        offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance ``d`` (M,) [m] and outward unit normal ``n`` (M, 2).
 
         Outside the polygon ``d + radius`` is the distance to its nearest
@@ -379,7 +394,8 @@ def circle(radius: float) -> RoundedConvexPolygon:
     return RoundedConvexPolygon.circle(radius)
 
 
-def rounded_rectangle(width: float, height: float, corner_radius: float = 0.0) -> RoundedConvexPolygon:
+def rounded_rectangle(width: float, height: float,
+                      corner_radius: float = 0.0) -> RoundedConvexPolygon:
     """Rounded-rectangle tool ``width`` x ``height`` [m] centred on its reference point."""
     return RoundedConvexPolygon.rounded_rectangle(width, height, corner_radius)
 
@@ -387,4 +403,3 @@ def rounded_rectangle(width: float, height: float, corner_radius: float = 0.0) -
 def convex_polygon(vertices: Any, radius: float = 0.0) -> RoundedConvexPolygon:
     """Convex polygon tool (vertices (K, 2) [m], CCW) grown by ``radius`` [m]."""
     return RoundedConvexPolygon.convex_polygon(vertices, radius)
-

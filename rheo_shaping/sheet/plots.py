@@ -14,6 +14,8 @@ from .simulation import RunResult
 from .tools import tool_shape
 
 #: Colours of the phases shaded in time plots.
+
+
 def phase_label(name: str) -> str:
     """A phase's name as figures write it (the paper's words)."""
     return "forced deformation" if name == "forced" else name
@@ -123,11 +125,13 @@ def plot_movement_history(run, path: str | Path, title: str = "") -> Path:
         for t0, t1, name in run.phases:
             ax.axvspan(t0, t1, color=PHASE_COLOURS.get(name, "#f0f0f0"), lw=0)
     ax1.plot(res.t, res.tension[:, i], color="C3", label=f"tension, link {i + 1} (most stressed)")
-    ax1.plot(res.t, res.tension.max(axis=1), color="C3", ls=":", lw=0.8, label="largest link tension")
+    ax1.plot(res.t, res.tension.max(axis=1), color="C3",
+             ls=":", lw=0.8, label="largest link tension")
     ax1.axhline(res.params.material.F_break, color="k", ls="--", lw=0.8, label="F_break")
     for k, (tp, fp) in enumerate(run.peaks):
         ax1.plot([tp], [fp], "v", color="k", ms=5)
-        ax1.annotate(f"{fp:.3f} N", (tp, fp), textcoords="offset points", xytext=(4, 4), fontsize=7)
+        ax1.annotate(f"{fp:.3f} N", (tp, fp), textcoords="offset points",
+                     xytext=(4, 4), fontsize=7)
     ax1.set_ylabel("tension [N]")
     ax1.set_ylim(0.0, max(1.15 * res.params.material.F_break, 1.1 * res.F_max))
     ax1.legend(fontsize=7, loc="upper left")
@@ -182,18 +186,21 @@ def plot_phase_profiles(run, path: str | Path, title: str = "") -> Path:
         draw_cell(ax, res, k, "C0")
         touching = np.hypot(*np.moveaxis(res.tool_contact[k], -1, 0)) > 0
         if touching.any():
-            ax.plot(res.x[k, touching, 0] * 1e3, res.x[k, touching, 1] * 1e3, "o", color="C3", ms=3.5)
+            ax.plot(res.x[k, touching, 0] * 1e3, res.x[k, touching, 1]
+                    * 1e3, "o", color="C3", ms=3.5)
         ax.set_aspect("equal")
         ax.set_xlim(*xlim)
         ax.set_ylim(*zlim)
-        ax.set_title(f"end of {phase_label(name)}, t = {res.t[k]:.1f} s" if name != "start" else "t = 0",
+        ax.set_title(f"end of {phase_label(name)}, t = {res.t[k]:.1f} "
+                     "s" if name != "start" else "t = 0",
                      fontsize=8)
         ax.tick_params(labelsize=7)
         ax.set_xlabel("x, out from the cake wall [mm]", fontsize=7)
         ax.set_ylabel("z, up from the workplane [mm]", fontsize=7)
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
-    fig.suptitle(title or f"movement {run.label}: profiles (red: spheres touching the tool)", fontsize=9)
+    fig.suptitle(
+        title or f"movement {run.label}: profiles (red: spheres touching the tool)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -211,7 +218,8 @@ def plot_sweep(sweep, path: str | Path, d_paper: float | None = None, F_break: f
     ax.axvline(sweep.d_opt * 1e3, color="C3", lw=0.8,
                label=f"our minimum d = {sweep.d_opt * 1e3:.1f} mm ({sweep.F_opt:.3f} N)")
     if d_paper is not None:
-        ax.axvline(d_paper * 1e3, color="k", ls=":", lw=0.8, label=f"paper d = {d_paper * 1e3:.1f} mm")
+        ax.axvline(d_paper * 1e3, color="k", ls=":", lw=0.8,
+                   label=f"paper d = {d_paper * 1e3:.1f} mm")
     if F_break is not None:
         ax.axhline(F_break, color="k", ls="--", lw=0.8, label="F_break")
     ax.set_xlabel("d, tool's distance from the cake in the vertical step [mm]")
@@ -225,14 +233,17 @@ def plot_sweep(sweep, path: str | Path, d_paper: float | None = None, F_break: f
 
 
 def plot_speed_comparison(full, half, path: str | Path, delta_limit: float | None = None) -> Path:
-    """Fig. 19 against movement 1: tension histories, and the sheet at the end near the cake's foot."""
+    """Fig. 19 against movement 1: tension histories, and the sheet at the end near the cake's
+    foot."""
     plt = _pyplot()
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11.0, 4.2), gridspec_kw={"width_ratios": [1.6, 1.0]})
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11.0, 4.2),
+                                   gridspec_kw={"width_ratios": [1.6, 1.0]})
     for run, c in ((full, "C0"), (half, "C1")):
         r = run.result
         i = r.peak.link - 1
         ax1.plot(r.t, r.tension[:, i], color=c,
-                 label=f"{run.speed * 1e3:.1f} mm/s, stop {run.dwell:.0f} s: F_max {r.F_max:.3f} N, "
+                 label=f"{run.speed * 1e3:.1f} mm/s, stop {run.dwell:.0f} s: F_max {r.F_max:.3f} "
+                       "N, "
                        f"Delta {r.delta * 1e3:.2f} mm")
         for t0, t1, name in run.phases:
             if name == "forced":

@@ -40,11 +40,13 @@ from . import kernel as _k
 class Shape(Protocol):
     """What the sheet needs of an obstacle (see :mod:`rheo_shaping.sheet.geometry`)."""
 
-    def signed_distance(self, points: np.ndarray, offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    def signed_distance(self, points: np.ndarray,
+                        offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
         ...
 
     def kernel_description(self) -> tuple[int, float, np.ndarray]:
-        """(kind, radius [m], vertices (K, 2) [m]) for :func:`rheo_shaping.sheet.kernel.shape_eval`."""
+        """(kind, radius [m], vertices (K, 2) [m]) for
+        :func:`rheo_shaping.sheet.kernel.shape_eval`."""
         ...
 
     def outline(self, n_points: int) -> np.ndarray:
@@ -77,7 +79,9 @@ class ChainConstants:
     def __post_init__(self) -> None:
         n = np.asarray(self.mass).shape[0] if np.ndim(self.mass) == 1 else -1
         if n < 1:
-            raise ValueError(f"mass must be a 1-D array of the N >= 1 sphere masses [kg], got shape {np.shape(self.mass)}")
+            raise ValueError(
+                "mass must be a 1-D array of the N >= 1 sphere masses [kg], got shape "
+                f"{np.shape(self.mass)}")
         _check_array("mass", self.mass, n, "kg", positive=True)
         _check_array("rest_length", self.rest_length, n + 1, "m", positive=True)
         _check_array("k1", self.k1, n + 1, "N/m", positive=True)
@@ -86,11 +90,13 @@ class ChainConstants:
         for name in ("anchor_top", "anchor_bottom"):
             a = np.asarray(getattr(self, name), dtype=float)
             if a.shape != (2,) or not np.all(np.isfinite(a)):
-                raise ValueError(f"{name} must be a finite point (x, z) [m], got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"{name} must be a finite point (x, z) [m], got {getattr(self, name)!r}")
         if not (np.isfinite(self.radius) and self.radius > 0.0):
             raise ValueError(f"radius = {self.radius!r} m is invalid: expected a finite value > 0")
         if not (np.isfinite(self.gravity) and self.gravity >= 0.0):
-            raise ValueError(f"gravity = {self.gravity!r} m/s^2 is invalid: expected a finite value >= 0")
+            raise ValueError(
+                f"gravity = {self.gravity!r} m/s^2 is invalid: expected a finite value >= 0")
 
     @property
     def n_masses(self) -> int:
@@ -99,7 +105,8 @@ class ChainConstants:
 
 @dataclass(frozen=True)
 class SheetEffects:
-    """Optional physics the nominal model leaves out (rheo_shaping.sheet.effects; all off by default).
+    """Optional physics the nominal model leaves out (rheo_shaping.sheet.effects; all off by
+    default).
 
     ``friction`` maps obstacle names to Coulomb coefficients; ``bending`` is the
     strip's EI [N m^2]; ``power_law_n`` the flow index of a power-law dashpot
@@ -114,7 +121,8 @@ class SheetEffects:
     power_law_ref: float = 0.5
     thinning: float = 0.0
     tool_shift: tuple[float, float] = (0.0, 0.0)
-    friction_slip: float = 1e-7      # m per step: slip within which friction acts as a stiff spring (stick)
+    # m per step: slip within which friction acts as a stiff spring (stick)
+    friction_slip: float = 1e-7
 
     def mu(self, name: str) -> float:
         return dict(self.friction).get(name, 0.0)
@@ -140,7 +148,8 @@ class SheetState:
                        contact=self.contact.copy(), tool=self.tool.copy())
 
 
-def _check_array(name: str, values, size: int, unit: str, positive: bool, allow_inf: bool = False) -> None:
+def _check_array(name: str, values, size: int, unit: str, positive: bool,
+                 allow_inf: bool = False) -> None:
     """ValueError naming ``name`` unless ``values`` has ``size`` entries, all valid."""
     a = np.asarray(values, dtype=float)
     if a.shape != (size,):
@@ -189,7 +198,6 @@ class StepRecord:
 
 class ConvergenceError(RuntimeError):
     """Newton's method did not converge in a step."""
-
 
 
 class SheetModel:
@@ -353,4 +361,3 @@ def _reach(shape) -> float:
     """Largest distance [m] of a shape's outline from its reference point."""
     outline = shape.outline(256)
     return float(np.max(np.hypot(outline[:, 0], outline[:, 1])))
-

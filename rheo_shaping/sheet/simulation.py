@@ -26,7 +26,8 @@ import numpy as np
 
 from .drape import make_drape
 from .geometry import Cake, Workplane
-from .metrics import PeakTension, RunSummary, contact_tension, peak_tension, residual_gap, safety_factor
+from .metrics import (PeakTension, RunSummary, contact_tension, peak_tension, residual_gap,
+                      safety_factor)
 from ..params.params import CellParams
 from .sheet import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState, StepRecord
 from .tools import tool_shape
@@ -82,7 +83,8 @@ def build_chain(params: CellParams) -> tuple[ChainConstants, np.ndarray]:
     constants = ChainConstants(
         anchor_top=drape.top_bond, anchor_bottom=drape.bottom_bond,
         rest_length=link_rest, k1=m.k1 * scale, c1=(m.c1 + eff.kelvin_c1) * scale, c2=m.c2 * scale,
-        mass=s.mass_per_length * (1.0 + eff.mass_error) * 0.5 * (link_rest[:-1] + link_rest[1:]), radius=r,
+        mass=s.mass_per_length * (1.0 + eff.mass_error) * 0.5 * (link_rest[:-1] + link_rest[1:]),
+        radius=r,
         gravity=params.solver.gravity)
     return constants, x0
 
@@ -94,7 +96,8 @@ class Simulation:
         self.params = params
         self.constants, self.x0 = build_chain(params)
         obstacles = [
-            Obstacle("cake", Cake(params.cake.height, params.cake.fillet_radius, params.cake.radius)),
+            Obstacle("cake",
+                     Cake(params.cake.height, params.cake.fillet_radius, params.cake.radius)),
             Obstacle("workplane", Workplane()),
             Obstacle("tool", tool_shape(params.tool), moving=True),
         ]
@@ -170,7 +173,8 @@ class Simulation:
             raise rec.error
         return rec
 
-    def advance_to(self, t_end: float, tool_end, on_step: Callable[[SheetState], None] | None = None,
+    def advance_to(self, t_end: float, tool_end,
+                   on_step: Callable[[SheetState], None] | None = None,
                    tool_at: Callable[[float], np.ndarray] | None = None) -> SheetState:
         """Advance to time ``t_end`` [s], the tool ending at ``tool_end`` (x, z) [m].
 
@@ -211,7 +215,8 @@ def sheet_effects(params: CellParams) -> SheetEffects:
     """The sheet model's optional physics from ``params.effects`` (rheo_shaping.sheet.effects)."""
     e = params.effects
     return SheetEffects(
-        friction=(("cake", e.friction_mould), ("workplane", e.friction_mould), ("tool", e.friction_tool)),
+        friction=(("cake", e.friction_mould), ("workplane",
+                  e.friction_mould), ("tool", e.friction_tool)),
         bending=e.bending, power_law_n=e.power_law, power_law_ref=e.power_law_ref_tension,
         thinning=e.thinning, tool_shift=tuple(e.tool_offset))
 

@@ -15,5 +15,6 @@ def tool_shape(tool: ToolParams) -> RoundedConvexPolygon:
         return RoundedConvexPolygon.rounded_rectangle(tool.width, tool.height, tool.corner_radius)
     vertices = np.asarray(tool.vertices, dtype=float)
     if vertices.size % 2:
-        raise ValueError(f"parameter 'tool.vertices' has {vertices.size} values: expected x, z pairs")
+        raise ValueError(
+            f"parameter 'tool.vertices' has {vertices.size} values: expected x, z pairs")
     return RoundedConvexPolygon.convex_polygon(vertices.reshape(-1, 2), tool.corner_radius)

@@ -67,13 +67,18 @@ class MovementRun:
     d: float | None                             # m, movement 4 only
     result: RunResult
     plan: ScenarioPlan
-    phases: list[tuple[float, float, str]]      # (t0, t1, name): approach, forced, dwell, release, settle
-    peaks: list[tuple[float, float]]            # (time [s], largest link tension [N]) of each forcing move
-    first_contact: float                        # s, when the tool first touches the sheet (nan: never)
+    # (t0, t1, name): approach, forced, dwell, release, settle
+    phases: list[tuple[float, float, str]]
+    # (time [s], largest link tension [N]) of each forcing move
+    peaks: list[tuple[float, float]]
+    # s, when the tool first touches the sheet (nan: never)
+    first_contact: float
     last_contact: float                         # s, when it last touches it
-    forced_time: float                          # s, tool in contact while moving to its end of travel
+    # s, tool in contact while moving to its end of travel
+    forced_time: float
     contacts_at_peak: int                       # spheres touching the tool when F_max occurs
-    min_contacts_forced: int                    # fewest spheres touching the tool during the dwell(s)
+    # fewest spheres touching the tool during the dwell(s)
+    min_contacts_forced: int
 
     @property
     def F_max(self) -> float:
@@ -110,7 +115,8 @@ def _touching(result: RunResult) -> np.ndarray:
     return np.hypot(f[..., 0], f[..., 1]) > 0.0
 
 
-def movement_phases(plan: ScenarioPlan, result: RunResult) -> tuple[list[tuple[float, float, str]], dict]:
+def movement_phases(plan: ScenarioPlan,
+                    result: RunResult) -> tuple[list[tuple[float, float, str]], dict]:
     """The paper's phases of a run (Sec. 5), from the plan's segments and the contacts.
 
     approach: until the tool first touches the sheet; forced: the tool moving
@@ -156,7 +162,8 @@ def movement_phases(plan: ScenarioPlan, result: RunResult) -> tuple[list[tuple[f
 
 def force_peaks(plan: ScenarioPlan, result: RunResult) -> list[tuple[float, float]]:
     """Largest link tension in each window that starts with a forcing move (Fig. 17's peaks)."""
-    starts = [s.t_start for s in plan.plan.segments if s.kind == "move" and s.label.startswith("forced")]
+    starts = [s.t_start for s in plan.plan.segments if s.kind ==
+              "move" and s.label.startswith("forced")]
     if not starts:
         return []
     starts[0] = 0.0                                # the first window covers the approach too
@@ -173,8 +180,10 @@ def force_peaks(plan: ScenarioPlan, result: RunResult) -> list[tuple[float, floa
 
 
 def movement_run(params: CellParams, number: int, speed: float | None = None,
-                 dwell: float | None = None, d: float | None = None, label: str | None = None) -> MovementRun:
-    """Run the paper's movement ``number`` on the cell (defaults: the cell's speed, dwell and d)."""
+                 dwell: float | None = None, d: float | None = None,
+                 label: str | None = None) -> MovementRun:
+    """Run the paper's movement ``number`` on the cell (defaults: the cell's speed, dwell and
+    d)."""
     speed = params.movement.speed if speed is None else float(speed)
     dwell = params.movement.dwell if dwell is None else float(dwell)
     if number == 4:
@@ -225,7 +234,8 @@ def sweep_point(params: CellParams, d: float) -> dict:
     """One point of the sweep: movement 4 at ``d`` [m] (module-level: pickles to a worker)."""
     run = movement_run(params, 4, d=d)
     peaks = [f for _, f in run.peaks] + [0.0, 0.0]
-    return {"d": float(d), "F_max": run.F_max, "peak1": peaks[0], "peak2": peaks[1], "delta": run.delta}
+    return {"d": float(d), "F_max": run.F_max, "peak1": peaks[0], "peak2": peaks[1],
+            "delta": run.delta}
 
 
 def _sweep(d: np.ndarray, rows: Sequence[dict]) -> "Sweep":
@@ -234,12 +244,14 @@ def _sweep(d: np.ndarray, rows: Sequence[dict]) -> "Sweep":
     F = np.array([r["F_max"] for r in rows])
     d_opt, F_opt, interior, i = parabolic_minimum(d, F)
     return Sweep(d=d, F_max=F, peak1=np.array([r["peak1"] for r in rows]),
-                 peak2=np.array([r["peak2"] for r in rows]), delta=np.array([r["delta"] for r in rows]),
+                 peak2=np.array([r["peak2"] for r in rows]),
+                 delta=np.array([r["delta"] for r in rows]),
                  d_opt=d_opt, F_opt=F_opt, interior=interior, i_min=i)
 
 
 def parabolic_minimum(x: np.ndarray, y: np.ndarray) -> tuple[float, float, bool, int]:
-    """Smallest y of samples (x, y): (x*, y*, interior, index) with a parabola through the best three."""
+    """Smallest y of samples (x, y): (x*, y*, interior, index) with a parabola through the best
+    three."""
     x, y = np.asarray(x, float), np.asarray(y, float)
     i = int(np.argmin(y))
     if i == 0 or i == x.size - 1:
@@ -275,7 +287,8 @@ class SagTest:
 
     @property
     def relative_displacement(self) -> float:
-        """Largest displacement relative to the sheet's length (the paper's error is relative too)."""
+        """Largest displacement relative to the sheet's length (the paper's error is relative
+        too)."""
         return self.max_displacement / self.length
 
 
@@ -311,7 +324,8 @@ class Study:
 
     def to_json(self) -> dict:
         """The ``--json`` object: the issue's keys (SI units) and a few more."""
-        mv = {k: {"F_max": r.F_max, "SF": r.SF, "delta": r.delta} for k, r in self.movements.items()}
+        mv = {k: {"F_max": r.F_max, "SF": r.SF, "delta": r.delta}
+              for k, r in self.movements.items()}
         return {
             "movements": mv,
             "d_sweep": {"d": self.sweep.d.tolist(), "F_max": self.sweep.F_max.tolist(),

@@ -55,7 +55,8 @@ class Cell:
         while not predicate():
             for p in self.procs.all:
                 if p.proc.poll() is not None:
-                    pytest.fail(f"{p.exe} exited with {p.proc.returncode} while waiting for {what}\n"
+                    pytest.fail(f"{p.exe} exited with {p.proc.returncode} while waiting for "
+                                f"{what}\n"
                                 + self.logs())
             if time.monotonic() - t0 > timeout:
                 pytest.fail(f"timed out after {timeout:g} s waiting for {what}\n" + self.logs())
@@ -64,9 +65,11 @@ class Cell:
 
     def start(self):
         """Matched endpoints and the interlock first, then ~/start."""
-        wait_for_publishers(self.ros, self.node, ["/sheet/profile", "/sheet/tensions", "/tool/pose",
-                                                  "/shaping/planner_state"], timeout=60.0)
-        self.wait(lambda: len(self.rec["/sheet/tensions"]) >= 3 and len(self.rec["/sheet/profile"]) >= 3,
+        wait_for_publishers(self.ros, self.node,
+                            ["/sheet/profile", "/sheet/tensions", "/tool/pose",
+                             "/shaping/planner_state"], timeout=60.0)
+        self.wait(lambda: (len(self.rec["/sheet/tensions"]) >= 3
+                           and len(self.rec["/sheet/profile"]) >= 3),
                   60.0, "sheet data reaching the test")
         self.wait(lambda: self.state() == "idle", 60.0, "the planner (autostart off) to be idle")
         client = self.node.create_client(Trigger, "/planner/start")
@@ -107,7 +110,6 @@ class Cell:
                 np.array([m.pose_xz(c) for c in cmds]).reshape(-1, 2))
 
 
-
 class FakeCell:
     """Publishes /clock (simulated time it controls) and the tension/stamped topics."""
 
@@ -143,7 +145,8 @@ class FakeCell:
 
 
 def make_monitor(ros, **settings):
-    settings.setdefault("abort_ratio", 0.6)      # fixed: no core runs for the budget (tested below)
+    # fixed: no core runs for the budget (tested below)
+    settings.setdefault("abort_ratio", 0.6)
     overrides = [Parameter("use_sim_time", value=True)]
     overrides += [Parameter(k, value=v) for k, v in settings.items()]
     return ros.add(MonitorNode(context=ros.context, parameter_overrides=overrides))

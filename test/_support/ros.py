@@ -1,4 +1,5 @@
-"""Helpers of the ROS 2 tests (imported by conftest.py and the tests): contexts, bounded spinning, recorders, matched-endpoint waits.
+"""Helpers of the ROS 2 tests (imported by conftest.py and the tests): contexts, bounded
+spinning, recorders, matched-endpoint waits.
 
 Every wait here is bounded and polls a condition (a matched endpoint, a
 message, a state); nothing sleeps blindly.  test/conftest.py has already set
@@ -49,7 +50,8 @@ class Ros:
 
     def spin_until(self, predicate: Callable[[], bool], timeout: float, what: str = "",
                    every: Callable[[], None] | None = None) -> float:
-        """Spin until ``predicate()`` holds; returns the wall time it took; fails after ``timeout``."""
+        """Spin until ``predicate()`` holds; returns the wall time it took; fails after
+        ``timeout``."""
         t0 = time.monotonic()
         while not predicate():
             if time.monotonic() - t0 > timeout:

@@ -42,7 +42,8 @@ def test_json_from_table1_only(capsys):
 
 @pytest.mark.parametrize("method", ["paper", "joint"])
 def test_json_with_a_tensile_curve(capsys, method):
-    code, out, err = run(capsys, "--creep", TABLE1, "--tensile", SYNTH, "--method", method, "--json")
+    code, out, err = run(capsys, "--creep", TABLE1, "--tensile",
+                         SYNTH, "--method", method, "--json")
     assert code == 0, err
     doc = json.loads(out)
     assert doc["model"] == "maxwell"
@@ -61,7 +62,7 @@ def test_human_output_is_a_table_with_units(capsys):
     code, out, err = run(capsys, "--creep", TABLE1, "--tensile", SYNTH)
     assert code == 0, err
     assert "N s/m" in out and "N/m" in out and "95 % interval" in out
-    line = next(l for l in out.splitlines() if l.strip().startswith("c2"))
+    line = next(l for l in out.splitlines() if l.strip().startswith("c2"))  # noqa: E741
     assert "1299" in line
 
 
@@ -70,7 +71,8 @@ def test_speed_from_the_command_line_and_conflicts(capsys, tmp_path):
     p = tmp_path / "fast.csv"
     lines = ["t_s,F_N"] + [f"{float(t)!r},{float(F)!r}" for t, F in zip(s.curve.t, s.curve.force)]
     p.write_text("\n".join(lines) + "\n")             # no speed metadata
-    code, out, err = run(capsys, "--creep", TABLE1, "--tensile", str(p), "--speed", "2e-3", "--json")
+    code, out, err = run(capsys, "--creep", TABLE1, "--tensile",
+                         str(p), "--speed", "2e-3", "--json")
     assert code == 0, err
     assert abs(json.loads(out)["k1"] / 95.0 - 1) < 0.03
     code, out, err = run(capsys, "--creep", TABLE1, "--tensile", SYNTH, "--speed", "2e-3")
@@ -103,14 +105,16 @@ def test_wrong_kind_of_file_for_the_option(capsys):
 
 def test_plot_is_written_and_never_overwritten_without_force(capsys, tmp_path):
     png = tmp_path / "fit.png"
-    code, out, err = run(capsys, "--creep", TABLE1, "--tensile", SYNTH, "--method", "joint", "--plot", str(png))
+    code, out, err = run(capsys, "--creep", TABLE1, "--tensile", SYNTH,
+                         "--method", "joint", "--plot", str(png))
     assert code == 0, err
     assert png.read_bytes().startswith(PNG_MAGIC)
     png.write_bytes(b"keep me")
     code, out, err = run(capsys, "--creep", TABLE1, "--plot", str(png))
     assert code == 2 and str(png) in err and "--force" in err
     assert png.read_bytes() == b"keep me"
-    code, out, err = run(capsys, "--creep", TABLE1, "--tensile", SYNTH, "--plot", str(png), "--force")
+    code, out, err = run(capsys, "--creep", TABLE1, "--tensile",
+                         SYNTH, "--plot", str(png), "--force")
     assert code == 0, err
     assert png.read_bytes().startswith(PNG_MAGIC)
     code, out, err = run(capsys, "--creep", TABLE1, "--plot", str(tmp_path / "no" / "dir.png"))
@@ -119,11 +123,14 @@ def test_plot_is_written_and_never_overwritten_without_force(capsys, tmp_path):
 
 def test_as_a_module_in_a_subprocess():
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.run([sys.executable, "-m", "rheo_shaping.cli", "identify", "--creep", TABLE1, "--json"],
+    proc = subprocess.run([sys.executable, "-m", "rheo_shaping.cli", "identify", "--creep", TABLE1,
+                           "--json"],
                           capture_output=True, text=True, cwd=REPO, env=env, timeout=60)
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert abs(doc["c2"] / 1300 - 1) < 0.01 and doc["se"]["c2"] > 0
-    bad = subprocess.run([sys.executable, "-m", "rheo_shaping.cli", "identify", "--creep", "/nonexistent.csv"],
+    bad = subprocess.run([sys.executable, "-m", "rheo_shaping.cli", "identify", "--creep",
+                          "/nonexistent.csv"],
                          capture_output=True, text=True, cwd=REPO, env=env, timeout=60)
-    assert bad.returncode == 2 and "/nonexistent.csv" in bad.stderr and "Traceback" not in bad.stderr
+    assert bad.returncode == 2 and "/nonexistent.csv" in bad.stderr
+    assert "Traceback" not in bad.stderr

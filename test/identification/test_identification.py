@@ -57,7 +57,8 @@ def test_table1_file_holds_the_paper_numbers():
     np.testing.assert_allclose(d.residual, np.array(TABLE1_MM) * 1e-3, rtol=1e-12)
     assert set(d.force) == {0.5} and set(d.t1) == {60.0} and d.length == 0.1
     assert d.residual.mean() == pytest.approx(23.1e-3, abs=1e-6)
-    assert d.residual.std(ddof=0) == pytest.approx(0.83e-3, abs=5e-6)      # the paper's sd is ddof = 0
+    assert d.residual.std(ddof=0) == pytest.approx(
+        0.83e-3, abs=5e-6)      # the paper's sd is ddof = 0
     text = table1_path().read_text()
     assert "Table 1" in text and "F = 0.5 N" in text and "t1 = 60 s" in text
 
@@ -119,7 +120,8 @@ def test_paper_steps_recover_exact_constants(m):
 @pytest.fixture(scope="module")
 def campaigns():
     """Five synthetic curves at 1e-3 m/s per material (offsets drawn, sd 0.02 N)."""
-    return {name: [s.curve for s in synthetic_tensile_set(m, (1e-3,), 5, seed=11, break_spread=0.02)]
+    return {name: [s.curve for s in synthetic_tensile_set(m, (1e-3,), 5, seed=11,
+                                                          break_spread=0.02)]
             for name, m in (("maxwell", MAXWELL), ("three", THREE), ("burgers", BURG))}
 
 
@@ -161,7 +163,8 @@ def test_acceptance_b_burgers_told_from_three_element(joint):
     rb, r3 = joint["burgers"], joint["three"]
     assert rb.best_aic == rb.best_bic == "burgers"
     assert rb.fits["three-element"].bic - rb.fits["burgers"].bic > 10.0
-    assert r3.best_bic == "three-element"                           # and not Burgers on three-element data
+    # and not Burgers on three-element data
+    assert r3.best_bic == "three-element"
     assert abs(rb.params["k2"].value / 150.0 - 1) < 0.05
 
 
@@ -181,7 +184,8 @@ def test_joint_standard_errors_are_calibrated():
     for seed in range(24):
         curve = synthetic_tensile_curve(MAXWELL, 1e-3, seed=100 + seed).curve
         fit = fit_model("maxwell", FitData([prepare_tensile(curve)]))
-        z.append([(fit.params[n].value - t) / fit.params[n].se for n, t in (("k1", 95.0), ("c2", 1300.0))])
+        z.append([(fit.params[n].value - t) / fit.params[n].se for n,
+                 t in (("k1", 95.0), ("c2", 1300.0))])
     z = np.array(z)
     assert np.all(np.abs(z.mean(axis=0)) < 0.8)
     assert np.all((0.5 < z.std(axis=0)) & (z.std(axis=0) < 1.6))
@@ -193,7 +197,8 @@ def test_without_rest_samples_or_creep_c1_is_confounded_with_the_offset():
     assert r.fits["three-element"].params["c1"].se is None
     assert any("confounded" in n for n in r.notes)
     # a creep table fixes c2 and with it c1 (from the shape of the curve)
-    r2 = identify_joint(curves, [synthetic_creep_residuals(THREE, seed=3)], models=("maxwell", "three-element"))
+    r2 = identify_joint(curves, [synthetic_creep_residuals(
+        THREE, seed=3)], models=("maxwell", "three-element"))
     assert r2.model == "three-element"
     assert r2.fits["three-element"].params["c1"].se is not None
     assert abs(r2.params["c1"].value / 300 - 1) < 0.2
@@ -216,7 +221,8 @@ def test_paper_method_needs_creep_data():
 def test_file_errors_name_file_line_and_column(tmp_path):
     p = tmp_path / "bad.csv"
     p.write_text("# speed_m_per_s: 0.001\nt_s,F_N\n0,0\n0.1,abc\n")
-    with pytest.raises(DataFormatError, match=r"bad.csv: line 4, column 2 \(F_N\): 'abc' is not a number"):
+    with pytest.raises(DataFormatError, match=r"bad.csv: line 4, column 2 \(F_N\): 'abc' is not a "
+                                              r"number"):
         read_tensile_curve(p)
     p.write_text("t_s,F_N\n0,0\n0.1\n")
     with pytest.raises(DataFormatError, match=r"line 3, column 2: 1 fields, expected 2"):

@@ -22,7 +22,8 @@ from rheo_shaping.material.burgers import (
     burgers_elongation_step,
     burgers_tensile_force,
 )
-from rheo_shaping.material.material import ThreeElement, elongation_step, maxwell, step_coefficients
+from rheo_shaping.material.material import (ThreeElement, elongation_step, maxwell,
+                                            step_coefficients)
 from rheo_shaping.material.response import elongation_response, force_response
 
 V = 1e-3                        # pull speed of the paper [m/s]
@@ -108,12 +109,14 @@ def test_burgers_tensile_closed_form_against_the_ode():
 def test_burgers_limits_are_three_element_and_series_maxwell():
     t = np.linspace(0.1, 90, 30)
     stiff = Burgers(95.0, 300.0, 1300.0, 1e12)
-    np.testing.assert_allclose(burgers_tensile_force(stiff, t, V), cf.tensile_force(THREE, t, V), rtol=1e-8)
+    np.testing.assert_allclose(burgers_tensile_force(stiff, t, V),
+                               cf.tensile_force(THREE, t, V), rtol=1e-8)
     k = 95.0 * 150.0 / 245.0
     np.testing.assert_allclose(burgers_tensile_force(BURG_C1_0, t, V),
                                1300 * V * (1 - np.exp(-k * t / 1300)), rtol=1e-12)
     np.testing.assert_allclose(burgers_creep(BURG, t, 0.5),
-                               0.5 / 150 + 0.5 * t / 1300 + 0.5 / 95 * (1 - np.exp(-95 * t / 300)), rtol=1e-13)
+                               0.5 / 150 + 0.5 * t / 1300 + 0.5 / 95 * (1 - np.exp(-95 * t / 300)),
+                               rtol=1e-13)
 
 
 # ------------------------------------------------- stepped exact responses
@@ -126,7 +129,8 @@ def test_imposed_elongation_at_constant_speed_matches_closed_form(name, dt):
     np.testing.assert_allclose(r.force[1:], _tensile_reference(m, t[1:]), rtol=1e-9)
     # plastic flow: p = x - recoverable, recoverable = F/k2 + x1 with x1 from Eq. 3 (k2 = inf)
     if not isinstance(m, Burgers):
-        np.testing.assert_allclose(r.plastic[1:], V * t[1:] - cf.kv_elongation(m, t[1:], V), rtol=1e-9)
+        np.testing.assert_allclose(r.plastic[1:], V * t[1:] -
+                                   cf.kv_elongation(m, t[1:], V), rtol=1e-9)
 
 
 @pytest.mark.parametrize("dt", (0.3, 7.0, 40.0))
@@ -159,7 +163,8 @@ def test_force_ramp_first_order_hold_matches_closed_form(name, dt):
     t = np.arange(0.0, 200.0 + dt / 2, dt)
     r = force_response(m, t, a * t, hold="linear")
     # x = a t j2 + a t^2/(2 c2) + (a/k1)(t - (c1/k1)(1 - exp(-k1 t/c1)))   (c1 = 0: a t/k1)
-    kv = a * t / m.k1 if m.c1 == 0 else a / m.k1 * (t - m.c1 / m.k1 * (1 - np.exp(-m.k1 * t / m.c1)))
+    kv = a * t / m.k1 if m.c1 == 0 else a / m.k1 * \
+        (t - m.c1 / m.k1 * (1 - np.exp(-m.k1 * t / m.c1)))
     ref = a * t * _j2(m) + a * t ** 2 / (2 * m.c2) + kv
     np.testing.assert_allclose(r.elongation, ref, rtol=1e-9, atol=1e-15)
 
@@ -168,7 +173,8 @@ def test_creep_under_constant_force_is_eq7_8():
     t = np.linspace(0, 120, 13)
     for m in (PAPER, THREE):
         r = force_response(m, t, np.full_like(t, 0.5), hold="step")
-        ref = 0.5 * t / m.c2 + (0.5 / m.k1 * (1 - np.exp(-m.k1 * t / m.c1)) if m.c1 else 0.5 / m.k1)
+        ref = 0.5 * t / m.c2 + (0.5 / m.k1 * (1 - np.exp(-m.k1 * t / m.c1))
+                                if m.c1 else 0.5 / m.k1)
         np.testing.assert_allclose(r.elongation, ref, rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(cf.creep_elongation(m, t, 0.5), ref, rtol=1e-12, atol=1e-15)
 
@@ -205,7 +211,8 @@ def test_shortening_unit_goes_slack_and_keeps_its_plastic_elongation():
 
 def test_vectorised_step_over_units():
     k1 = np.array([95.0, 190.0, 50.0])
-    F, e1, p = elongation_step(k1, np.zeros(3), np.full(3, 1300.0), np.zeros(3), np.zeros(3), np.full(3, V), 1.0)
+    F, e1, p = elongation_step(k1, np.zeros(3), np.full(
+        3, 1300.0), np.zeros(3), np.zeros(3), np.full(3, V), 1.0)
     for i in range(3):
         ref = cf.tensile_force(ThreeElement(k1[i], 0.0, 1300.0), 1.0, V)
         assert F[i] == pytest.approx(float(ref), rel=1e-12)
@@ -219,7 +226,10 @@ def test_scaling_two_half_units_in_series_are_one_unit(m):
     # each half of a unit pulled at v is pulled at v/2 and carries the same force
     t = np.linspace(0.5, 100, 20)
     ref = _tensile_reference(m, t)
-    got = burgers_tensile_force(half, t, V / 2) if isinstance(m, Burgers) else cf.tensile_force(half, t, V / 2)
+    got = burgers_tensile_force(half, t, V / 2) if isinstance(m,
+                                                              Burgers) else cf.tensile_force(half,
+                                                                                             t,
+                                                                                             V / 2)
     np.testing.assert_allclose(got, ref, rtol=1e-12)
 
 
@@ -259,7 +269,8 @@ def test_bad_time_steps_are_refused(dt):
 
 
 def test_bad_histories_are_refused():
-    with pytest.raises(ValueError, match=r"time t \[s\] = 1.0 at sample 2: .*\(strictly increasing\)"):
+    with pytest.raises(ValueError, match=r"time t \[s\] = 1.0 at sample 2: .*\(strictly "
+                                         r"increasing\)"):
         elongation_response(PAPER, [0.0, 1.0, 1.0], [0, 1e-3, 2e-3])
     with pytest.raises(ValueError, match=r"elongation \[m\] = nan at sample 1"):
         elongation_response(PAPER, [0.0, 1.0], [0.0, float("nan")])

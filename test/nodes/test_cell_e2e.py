@@ -33,7 +33,7 @@ from rheo_shaping.sheet.metrics import residual_gap  # noqa: E402
 from rheo_shaping.params.node_params import MonitorNodeParams  # noqa: E402
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.params.params import CellParams  # noqa: E402
-from rheo_shaping.planning.movement import movement_plan, run_movement
+from rheo_shaping.planning.movement import movement_plan, run_movement  # noqa: E402
 from rheo_shaping.planning.planning import MotionLimits  # noqa: E402
 from rheo_shaping.sheet.simulation import build_chain  # noqa: E402
 from rheo_shaping.planning.stopping import stop_from_state, stopping_time  # noqa: E402
@@ -221,7 +221,8 @@ def test_aggressive_plan_is_aborted_before_the_sheet_tears(ros, procs, tmp_path,
         assert xz[1] == pytest.approx(np.interp(s_ns, t, p[:, 1]), abs=1e-12)
     crossed = samples[samples[:, 1] >= F_abort]
     t_cross = crossed[0, 0] if crossed.size else math.nan
-    figures = {"movement": mv.number, "speed": mv.speed, "end": list(getattr(mv, f"end_{mv.number}")),
+    figures = {"movement": mv.number, "speed": mv.speed,
+               "end": list(getattr(mv, f"end_{mv.number}")),
                "offline_F_max_without_monitor": offline.F_max, "F_break": Fb, "F_abort": F_abort,
                "largest_tension": largest, "abort_reason": reason,
                "t_threshold_crossing": (t_cross - t0) / NS if crossed.size else None,

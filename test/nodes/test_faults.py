@@ -43,7 +43,8 @@ def stream(ros, cell, seconds, drop=0.0, rng=None, tension=0.2):
         if rng.random() >= drop:
             cell.publish(tension=tension)
             last = time.monotonic()
-        else:                                   # the tension topics' sample is lost, the clock goes on
+        # the tension topics' sample is lost, the clock goes on
+        else:
             cell.t_ns += int(0.05 * 1e9)
             cell.clock.publish(m.clock_msg(cell.t_ns))
         cell.ros.spin_for(0.02)
@@ -61,7 +62,8 @@ def test_partial_loss_keeps_running_and_still_aborts_on_a_high_tension(ros, drop
     pattern = random.Random(1)
     lost = [pattern.random() < drop for _ in range(400)]        # the stream's draws, in order
     longest = max(len(list(run)) for is_lost, run in itertools.groupby(lost) if is_lost)
-    assert 0.02 * (longest + 1) < 0.5                  # its gaps (0.28 s at 50 %): < max_data_age / 2
+    # its gaps (0.28 s at 50 %): < max_data_age / 2
+    assert 0.02 * (longest + 1) < 0.5
     stream(ros, cell, 2.0, drop=drop, rng=random.Random(1))
     assert monitor.state == "ready", monitor.abort_reason
     cell.publish(tension=0.95 * monitor.threshold + 0.1)
@@ -83,7 +85,8 @@ def test_lost_or_late_tension_data_abort_within_max_data_age_plus_one_period(ros
         for _ in range(10):                         # the withheld samples arrive late, in a burst
             cell.publish()
         ros.spin_for(0.2)
-    print(f"\n{fault}: abort {waited:.3f} s after the last sample (bound {MAX_AGE + PERIOD:.3f} s)")
+    print(f"\n{fault}: abort {waited:.3f} s after the last sample (bound {MAX_AGE + PERIOD:.3f} "
+          "s)")
     assert "stale data" in monitor.abort_reason
     assert MAX_AGE - 0.02 <= waited <= MAX_AGE + PERIOD + SLACK, took
     assert monitor.state == "aborted"                # late data never re-arm it
@@ -99,7 +102,8 @@ def test_out_of_order_samples_never_crash_and_old_stamps_abort(ros):
         cell.publish(tension=v)
         ros.spin_for(0.02)
     assert monitor.state == "ready"
-    cell.publish(stamp_ns=cell.t_ns - int(1.5e9))    # a stamped message from 1.5 s ago, after newer ones
+    # a stamped message from 1.5 s ago, after newer ones
+    cell.publish(stamp_ns=cell.t_ns - int(1.5e9))
     ros.spin_until(lambda: monitor.state == "aborted", 2.0, "abort on an old stamp")
     assert "stale data" in monitor.abort_reason and "old" in monitor.abort_reason
 
@@ -118,7 +122,8 @@ def running_cell(ros, procs, tmp_path, **planner):
                           planner={"autostart": False, **planner}, monitor={"max_data_age": 0.5})
     c = Cell(ros, procs, params)
     c.start()
-    c.wait(lambda: c.state() == "running" and len(c.rec["/tool/command"]) > 50, 60.0, "the tool moving")
+    c.wait(lambda: c.state() == "running" and len(
+        c.rec["/tool/command"]) > 50, 60.0, "the tool moving")
     return c, params
 
 
@@ -129,7 +134,8 @@ def test_simulator_killed_mid_run_monitor_aborts_and_planner_stops(ros, procs, t
     took = c.wait(lambda: c.rec["/shaping/abort"], 5.0, "the monitor's abort")
     assert "stale data" in c.rec["/shaping/abort"][0].data
     c.wait(lambda: c.state() not in ("running",), 5.0, "the planner to stop")
-    print(f"\nsimulator killed: abort after {took:.3f} s (max_data_age 0.5 s), planner {c.state()}")
+    print(
+        f"\nsimulator killed: abort after {took:.3f} s (max_data_age 0.5 s), planner {c.state()}")
     assert took <= 0.5 + 0.05 + 0.5
     assert c.state() in ("stopping", "retracting", "holding")
     assert time.monotonic() - t_kill < 10.0
@@ -140,7 +146,8 @@ def test_simulator_killed_mid_run_monitor_aborts_and_planner_stops(ros, procs, t
 def test_monitor_killed_mid_run_planner_stops(ros, procs, tmp_path):
     c, _ = running_cell(ros, procs, tmp_path, monitor_timeout=0.5)
     kill(procs, c.monitor)
-    took = c.wait(lambda: c.state() in ("stopping", "retracting", "holding"), 5.0, "the planner to stop")
+    took = c.wait(lambda: c.state() in ("stopping", "retracting",
+                  "holding"), 5.0, "the planner to stop")
     log = "".join(p.text() for p in procs.all if p.exe == "planner")
     print(f"\nmonitor killed: planner stopped after {took:.3f} s (monitor_timeout 0.5 s)")
     assert "monitor lost" in log
@@ -157,7 +164,8 @@ def test_planner_restarted_mid_run_does_not_resume(ros, procs, tmp_path):
     # the replacement planner has autostart ON: it still must not move the tool on its own
     states = Recorder(ros.node("restart_observer"), {"/shaping/planner_state": (String, True)})
     restart = write_params(tmp_path / "restart.yaml", CellParams(), planner={"autostart": True})
-    again = procs("planner", "--ros-args", "--params-file", str(restart), "-p", "use_sim_time:=true")
+    again = procs("planner", "--ros-args", "--params-file",
+                  str(restart), "-p", "use_sim_time:=true")
 
     def decided():
         mine = states.published_after("/shaping/planner_state", t_dead_ns)

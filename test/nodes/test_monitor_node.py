@@ -18,6 +18,7 @@ from _support.rigs import F_BREAK, FakeCell, get_ready, listen, make_monitor  # 
 from _support.ros import Recorder  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
+
 @pytest.fixture
 def cell(ros):
     return FakeCell(ros)
@@ -33,7 +34,8 @@ def test_ready_heartbeat_and_diagnostics(ros, cell):
     ros.spin_until(lambda: any(s.name == "rheo_shaping/monitor" and s.level == DiagnosticStatus.OK
                                for d in rec["/diagnostics"] for s in d.status), 5.0,
                    "OK diagnostics", every=lambda: cell.publish())
-    status = [s for d in rec["/diagnostics"] for s in d.status if s.level == DiagnosticStatus.OK][-1]
+    status = [s for d in rec["/diagnostics"]
+              for s in d.status if s.level == DiagnosticStatus.OK][-1]
     keys = {kv.key for kv in status.values}
     assert {"tension_max", "safety_factor", "data_age_tensions", "abort_threshold"} <= keys
     assert rec["/shaping/abort"] == []
@@ -71,7 +73,8 @@ def test_reset_rearms_and_clears_the_latched_abort(ros, cell):
     assert monitor.state == "waiting"
     get_ready(ros, monitor, cell)
     late = Recorder(ros.node("late_joiner2"), {"/shaping/abort": (String, True)})
-    ros.spin_until(lambda: late.node.count_publishers("/shaping/abort") >= 1, 10.0, "abort publisher")
+    ros.spin_until(lambda: late.node.count_publishers(
+        "/shaping/abort") >= 1, 10.0, "abort publisher")
     cell.stream(0.5)
     assert late["/shaping/abort"] == []               # the old abort is gone
 

@@ -19,7 +19,7 @@ from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.planner import PlannerNode  # noqa: E402
 from rheo_shaping.params.params import CellParams  # noqa: E402
 from rheo_shaping.params.schema import ParameterError  # noqa: E402
-from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.planning.movement import movement_plan  # noqa: E402
 
 from _support.ros import Recorder, motion_bounds, wait_for_subscribers  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
@@ -182,7 +182,8 @@ def test_reset_refused_while_moving_then_rearms_with_an_approach(ros):
 def test_refuses_a_plan_that_pinches_the_sheet(ros):
     cell = CellParams()
     end = (cell.movement.end_2[0] - 3e-3, cell.movement.end_2[1])     # 3 mm deeper: a pinch
-    overrides = [Parameter("movement.number", value=2), Parameter("movement.end_2", value=list(end))]
+    overrides = [Parameter("movement.number", value=2),
+                 Parameter("movement.end_2", value=list(end))]
     with pytest.raises(ParameterError, match="pinches the sheet") as exc:
         PlannerNode(context=ros.context, parameter_overrides=overrides)
     assert "clearance_factor" in str(exc.value)

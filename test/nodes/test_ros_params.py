@@ -10,7 +10,7 @@ pytest.importorskip("rclpy")
 from rclpy.parameter import Parameter  # noqa: E402
 
 from rheo_shaping.params.node_params import (NODE_PARAMS, MonitorNodeParams,  # noqa: E402
-                                      SimulatorNodeParams)
+                                             SimulatorNodeParams)
 from rheo_shaping.nodes.monitor import MonitorNode  # noqa: E402
 from rheo_shaping.nodes.ros_params import SchemaParameters  # noqa: E402
 from rheo_shaping.params.params import CellParams  # noqa: E402
@@ -29,13 +29,15 @@ def test_every_node_setting_has_description_unit_and_range():
 
 def _schema_node(ros, overrides=(), groups=None):
     node = ros.node("schema_test", parameter_overrides=list(overrides))
-    return node, SchemaParameters(node, groups or {"cell": CellParams, "settings": MonitorNodeParams})
+    return node, SchemaParameters(node,
+                                  groups or {"cell": CellParams, "settings": MonitorNodeParams})
 
 
 def test_descriptors_carry_description_unit_and_range(ros):
     node, params = _schema_node(ros)
     d = node.describe_parameter("material.k1")
-    assert "spring k1" in d.description and "[N/m]" in d.description and "(0, 1e+06]" in d.description
+    assert "spring k1" in d.description and "[N/m]" in d.description
+    assert "(0, 1e+06]" in d.description
     assert d.floating_point_range[0].from_value == 0.0
     assert d.floating_point_range[0].to_value == 1e6
     n = node.describe_parameter("sheet.n_masses")
@@ -116,5 +118,6 @@ def test_executable_refuses_bad_parameter_at_start(exe, arg, name):
 
 def test_simulator_settings_defaults_are_consistent():
     s = SimulatorNodeParams()
-    assert s.command_timeout < MonitorNodeParams().max_data_age      # lockstep waits never look stale
+    # lockstep waits never look stale
+    assert s.command_timeout < MonitorNodeParams().max_data_age
     assert s.offered_deadline <= MonitorNodeParams().max_data_age    # QoS compatible

@@ -27,7 +27,8 @@ from rheo_shaping.units import NS  # noqa: E402
 
 TOPICS = {"/sheet/profile": PoseArray, "/sheet/tensions": Float64MultiArray,
           "/sheet/contact_tension": Float64, "/tool/pose": PoseStamped,
-          "/tool/wrench": WrenchStamped, "/sheet/markers": MarkerArray, "/diagnostics": DiagnosticArray}
+          "/tool/wrench": WrenchStamped, "/sheet/markers": MarkerArray,
+          "/diagnostics": DiagnosticArray}
 
 
 def make_sim(ros, **settings):
@@ -57,7 +58,8 @@ def test_topics_follow_the_contract_on_simulated_time(ros):
     tensions = rec.last("/sheet/tensions")
     assert tensions.layout.dim[0].label == "link"
     assert tensions.layout.dim[0].size == len(tensions.data) == cell.sheet.n_masses + 1
-    assert rec.last("/sheet/contact_tension").data == 0.0            # tool at its start, no contact
+    # tool at its start, no contact
+    assert rec.last("/sheet/contact_tension").data == 0.0
     start = movement_scenario(cell).start
     assert m.pose_xz(rec.last("/tool/pose")) == pytest.approx(start)
     assert rec.last("/tool/wrench").header.frame_id == "cake"
@@ -77,7 +79,7 @@ def test_topics_follow_the_contract_on_simulated_time(ros):
 
 
 def test_real_time_factor_one_publishes_no_clock(ros):
-    sim = make_sim(ros, real_time_factor=1.0, step_period=0.02)
+    make_sim(ros, real_time_factor=1.0, step_period=0.02)
     node, rec = listen(ros)
     ros.spin_until(lambda: len(rec["/sheet/profile"]) >= 3, 10.0, "profiles")
     assert node.count_publishers("/clock") == 0

@@ -59,11 +59,12 @@ def test_every_endpoint_is_a_topic_of_the_module(ros, namespace):
             assert q.reliability == ReliabilityPolicy.RELIABLE, (name, contract)
             assert q.durability == topic.qos.durability, (name, contract)
             # publishers of state keep a deeper history for slow readers (topics.writer_qos)
-            want_depth = (T.writer_qos(topic.qos).depth if direction == "pub" and name == "simulator"
-                          else topic.qos.depth)
+            writer = direction == "pub" and name == "simulator"
+            want_depth = T.writer_qos(topic.qos).depth if writer else topic.qos.depth
             assert q.depth == want_depth, (name, contract)
     assert (nodes["simulator"].pub_tensions.qos_profile.deadline.nanoseconds
             == int(nodes["simulator"].settings.offered_deadline * 1e9))
     sub = next(s for s in nodes["monitor"].subscriptions if s.topic_name.endswith("tensions"))
-    assert sub.qos_profile.deadline.nanoseconds == int(nodes["monitor"].settings.max_data_age * 1e9)
+    assert sub.qos_profile.deadline.nanoseconds == int(
+        nodes["monitor"].settings.max_data_age * 1e9)
     assert T.ABORT.qos.durability == DurabilityPolicy.TRANSIENT_LOCAL

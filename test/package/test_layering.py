@@ -120,3 +120,22 @@ def test_top_level_import_is_cheap():
             "assert callable(rs.run_movement) and callable(rs.load_cell); "
             "assert callable(rs.identify_paper) and callable(rs.diagnose)")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_docs_architecture_lists_every_import_between_subpackages():
+    """docs/architecture.md's table ("may import") covers what the code imports."""
+    import re
+    doc = (PKG.parent / "docs" / "architecture.md").read_text()
+    allowed: dict[str, set[str]] = {}
+    for row in re.findall(r"^\| (`[^|]*`) \|[^|]*\| ([^|]*) \|$", doc, re.M):
+        units = re.findall(r"`([a-z_]+)(?:/|\.py)?`", row[0])
+        for unit in units:
+            allowed[unit] = set(re.findall(r"`([a-z_]+)`", row[1].split("(")[0]))
+    graph = _graph()
+    missing = []
+    for src in ("params", "material", "identification", "sheet", "planning", "records",
+                "study", "safety", "diagnosis", "parallel", "units"):
+        assert src in allowed, f"docs/architecture.md has no row for {src}"
+        used = {d for d in graph.get(src, {}) if d not in ROS_ROOTS and d not in ("_lazy",)}
+        missing += [f"{src} -> {d}" for d in sorted(used - allowed[src])]
+    assert not missing, "imports docs/architecture.md does not list: " + ", ".join(missing)

@@ -51,15 +51,17 @@ def test_the_strip_is_the_papers_2g_spheres_split_in_four():
     rest = c.rest_length.sum()
     assert paper_spheres == round(rest / 6.4e-3)
     # Sec. 4.1's lumping: mass per unit rest length x half of each adjacent link
-    l = c.rest_length
-    assert np.allclose(c.mass, p.sheet.mass_per_length * 0.5 * (l[:-1] + l[1:]), rtol=1e-12, atol=0)
+    l = c.rest_length  # noqa: E741
+    assert np.allclose(c.mass, p.sheet.mass_per_length * 0.5 *
+                       (l[:-1] + l[1:]), rtol=1e-12, atol=0)
     # about a quarter of the paper's sphere each (the pitch is the sheet's length over N + 1)
     assert abs(c.mass.mean() - 0.5e-3) < 0.05 * 0.5e-3
 
 
 def test_every_chosen_number_is_commented():
     """Every leaf line of the open geometry carries a comment (the why)."""
-    open_keys = {"height", "fillet_radius", "n_masses", "top_bond_x", "bottom_bond_x", "excess_length",
+    open_keys = {"height", "fillet_radius", "n_masses", "top_bond_x", "bottom_bond_x",
+                 "excess_length",
                  "mass_per_length", "shape", "width", "corner_radius", "home", "start_1", "end_1",
                  "start_2", "end_2", "start_3", "end_3", "start_4", "end_4", "d", "retract_speed"}
     lines = CELL_YAML.read_text().splitlines()

@@ -80,12 +80,16 @@ def test_material_rejects_nan_and_negative(name):
 
 @pytest.mark.parametrize("text,message", [
     ("/**:\n  ros__parameters:\n    material: {k1: [1, 2}\n", r"bad\.yaml: line 3, column \d+"),
-    ("/**:\n  ros__parameters:\n    material: {k1: fast}\n", r"parameter 'material.k1' = 'fast' is invalid: expected a number in \(0, 1e\+06\] N/m"),
-    ("/**:\n  ros__parameters:\n    sheet: {thicknes: 0.004}\n", r"unknown parameter 'sheet.thicknes'"),
-    ("/**:\n  ros__parameters:\n    effects: {mass_error: -2.0}\n", r"parameter 'effects.mass_error' = -2.0 is invalid: expected a value in \[-0.9, 10\]"),
+    ("/**:\n  ros__parameters:\n    material: {k1: fast}\n",
+     r"parameter 'material.k1' = 'fast' is invalid: expected a number in \(0, 1e\+06\] N/m"),
+    ("/**:\n  ros__parameters:\n    sheet: {thicknes: 0.004}\n",
+     r"unknown parameter 'sheet.thicknes'"),
+    ("/**:\n  ros__parameters:\n    effects: {mass_error: -2.0}\n",
+     r"parameter 'effects.mass_error' = -2.0 is invalid: expected a value in \[-0.9, 10\]"),
 ])
 def test_malformed_params_file_is_one_line_and_writes_nothing(tmp_path, capsys, text, message):
-    """A params file's mistakes: one line naming file / parameter, value and range; no plot written."""
+    """A params file's mistakes: one line naming file / parameter, value and range; no plot
+    written."""
     import re
 
     from rheo_shaping.cli import main

@@ -146,7 +146,8 @@ def test_sampler_matches_ruckig_at_time():
     traj = ruckig_segment(p0, p1, NOMINAL)
     assert plan.duration == traj.duration
     rng = np.random.default_rng(1)
-    ts = np.concatenate([rng.uniform(0, traj.duration, 200), [0.05, 0.1, 0.15, traj.duration - 0.05]])
+    ts = np.concatenate([rng.uniform(0, traj.duration, 200), [
+                        0.05, 0.1, 0.15, traj.duration - 0.05]])
     pos, vel, acc = plan.sample_many(ts)
     for k, t in enumerate(ts):
         p, v, a = traj.at_time(float(t))
@@ -154,7 +155,8 @@ def test_sampler_matches_ruckig_at_time():
         assert np.allclose(vel[k], v, rtol=0, atol=1e-15)
         assert np.allclose(acc[k], a, rtol=0, atol=1e-15)
         ps, vs, as_ = plan.sample(float(t))
-        assert np.array_equal(ps, pos[k]) and np.array_equal(vs, vel[k]) and np.array_equal(as_, acc[k])
+        assert np.array_equal(ps, pos[k]) and np.array_equal(
+            vs, vel[k]) and np.array_equal(as_, acc[k])
 
 
 @pytest.mark.parametrize("angle_deg", [45.0, -45.0, 135.0, 30.0, 89.999, 0.0, 90.0])
@@ -190,7 +192,8 @@ def test_rest_at_waypoints_and_exact_dwells():
         assert np.array_equal(v, [0.0, 0.0]) and np.array_equal(a, [0.0, 0.0])
         assert np.allclose(p, seg.end, rtol=0, atol=1e-12)
         if seg.kind == "dwell":
-            assert seg.t_end - seg.t_start == pytest.approx(dwell_by_label[seg.label.split(":")[0]], abs=1e-12)
+            assert seg.t_end - \
+                seg.t_start == pytest.approx(dwell_by_label[seg.label.split(":")[0]], abs=1e-12)
             ts = np.linspace(seg.t_start, seg.t_end, 101)
             pos, vel, acc = plan.sample_many(ts)
             assert np.all(vel == 0.0) and np.all(acc == 0.0)
@@ -215,7 +218,8 @@ def test_long_segment_duration_matches_closed_form():
     assert rest_to_rest_time(d, lim) == pytest.approx(expected, abs=1e-12)
 
 
-@pytest.mark.parametrize("limits", [NOMINAL, FAST, MotionLimits(1e-3, 5e-2, 5e-2)], ids=["nom", "fast", "v<a2/j"])
+@pytest.mark.parametrize("limits", [NOMINAL, FAST, MotionLimits(1e-3, 5e-2, 5e-2)],
+                         ids=["nom", "fast", "v<a2/j"])
 @pytest.mark.parametrize("d", [1e-7, 1e-5, 2e-4, 5e-4, 3e-3, 0.05])
 def test_rest_to_rest_time_all_regimes(limits, d):
     plan = plan_waypoints((0.0, 0.0), [Waypoint(d / math.sqrt(2), d / math.sqrt(2))], limits)
@@ -228,7 +232,8 @@ def test_sampling_outside_and_immutability():
         p, v, a = plan.sample(t)
         assert np.array_equal(p, START) and not v.any() and not a.any()
     p, v, a = plan.sample(plan.duration + 100)
-    assert np.allclose(p, (MOVEMENT[1].x, MOVEMENT[1].z), atol=1e-12) and not v.any() and not a.any()
+    assert np.allclose(p, (MOVEMENT[1].x, MOVEMENT[1].z),
+                       atol=1e-12) and not v.any() and not a.any()
     pos, vel, _ = plan.sample_many([-1.0, 1e9])
     assert np.array_equal(pos[0], START) and not vel.any()
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -274,7 +279,8 @@ def test_empty_and_degenerate_plans():
 # -- stops ------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("limits", [NOMINAL, FAST, MotionLimits(5e-3, 5e-2, 5e-2)], ids=["nom", "fast", "no-amax"])
+@pytest.mark.parametrize("limits", [NOMINAL, FAST, MotionLimits(5e-3, 5e-2, 5e-2)],
+                         ids=["nom", "fast", "no-amax"])
 @pytest.mark.parametrize("speed", [5e-3, 1e-3, 4e-4, 1e-5])
 @pytest.mark.parametrize("angle_deg", [0.0, 45.0, -120.0])
 def test_stop_from_constant_speed_matches_closed_form(limits, speed, angle_deg):
@@ -290,7 +296,8 @@ def test_stop_from_constant_speed_matches_closed_form(limits, speed, angle_deg):
     assert not v.any() and not a.any()
     _, v0, _ = stop.sample(0.0 + 1e-12)
     assert np.allclose(v0, speed * u, atol=1e-12)
-    check_limits(stop, MotionLimits(max(speed, 1e-9), limits.a_max, limits.j_max), dt=stop.duration / 2000)
+    check_limits(stop, MotionLimits(max(speed, 1e-9), limits.a_max,
+                 limits.j_max), dt=stop.duration / 2000)
 
 
 def test_stop_numbers_for_the_cell():
@@ -312,7 +319,8 @@ def test_stop_from_accelerating_state(acc_scale):
     assert np.allclose(v, v0, atol=1e-12) and np.allclose(a, a0, atol=1e-9)
     t = np.arange(0, stop.duration + 2 * DT, DT / 10)
     _, vel, acc = stop.sample_many(t)
-    assert np.linalg.norm(acc, axis=1).max() <= max(lim.a_max, abs(acc_scale) * lim.a_max) * (1 + REL)
+    assert np.linalg.norm(acc, axis=1).max() <= max(
+        lim.a_max, abs(acc_scale) * lim.a_max) * (1 + REL)
     jerk = np.linalg.norm(np.diff(acc, axis=0), axis=1) / (DT / 10)
     assert jerk.max() <= lim.j_max * (1 + REL)
     assert not stop.sample(stop.duration)[1].any()
@@ -320,7 +328,8 @@ def test_stop_from_accelerating_state(acc_scale):
     inp = InputParameter(2)
     inp.control_interface = ControlInterface.Velocity
     inp.synchronization = Synchronization.Phase
-    inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0, 0.1], v0.tolist(), a0.tolist()
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [
+        0.0, 0.1], v0.tolist(), a0.tolist()
     inp.max_velocity = [1.0, 1.0]
     inp.max_acceleration = (lim.a_max * np.abs(u)).tolist()
     inp.max_jerk = (lim.j_max * np.abs(u)).tolist()
@@ -341,7 +350,8 @@ def test_stop_from_non_collinear_state_keeps_norm_limits():
     t = np.arange(0, stop.duration + DT, DT / 10)
     _, vel, acc = stop.sample_many(t)
     assert np.linalg.norm(acc, axis=1).max() <= lim.a_max * (1 + REL)
-    assert (np.linalg.norm(np.diff(acc, axis=0), axis=1) / (DT / 10)).max() <= lim.j_max * (1 + REL)
+    assert (np.linalg.norm(np.diff(acc, axis=0), axis=1) /
+            (DT / 10)).max() <= lim.j_max * (1 + REL)
     assert not stop.sample(stop.duration)[1].any()
 
 
@@ -359,7 +369,8 @@ def stream(streamer: TrajectoryStreamer, t0: float, t1: float, dt: float = DT):
     for t in ts:
         out.append(streamer.setpoint(float(t)))
         states.append(streamer.state)
-    return ts, np.array([o[0] for o in out]), np.array([o[1] for o in out]), np.array([o[2] for o in out]), states
+    return (ts, np.array([o[0] for o in out]), np.array([o[1] for o in out]),
+            np.array([o[2] for o in out]), states)
 
 
 def test_streamer_runs_a_plan_to_done():
@@ -485,7 +496,9 @@ def test_abort_during_retract_stops_and_holds():
     assert states[-1] == "holding" and "retracting" not in states
     p_end, v_end, _ = s.setpoint(t_mid + 100.0)
     assert not v_end.any()
-    assert np.linalg.norm(p_end - p_mid) == pytest.approx(stopping_distance(np.linalg.norm(v_mid), RETRACT), rel=1e-6)
+    assert np.linalg.norm(
+        p_end - p_mid) == pytest.approx(stopping_distance(np.linalg.norm(v_mid), RETRACT),
+                                        rel=1e-6)
 
 
 def test_abort_without_home_holds_where_it_stops():
@@ -505,11 +518,13 @@ def test_abort_without_home_holds_where_it_stops():
 
 coord = st.floats(-0.05, 0.05, allow_nan=False)
 waypoint = st.builds(Waypoint, coord, coord, st.floats(0.0, 3.0) | st.just(0.0))
-limits_st = st.builds(MotionLimits, st.floats(1e-4, 5e-3), st.floats(1e-3, 5e-2), st.floats(1e-2, 1.0))
+limits_st = st.builds(MotionLimits, st.floats(1e-4, 5e-3),
+                      st.floats(1e-3, 5e-2), st.floats(1e-2, 1.0))
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(start=st.tuples(coord, coord), wps=st.lists(waypoint, min_size=1, max_size=4), lim=limits_st)
+@given(start=st.tuples(coord, coord), wps=st.lists(waypoint, min_size=1, max_size=4),
+       lim=limits_st)
 def test_property_random_waypoints(start, wps, lim):
     plan = plan_waypoints(start, wps, lim)
     segs = plan.segments
@@ -538,7 +553,8 @@ def test_property_random_waypoints(start, wps, lim):
             assert seg.kind == "dwell" and seg.duration == pytest.approx(wp.dwell_s, abs=1e-12)
             expected += wp.dwell_s
         p, v, a = plan.sample(expected)
-        assert np.allclose(p, wp.xz, rtol=0, atol=MIN_MOVE_M + 1e-14) and not v.any() and not a.any()
+        assert np.allclose(p, wp.xz, rtol=0, atol=MIN_MOVE_M +
+                           1e-14) and not v.any() and not a.any()
     assert k == len(plan.segments)
     assert plan.duration == pytest.approx(expected, rel=1e-12, abs=1e-12)
     dt = min(DT, lim.a_max / lim.j_max / 20)

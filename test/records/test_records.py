@@ -12,7 +12,8 @@ from rheo_shaping.cli import main
 from rheo_shaping.params.config import dump_cell
 from rheo_shaping.records.csv_import import import_csv
 from rheo_shaping.sheet.effects import EFFECTS
-from rheo_shaping.records.measurement import MeasurementParams, nodes_at, resample_polyline, synthesize_record
+from rheo_shaping.records.measurement import (MeasurementParams, nodes_at, resample_polyline,
+                                              synthesize_record)
 from rheo_shaping.params.params import CellParams
 from rheo_shaping.records.records import RecordError, read_record, read_truth, write_record
 
@@ -63,7 +64,8 @@ def test_profile_points_lie_on_the_sheet_and_are_spaced_along_it(short_cell):
         assert np.allclose(np.diff(arc), ms.profile_spacing, rtol=1e-9, atol=1e-12)
         chord = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         assert np.max(chord) <= ms.profile_spacing + 1e-12
-    assert not np.any(np.all(np.isclose(rec.profiles[0][:, None, :], run.x[0][None, :, :]), axis=2))
+    assert not np.any(
+        np.all(np.isclose(rec.profiles[0][:, None, :], run.x[0][None, :, :]), axis=2))
 
 
 def test_resample_polyline_spacing_exact():
@@ -111,11 +113,17 @@ def test_read_errors_name_the_record(tmp_path, synthetic):
 
 def write_csvs(tmp_path, rec):
     (tmp_path / "pose.csv").write_text("t,x,z\n" + "\n".join(
-        f"{float(t) + 100.0!r},{float(x)!r},{float(z)!r}" for t, (x, z) in zip(rec.pose_t, rec.pose_xz)) + "\n")
-    rows = [f"{float(t) + 100.0!r},{float(x)!r},{float(z)!r}" for t, f in zip(rec.profile_t, rec.profiles) for x, z in f]
+        f"{float(t) + 100.0!r},{float(x)!r},{float(z)!r}" for t,
+        (x, z) in zip(rec.pose_t,
+                      rec.pose_xz)) + "\n")
+    rows = [f"{float(t) + 100.0!r},{float(x)!r},{float(z)!r}" for t,
+            f in zip(rec.profile_t, rec.profiles) for x, z in f]
     (tmp_path / "profile.csv").write_text("t,x,z\n" + "\n".join(rows) + "\n")
     (tmp_path / "wrench.csv").write_text("t,fx,fz\n" + "\n".join(
-        f"{float(t) + 100.0!r},{float(x)!r},{float(z)!r}" for t, (x, z) in zip(rec.wrench_t, rec.wrench_xz)) + "\n")
+        f"{float(t) + 100.0!r},{float(x)!r},{float(z)!r}" for t,
+        (x,
+         z) in zip(rec.wrench_t,
+                   rec.wrench_xz)) + "\n")
     (tmp_path / "scenario.yaml").write_text(dump_cell(rec.scenario))
 
 
@@ -129,8 +137,10 @@ def test_csv_import_equals_the_record(tmp_path, synthetic):
     assert all(np.array_equal(a, b) for a, b in zip(back.profiles, rec.profiles))
     assert np.array_equal(back.wrench_xz, rec.wrench_xz)
     # and through the command, into a record the diagnosis reads
-    assert main(["import-csv", "--scenario", str(tmp_path / "scenario.yaml"), "--pose", str(tmp_path / "pose.csv"),
-                 "--profile", str(tmp_path / "profile.csv"), "--out", str(tmp_path / "imported")]) == 0
+    assert main(["import-csv", "--scenario", str(tmp_path / "scenario.yaml"), "--pose",
+                 str(tmp_path / "pose.csv"),
+                 "--profile", str(tmp_path / "profile.csv"), "--out",
+                 str(tmp_path / "imported")]) == 0
     assert len(read_record(tmp_path / "imported").profiles) == len(rec.profiles)
 
 
@@ -140,11 +150,13 @@ def test_csv_import_equals_the_record(tmp_path, synthetic):
     ("t,x,z\n0,1,2\n0.1,nan,2\n", r"line 3, column 'x': 'nan' is not a finite number"),
     ("t,x,z\n0.2,1,2\n0.1,1,2\n", r"line 3, column 't': times must not decrease"),
 ])
-def test_malformed_csv_is_named_and_nothing_is_written(tmp_path, synthetic, capsys, content, message):
+def test_malformed_csv_is_named_and_nothing_is_written(tmp_path, synthetic, capsys, content,
+                                                       message):
     (rec, _), _ = synthetic
     write_csvs(tmp_path, rec)
     (tmp_path / "pose.csv").write_text(content)
-    code = main(["import-csv", "--scenario", str(tmp_path / "scenario.yaml"), "--pose", str(tmp_path / "pose.csv"),
+    code = main(["import-csv", "--scenario", str(tmp_path / "scenario.yaml"), "--pose",
+                 str(tmp_path / "pose.csv"),
                  "--profile", str(tmp_path / "profile.csv"), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert code == 2 and "pose.csv" in err and "Traceback" not in err
@@ -158,7 +170,8 @@ def test_record_command_with_an_effect(tmp_path, capsys):
     params.write_text("/**:\n  ros__parameters:\n    movement: {process_time: 20.0}\n"
                       "    effects: {kelvin_c1: 800.0}\n")
     out = tmp_path / "rec"
-    assert main(["record", "--params", str(params), "--out", str(out), "--seed", "1", "--json"]) == 0
+    assert main(["record", "--params", str(params), "--out",
+                str(out), "--seed", "1", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["effects"] == ["kelvin_c1"] and summary["profile_frames"] > 30
     rec = read_record(out)

@@ -88,11 +88,16 @@ def test_chain_errors():
 # ----------------------------------------------------------- Irvine's catenary
 
 
-@pytest.mark.parametrize("case", [dict(span=0.1, height_difference=-0.08, unstretched_length=0.15, EA=EA),
-                                  dict(span=0.1, height_difference=-0.002, unstretched_length=0.15, EA=EA),
-                                  dict(span=0.1, height_difference=0.05, unstretched_length=0.5, EA=EA),
-                                  dict(span=0.1, height_difference=0.0, unstretched_length=0.09, EA=EA),
-                                  dict(span=2.0, height_difference=0.7, unstretched_length=2.5, EA=1e6)])
+@pytest.mark.parametrize("case",
+                         [dict(span=0.1, height_difference=-0.08, unstretched_length=0.15, EA=EA),
+                          dict(span=0.1, height_difference=-0.002,
+                               unstretched_length=0.15, EA=EA),
+                          dict(span=0.1, height_difference=0.05,
+                               unstretched_length=0.5, EA=EA),
+                          dict(span=0.1, height_difference=0.0,
+                               unstretched_length=0.09, EA=EA),
+                          dict(span=2.0, height_difference=0.7, unstretched_length=2.5,
+                               EA=1e6)])
 def test_irvine_boundary_conditions_and_constitutive_law(case):
     cab = solve_irvine(weight_per_length=W, **case)
     x, z = cab.position([0.0, cab.L0])
@@ -114,10 +119,11 @@ def test_irvine_boundary_conditions_and_constitutive_law(case):
 def test_irvine_stiff_limit_is_inextensible_catenary():
     l, h, big_l = 0.1, -0.08, 0.15
     # the reference itself: through both supports, with the right length
-    zc = lambda x: inextensible_catenary(l, h, big_l, x)
+    zc = lambda x: inextensible_catenary(l, h, big_l, x)  # noqa: E731
     assert abs(zc(0.0)) < 1e-15 and abs(zc(l) - h) < 1e-14
     eps = 1e-7
-    length = quad(lambda x: math.hypot(1.0, (zc(x + eps) - zc(x - eps)) / (2 * eps)), 0, l, epsabs=1e-13)[0]
+    length = quad(lambda x: math.hypot(
+        1.0, (zc(x + eps) - zc(x - eps)) / (2 * eps)), 0, l, epsabs=1e-13)[0]
     assert length == pytest.approx(big_l, abs=1e-8)
     s = np.linspace(0.0, big_l, 31)
     x, z = irvine_catenary(l, h, big_l, 1e9, W, s)

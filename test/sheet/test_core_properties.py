@@ -100,7 +100,8 @@ def test_invalid_cell_values_are_refused_with_the_parameter_named(name, value):
                  st.text(max_size=3), st.booleans()))
 def test_random_invalid_values_always_give_a_clear_error(name, value):
     from rheo_shaping.params.schema import from_flat
-    assume(not (name == "material.c2" and value == float("inf")))   # c2 = inf: no plastic flow, valid
+    # c2 = inf: no plastic flow, valid
+    assume(not (name == "material.c2" and value == float("inf")))
     with pytest.raises(ParameterError) as err:
         from_flat(CellParams, {name: value})
     assert f"'{name}'" in str(err.value)

@@ -53,7 +53,8 @@ def test_nominal_results_unchanged_by_the_effect_machinery(base, plan, nominal_r
         assert r.F_max == nominal_run.F_max and r.delta == nominal_run.delta, name
 
 
-# ------------------------------------------------------------------ tool_offset, mass_error, kelvin_c1
+# ------------------------------------------------------------------ tool_offset, mass_error,
+# kelvin_c1
 def test_tool_offset_equals_the_path_shifted_by_it(base, plan):
     shift = np.array([1.0e-3, 0.8e-3])
     knots = plan.knots()
@@ -62,7 +63,8 @@ def test_tool_offset_equals_the_path_shifted_by_it(base, plan):
     a = run_scenario(EFFECTS["tool_offset"].apply(base, tuple(shift)), unshifted)
     b = run_scenario(base, shifted)
     assert np.max(np.abs(a.x - b.x)) < 1e-12
-    assert np.allclose(a.tool + shift, b.tool, atol=1e-15)       # the state keeps the commanded pose
+    # the state keeps the commanded pose
+    assert np.allclose(a.tool + shift, b.tool, atol=1e-15)
     assert abs(a.F_max - b.F_max) < 1e-12
 
 
@@ -75,7 +77,8 @@ def test_mass_error_and_kelvin_c1_scale_the_chain_constants(base):
 
 
 def test_heavier_sheet_hangs_with_more_tension(base):
-    """Gravity is the only load before the tool arrives: the settled tensions grow with the weight."""
+    """Gravity is the only load before the tool arrives: the settled tensions grow with the
+    weight."""
     light = Simulation(base).state.tension
     heavy = Simulation(EFFECTS["mass_error"].apply(base, (0.3,))).state.tension
     assert np.max(heavy) > 1.2 * np.max(light)
@@ -83,7 +86,8 @@ def test_heavier_sheet_hangs_with_more_tension(base):
 
 # ------------------------------------------------------------------ friction: stick and slip
 def block_on_workplane(mu: float):
-    """One 20 g sphere on the workplane held by a stretched link to the left (slack to the right)."""
+    """One 20 g sphere on the workplane held by a stretched link to the left (slack to the
+    right)."""
     r, k = 2e-3, 10.0
     c = ChainConstants(anchor_top=np.array([-0.05, r]), anchor_bottom=np.array([0.05, r]),
                        rest_length=np.array([0.04, 0.06]), k1=np.array([k, k]), c1=np.zeros(2),
@@ -99,7 +103,8 @@ def test_friction_sticks_below_mu_N():
     model, st, k = block_on_workplane(mu=0.8)          # pull 0.1 N < 0.8 x 0.196 N
     for _ in range(10):
         st = model.step(st, 0.5, dynamic=False)
-    assert abs(st.x[0, 0]) < 1e-6                       # sticks: < 1e-7 m of regularised creep per step
+    # sticks: < 1e-7 m of regularised creep per step
+    assert abs(st.x[0, 0]) < 1e-6
     friction = st.contact[0, 0, 0]
     assert friction == pytest.approx(k * 0.01, rel=1e-3)  # holds the whole pull
 
@@ -129,9 +134,12 @@ def test_bending_energy_of_a_polygon_is_EI_L_over_2R2():
     model = SheetModel(c, [], effects=SheetEffects(bending=EI))
     energy, grad, _ = model._bending_terms(pts[1:-1])
     theta = phi[1] - phi[0]
-    exact = n * 0.5 * EI / h ** 3 * (2 * h * np.sin(theta / 2)) ** 2 * (2 * np.sin(theta / 2) / theta) ** 0
-    assert energy == pytest.approx(n * 0.5 * EI / h ** 3 * (4 * R * np.sin(theta / 2) ** 2) ** 2, rel=1e-12)
-    assert energy == pytest.approx(EI * n * h / (2 * R ** 2), rel=2e-3)      # continuum EI L / (2 R^2)
+    exact = n * 0.5 * EI / h ** 3 * (2 * h * np.sin(theta / 2)) ** 2 * \
+        (2 * np.sin(theta / 2) / theta) ** 0
+    assert energy == pytest.approx(n * 0.5 * EI / h ** 3 *
+                                   (4 * R * np.sin(theta / 2) ** 2) ** 2, rel=1e-12)
+    assert energy == pytest.approx(EI * n * h / (2 * R ** 2),
+                                   rel=2e-3)      # continuum EI L / (2 R^2)
     assert exact > 0
     # gradient by central differences
     x = pts[1:-1].copy()
@@ -148,7 +156,8 @@ def test_bending_stiffness_reduces_the_sag_of_a_span():
     xs = np.linspace(0.0, L, n + 2)
     c = ChainConstants(anchor_top=np.array([0.0, 0.1]), anchor_bottom=np.array([L, 0.1]),
                        rest_length=np.full(n + 1, L / (n + 1)), k1=np.full(n + 1, 2e3),
-                       c1=np.zeros(n + 1), c2=np.full(n + 1, np.inf), mass=np.full(n, 2e-3), radius=1e-3)
+                       c1=np.zeros(n + 1), c2=np.full(n + 1, np.inf), mass=np.full(n, 2e-3),
+                       radius=1e-3)
     sags = []
     for EI in (0.0, 2e-3):
         model = SheetModel(c, [], 1e7, 1e-10, 100, SheetEffects(bending=EI))
@@ -161,7 +170,8 @@ def test_bending_stiffness_reduces_the_sag_of_a_span():
 
 # ------------------------------------------------------------------ rheology: power law, thinning
 def test_power_law_dashpot_rate_closed_form(base):
-    """c2_eff = c2 (F / F_ref)^(1 - 1/n): the creep rate (F/c2)(F/F_ref)^(1/n - 1) (lagged on F)."""
+    """c2_eff = c2 (F / F_ref)^(1 - 1/n): the creep rate (F/c2)(F/F_ref)^(1/n - 1) (lagged on
+    F)."""
     sim = Simulation(EFFECTS["power_law"].apply(base, (0.6,)))
     st = sim.state
     k1, c1, c2 = sim.model._link_constants(st)
@@ -180,13 +190,15 @@ def test_thinning_scales_the_links_by_L_over_L_plus_p(base):
     assert np.allclose(c2, sim.constants.c2 * (L / (L + 2e-3)) ** 1.5, rtol=1e-14)
 
 
-# ------------------------------------------------------------------ directions in the default process
+# ------------------------------------------------------------------ directions in the default
+# process
 def test_directions_in_the_default_process(base, plan, nominal_run):
     F0, D0 = nominal_run.F_max, nominal_run.delta
     p0 = nominal_run.plastic[-1].sum()
     # a dashpot parallel to k1 resists the stretch rate: more force for the same tool path
     assert run_with(base, plan, "kelvin_c1", (1000.0,)).F_max > 1.1 * F0
-    # below F_ref (all of settling) a shear-thinning dashpot flows more slowly: more tension builds up
+    # below F_ref (all of settling) a shear-thinning dashpot flows more slowly: more tension builds
+    # up
     pl = run_with(base, plan, "power_law", (0.6,))
     assert pl.F_max > F0
     # thinning softens the stretched links: less force, more plastic flow
@@ -201,6 +213,7 @@ def test_directions_in_the_default_process(base, plan, nominal_run):
     assert run_with(base, plan, "bending", (4e-6,)).delta > D0 + 0.5e-3
     # a heavier sheet: more tension
     assert run_with(base, plan, "mass_error", (0.3,)).F_max > F0
-    # the tool sits 1 mm farther from the wall than commanded: the gap at the foot grows by about that
+    # the tool sits 1 mm farther from the wall than commanded: the gap at the foot grows by about
+    # that
     off = run_with(base, plan, "tool_offset", (1e-3, 0.0))
     assert off.delta - D0 == pytest.approx(1e-3, abs=0.5e-3)

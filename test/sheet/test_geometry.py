@@ -65,7 +65,8 @@ def _dist_to_polygon(p: np.ndarray, v: np.ndarray) -> np.ndarray:
     return best
 
 
-def brute_signed_distance(points: np.ndarray, boundary: np.ndarray, inside: np.ndarray) -> np.ndarray:
+def brute_signed_distance(points: np.ndarray, boundary: np.ndarray,
+                          inside: np.ndarray) -> np.ndarray:
     dmin = np.sqrt(((points[:, None, :] - boundary[None, :, :]) ** 2).sum(-1)).min(axis=1)
     return np.where(inside, -dmin, dmin)
 
@@ -80,7 +81,8 @@ def fd_gradient(shape, points: np.ndarray, h: float = 1e-7, offset=(0.0, 0.0)) -
     for c in range(2):
         dp = np.zeros(2)
         dp[c] = h
-        g[:, c] = (shape.signed_distance(points + dp, offset)[0] - shape.signed_distance(points - dp, offset)[0]) / (2 * h)
+        g[:, c] = (shape.signed_distance(points + dp, offset)[0] -
+                   shape.signed_distance(points - dp, offset)[0]) / (2 * h)
     return g
 
 
@@ -246,7 +248,7 @@ def test_tool_shape_from_params():
     t = tool_shape(tool)
     assert t.n_vertices == 4 and t.radius == 0.001
     assert tool_shape(replace(tool, shape="rounded_rectangle")) == rounded_rectangle(0.02, 0.04,
-                                                                                    0.001)
+                                                                                     0.001)
     assert tool_shape(replace(tool, shape="circle")) == circle(0.01)
 
 
@@ -256,7 +258,8 @@ def test_tool_shape_from_params():
 @st.composite
 def convex_polygons(draw):
     n = draw(st.integers(3, 9))
-    coords = draw(st.lists(st.tuples(st.floats(-0.03, 0.03), st.floats(-0.03, 0.03)), min_size=n, max_size=n))
+    coords = draw(st.lists(st.tuples(st.floats(-0.03, 0.03),
+                  st.floats(-0.03, 0.03)), min_size=n, max_size=n))
     pts = np.array(coords)
     assume(np.ptp(pts[:, 0]) > 2e-3 and np.ptp(pts[:, 1]) > 2e-3)
     try:
@@ -273,7 +276,8 @@ def convex_polygons(draw):
     return v, r
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
+@settings(max_examples=100, deadline=None,
+          suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
 @given(poly=convex_polygons(), seed=st.integers(0, 2**32 - 1))
 def test_random_convex_polygon_against_brute_force(poly, seed):
     v, r = poly
@@ -316,7 +320,8 @@ def cake_inside(p: np.ndarray, h: float, r: float) -> np.ndarray:
 
 
 def cake_boundary(h: float, r: float, spacing: float, reach: float = 0.3) -> np.ndarray:
-    top = np.column_stack((np.arange(-reach, -r, spacing), np.full(int(np.ceil((reach - r) / spacing)), h)))
+    top = np.column_stack((np.arange(-reach, -r, spacing),
+                          np.full(int(np.ceil((reach - r) / spacing)), h)))
     wall_z = np.arange(h - r, h - reach, -spacing)
     wall = np.column_stack((np.zeros_like(wall_z), wall_z))
     parts = [top, wall]
@@ -348,12 +353,15 @@ def test_cake_fillet_is_centre_distance_minus_radius():
     centre = np.array([-r, h - r])
     phi = RNG.uniform(0, math.pi / 2, 200)
     rho = RNG.uniform(0.0, 0.05, 200)
-    pts = centre + rho[:, None] * np.column_stack((np.cos(phi), np.sin(phi)))   # the corner quadrant
+    pts = centre + rho[:, None] * \
+        np.column_stack((np.cos(phi), np.sin(phi)))   # the corner quadrant
     d, n = cake.signed_distance(pts)
     assert np.allclose(d, rho - r, atol=1e-16)
-    assert np.allclose(n[rho > 1e-9], np.column_stack((np.cos(phi), np.sin(phi)))[rho > 1e-9], atol=1e-12)
+    assert np.allclose(n[rho > 1e-9], np.column_stack((np.cos(phi), np.sin(phi)))
+                       [rho > 1e-9], atol=1e-12)
     # top, wall and inside faces
-    d, n = cake.signed_distance(np.array([[-0.05, h + 0.003], [0.004, 0.03], [-0.05, h - 0.002], [-0.001, 0.03]]))
+    d, n = cake.signed_distance(
+        np.array([[-0.05, h + 0.003], [0.004, 0.03], [-0.05, h - 0.002], [-0.001, 0.03]]))
     assert np.allclose(d, [0.003, 0.004, -0.002, -0.001], atol=1e-16)
     assert np.allclose(n, [[0, 1], [1, 0], [0, 1], [1, 0]])
     # offset moves the cake
@@ -376,7 +384,8 @@ def test_cake_outline_and_validation():
         Cake(-0.08, 0.01, 0.09)
     with pytest.raises(ValueError, match="fillet_radius"):
         Cake(0.08, -0.01, 0.09)
-    assert Cake(0.08, 0.01, 0.09).contains(np.array([[-0.01, 0.07], [0.001, 0.07]])).tolist() == [True, False]
+    assert Cake(0.08, 0.01, 0.09).contains(
+        np.array([[-0.01, 0.07], [0.001, 0.07]])).tolist() == [True, False]
 
 
 # -------------------------------------------------------------- workplane

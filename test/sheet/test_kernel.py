@@ -42,7 +42,8 @@ SHAPES = {
     "circle": RoundedConvexPolygon.circle(0.01),
     "capsule": RoundedConvexPolygon.rounded_rectangle(0.04, 0.01, 0.005),
     "rounded rectangle": RoundedConvexPolygon.rounded_rectangle(0.04, 0.02, 0.004),
-    "triangle": RoundedConvexPolygon.convex_polygon([(0.0, 0.0), (0.02, 0.0), (0.0, 0.015)], 0.002),
+    "triangle": RoundedConvexPolygon.convex_polygon([(0.0, 0.0), (0.02, 0.0), (0.0, 0.015)],
+                                                    0.002),
 }
 
 
@@ -57,6 +58,7 @@ def test_curvature_is_the_turning_of_the_normal_along_the_level_set(name):
     pts = np.asarray(offset) + rng.uniform(-0.05, 0.05, size=(400, 2))
     d, n, kap = K.shape_eval_many(kind, len(verts), table, rad, pts, *offset)
     assert np.allclose(np.hypot(n[:, 0], n[:, 1]), 1.0, atol=1e-12)
+
     def turning(h):
         _, n2, _ = K.shape_eval_many(kind, len(verts), table, rad, pts + h * t, *offset)
         return np.einsum("ij,ij->i", n2 - n, t) / h

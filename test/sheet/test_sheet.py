@@ -33,7 +33,8 @@ def straight_start(c: ChainConstants) -> np.ndarray:
 def test_settled_elastic_chain_matches_exact_discrete_equilibrium(n):
     c = elastic_chain(n)
     model = SheetModel(c, [], force_tol=1e-11)
-    exact = elastic_chain_equilibrium(c.anchor_top, c.anchor_bottom, c.rest_length, c.k1, c.mass, G)
+    exact = elastic_chain_equilibrium(
+        c.anchor_top, c.anchor_bottom, c.rest_length, c.k1, c.mass, G)
     # a straight start shorter than the rest length: links start slack
     state = settle(model, straight_start(c), duration=0.5, dt=2e-3)
     for _ in range(5):   # then quasi-static steps: no plastic flow, so it comes to rest
@@ -57,7 +58,8 @@ def single_link(k1, c1, c2, mass=2e-3, gravity=G):
 
 
 def creep_error(c1: float, dt: float, t_end: float = 20.0) -> float:
-    """Largest error of the hanging link's elongation against Eq. 7-8, relative to its final value."""
+    """Largest error of the hanging link's elongation against Eq. 7-8, relative to its final
+    value."""
     k1, c2 = 95.0, 1300.0
     c = single_link(k1, c1, c2)
     model = SheetModel(c, [], force_tol=1e-14)
@@ -100,7 +102,8 @@ def test_three_element_link_under_constant_force_converges_to_eq_7_8():
 
 @pytest.mark.parametrize("c1", [0.0, 300.0])
 def test_link_pulled_at_constant_rate_follows_eq_5(c1):
-    """A tool pushes the mass away from the anchor at v: F = c2 v (1 - c2/(c1+c2) exp(-k1 t/(c1+c2)))."""
+    """A tool pushes the mass away from the anchor at v: F = c2 v (1 - c2/(c1+c2) exp(-k1
+    t/(c1+c2)))."""
     k1, c2, v = 95.0, 1300.0, 1e-3
     c = single_link(k1, c1, c2, mass=1e-6, gravity=0.0)
     tool = RoundedConvexPolygon.circle(0.005)
@@ -127,7 +130,8 @@ def test_link_pulled_at_constant_rate_follows_eq_5(c1):
 
 @pytest.mark.parametrize("tool_kind", ["corner_wrap", "flat_pinch"])
 def test_tool_pushing_sheet_against_wall_is_frictionless_and_balanced(tool_kind):
-    """Elastic sheet pushed onto the cake wall by a tool: no penetration, normal forces, balance."""
+    """Elastic sheet pushed onto the cake wall by a tool: no penetration, normal forces,
+    balance."""
     from rheo_shaping.params.params import CellParams
     from rheo_shaping.sheet.simulation import build_chain
     p = CellParams()
@@ -136,7 +140,8 @@ def test_tool_pushing_sheet_against_wall_is_frictionless_and_balanced(tool_kind)
     r = c.radius
     cake = Cake(p.cake.height, p.cake.fillet_radius, p.cake.radius)
     if tool_kind == "corner_wrap":
-        # face 0.5 mm further from the wall than a sheet thickness: the tool's corner wraps the sheet
+        # face 0.5 mm further from the wall than a sheet thickness: the tool's corner wraps the
+        # sheet
         tool = RoundedConvexPolygon.rounded_rectangle(0.02, 0.04, 0.008)
         end = np.array([0.01 + 2 * r + 5e-4, 0.045])
     else:
@@ -177,7 +182,8 @@ def test_tool_pushing_sheet_against_wall_is_frictionless_and_balanced(tool_kind)
     assert np.max(np.abs(total)) < 1e-6
     # and of every mass
     f_links = state.tension[:, None] * u
-    per_mass = state.contact.sum(axis=0) - f_links[:-1] + f_links[1:] - np.c_[np.zeros(c.n_masses), G * c.mass]
+    per_mass = state.contact.sum(
+        axis=0) - f_links[:-1] + f_links[1:] - np.c_[np.zeros(c.n_masses), G * c.mass]
     assert np.max(np.abs(per_mass)) < 1e-6
 
 

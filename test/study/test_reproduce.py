@@ -16,7 +16,8 @@ from rheo_shaping.params.params import CellParams
 from rheo_shaping.study.reproduce import reproduce
 
 # Table 2: F_max [N], Delta [m]
-TABLE2 = {"1": (0.845, 2.67e-3), "2": (0.837, 3.01e-3), "3": (1.005, 3.08e-3), "4": (0.658, 4.00e-3)}
+TABLE2 = {"1": (0.845, 2.67e-3), "2": (0.837, 3.01e-3),
+          "3": (1.005, 3.08e-3), "4": (0.658, 4.00e-3)}
 D_OPT_PAPER = 14.5e-3      # m, Fig. 18
 DELTA_LIMIT = 5e-3         # m, the quality check
 F_TOL = 0.10               # the tolerances
@@ -156,7 +157,8 @@ def test_peak_tension_is_resolved_at_twice_the_papers_speed():
     p = replace(p, movement=replace(p.movement, number=1, speed=2e-3))
     plan = movement_plan(p)
     coarse = run_scenario(p, plan)
-    fine_params = replace(p, solver=replace(p.solver, dt=p.solver.dt / 25, dt_still=p.solver.dt_still / 25,
+    fine_params = replace(p, solver=replace(p.solver, dt=p.solver.dt / 25,
+                                            dt_still=p.solver.dt_still / 25,
                                             max_tool_step=p.solver.max_tool_step / 25))
     fine = run_scenario(fine_params, plan)
     assert abs(coarse.F_max / fine.F_max - 1.0) < 1e-3, (coarse.F_max, fine.F_max)

@@ -50,7 +50,8 @@ def newton_step(grad, band, has_curv, curv, gd, gn, present, radius, kc, kd, ste
     model: masses the plain step would push into an obstacle get its penalty,
     linearised; masses the model would then hold adhesively are let go (a few banded
     solves at most, only when the set changes).  The set starts from ``fset`` (the last
-    prediction, or the state's contacts) and is written back to it.  Where the exact Hessian is not SPD its
+    prediction, or the state's contacts) and is written back to it.  Where the exact Hessian is not
+    SPD its
     curvature part is dropped (Gauss-Newton; ``band`` is modified).  False: no SPD
     system."""
     n = grad.shape[0]

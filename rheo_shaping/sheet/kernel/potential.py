@@ -68,7 +68,7 @@ def evaluate(x, x_pred, inertia, S, L_star, weight, kb, fpar, ob_i, ob_f, ob_v, 
         bz = fpar[P_BOTZ] if i == n else x[i, 1]
         dx = bx - ax
         dz = bz - az
-        l = math.sqrt(dx * dx + dz * dz)
+        l = math.sqrt(dx * dx + dz * dz)  # noqa: E741
         ux = dx / l
         uz = dz / l
         st = l - L_star[i]

@@ -84,7 +84,7 @@ def one_step(x0, v0, e10, p0, ten0, con0, tool_prev, tool, dt, dynamic, fpar, li
     real_prev = np.array((tool_prev[0] + fpar[P_SHX], tool_prev[1] + fpar[P_SHZ]))
     real = np.array((tool[0] + fpar[P_SHX], tool[1] + fpar[P_SHZ]))
     fr_on, fr_tang, fr_mun, fr_move = friction_setup(x0, con0, real_prev, real, ob_i, ob_f,
-                                                      ob_v)
+                                                     ob_v)
     kd = 4 if fpar[P_BENDING] > 0.0 else 3
     fset = np.zeros((n_ob, n), dtype=np.bool_)     # the state's contacts (warm start)
     for o in range(n_ob):
@@ -105,7 +105,7 @@ def one_step(x0, v0, e10, p0, ten0, con0, tool_prev, tool, dt, dynamic, fpar, li
         az = fpar[P_TOPZ] if i == 0 else x[i - 1, 1]
         bx = fpar[P_BOTX] if i == n else x[i, 0]
         bz = fpar[P_BOTZ] if i == n else x[i, 1]
-        l = math.sqrt((bx - ax) ** 2 + (bz - az) ** 2)
+        l = math.sqrt((bx - ax) ** 2 + (bz - az) ** 2)  # noqa: E741
         delta = l - free[i]
         r, eps, g = link_factors(k1[i], c1[i], c2[i], dt)
         e1_taut = eps * e10[i] + r * g * delta
