@@ -62,6 +62,18 @@ from rheo_shaping.params.params import CellParams
 RTF = 20.0  # simulated seconds per wall second in the closed-loop runs
 
 
+def _gap(later: float | None, earlier: float | None) -> float | None:
+    return later - earlier if later is not None and earlier is not None else None
+
+
+def stop_intervals(t_cross: float | None, abort_t: float | None,
+                   rest_t: float | None) -> dict:
+    """Threshold crossing to abort, crossing to rest, abort to rest [s] (None when a time is
+    missing): the latencies a campaign reports."""
+    return {"cross_to_abort_s": _gap(abort_t, t_cross), "cross_to_rest_s": _gap(rest_t, t_cross),
+            "abort_to_rest_s": _gap(rest_t, abort_t)}
+
+
 def sample_cell(base: CellParams, rng: random.Random) -> CellParams:
     """One random cell of the campaign (see the module docstring)."""
     mv, m = base.movement, base.material
@@ -167,12 +179,7 @@ def run_case(index: int, cell: CellParams, trend: bool = False) -> dict:
         "finished": bool(res.finished), "wall_time_s": res.wall_time_s,
         "false_abort": bool(res.aborted and offline.F_max < thr),
         "missed": bool(offline.F_max >= thr and not res.aborted),
-        "cross_to_abort_s": ((abort_t - t_cross) if (abort_t is not None and t_cross is not None)
-                             else None),
-        "cross_to_rest_s": ((rest_t - t_cross) if (rest_t is not None and t_cross is not None)
-                            else None),
-        "abort_to_rest_s": ((rest_t - abort_t) if (rest_t is not None and abort_t is not None)
-                            else None),
+        **stop_intervals(t_cross, abort_t, rest_t),
         "max_tension_after_abort_N": float(after.max()) if after.size else None,
     })
     row["tore"] = bool(row["largest_N"] >= cell.material.F_break)

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Convergence of the lumped elastic chain to Irvine's elastic catenary.
 
-For N = 10, 20, 50, 100, 200 masses (``rheo_shaping.sheet.analytic.discretise_cable``)
+For N = 10, 20, 50, 100, 200 masses (``rheo_shaping.sheet.catenary.discretise_cable``)
 the exact chain equilibrium is compared with Irvine's closed form:
 
 * ``err_node`` [m]: largest distance between a mass and the cable point with
@@ -44,10 +44,10 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 try:
-    from rheo_shaping.sheet.analytic import discretise_cable, solve_irvine
+    from rheo_shaping.sheet.catenary import discretise_cable, solve_irvine
 except ImportError:                                   # run from a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from rheo_shaping.sheet.analytic import discretise_cable, solve_irvine
+    from rheo_shaping.sheet.catenary import discretise_cable, solve_irvine
 
 G = 9.81
 

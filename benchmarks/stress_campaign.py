@@ -177,12 +177,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
         "reason": reason, "largest_N": largest, "finished": True, "wall_time_s": None,
         "false_abort": bool(aborted and offline.F_max < thr),
         "missed": bool(offline.F_max >= thr and not aborted),
-        "cross_to_abort_s": ((abort_t - t_cross) if (abort_t is not None and t_cross is not None)
-                             else None),
-        "cross_to_rest_s": ((rest_t - t_cross) if (rest_t is not None and t_cross is not None)
-                            else None),
-        "abort_to_rest_s": ((rest_t - abort_t) if (rest_t is not None and abort_t is not None)
-                            else None),
+        **campaign.stop_intervals(t_cross, abort_t, rest_t),
         "max_tension_after_abort_N": largest if aborted else None,
     })
     row["tore"] = bool(largest >= cell.material.F_break)

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 
+from ..jsonable import json_safe
 from . import UserError
 from .common import add_params_argument, cell_from_args
 
@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         offline = run_movement(p)
         out["offline"] = offline.run_summary.as_dict()
     if args.json:
-        print(json.dumps(_finite(out)))
+        print(json.dumps(json_safe(out)))
     else:
         state = (f"ABORTED ({result.abort_reason})" if result.aborted
                  else "finished" if result.finished else f"timed out ({result.planner_state})")
@@ -118,12 +118,3 @@ def _namespace(text: str) -> str:
         raise UserError(f"--namespace = {text!r}: expected a ROS namespace such as /cell2 "
                         "(tokens of letters, digits and _, each starting with a letter)")
     return "/" + ns.lstrip("/")
-
-
-def _finite(value):
-    """JSON-safe: non-finite floats become null."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    return value

@@ -77,7 +77,7 @@ class _Progress:
 
 def write_figures(study, out: Path) -> list[Path]:
     """All figures of the study into ``out``; returns their paths."""
-    from ..sheet.plots import (plot_movement_history, plot_phase_profiles, plot_sag,
+    from ..study.plots import (plot_movement_history, plot_phase_profiles, plot_sag,
                                plot_speed_comparison,
                                plot_sweep)
     from ..study.reproduce import MOVEMENT_NAMES, PAPER

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     result = run_scenario(params, plan)
     out = {"movement": params.movement.number, **result.summary()}
     if plot is not None:
-        from ..sheet.plots import plot_history, plot_profiles
+        from ..study.plots import plot_history, plot_profiles
         t_end = result.t[-1]
         plot_profiles(result, [0.0, *plan.knots()[1:-1], t_end], plot,
                       f"movement {params.movement.number}")

@@ -4,6 +4,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..jsonable import json_safe
+
 
 @dataclass(frozen=True)
 class Estimate:
@@ -36,9 +38,7 @@ class Estimate:
 
 
 def _finite(x: float | None) -> float | None:
-    if x is None or not math.isfinite(x):
-        return None
-    return float(x)
+    return None if x is None else json_safe(float(x))
 
 
 def t_quantile(dof: int, level: float = 0.95) -> float:

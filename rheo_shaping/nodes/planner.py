@@ -42,13 +42,12 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from ..planning.clearance import plan_clearance
+from ..planning.clearance import require_clearance
 from ..params.node_params import PlannerNodeParams
 from ..study.optimise import best_d, d_values
 from ..params.params import CellParams
-from ..planning.planning import MotionLimits, Plan, Waypoint, plan_waypoints
-from ..planning.scenarios import movement_limits, movement_scenario
-from ..planning.movement import movement_plan
+from ..planning.planning import MotionLimits, Plan
+from ..planning.movement import approach_plan, autostart_refusal, movement_plan
 from ..params.schema import ParameterError
 from ..planning.stopping import TrajectoryStreamer
 from ..safety.watchdog import StallGuard
@@ -172,31 +171,13 @@ class PlannerNode(Node):
 
     def _check_clearance(self, cell: CellParams, plan: Plan) -> None:
         """Refuse a plan that leaves less room than the sheet between tool and mould."""
-        factor = self.settings.clearance_factor
-        if factor <= 0:
-            return
-        need = factor * cell.sheet.thickness
-        cl = plan_clearance(cell, plan)
-        if cl.gap < need - 1e-6:
-            raise ParameterError(
-                f"the plan brings the tool within {cl.gap * 1e3:.2f} mm of the {cl.obstacle} at "
-                f"({cl.at[0] * 1e3:.2f}, {cl.at[1] * 1e3:.2f}) mm, t = {cl.time:.1f} s: less than "
-                f"clearance_factor {factor:g} x sheet.thickness {cell.sheet.thickness * 1e3:g} mm "
-                f"pinches the sheet (parameter 'clearance_factor' = 0 disables the check)")
+        require_clearance(cell, plan, self.settings.clearance_factor)
 
     def _plan_from(self, start_xz) -> Plan:
         """The plan, preceded by an approach from ``start_xz`` when the tool is elsewhere."""
-        if start_xz is None or np.hypot(*(np.asarray(start_xz) - self.plan.start)) <= 1e-6:
-            return self.plan
-        cell = self.cell_used
-        scenario = movement_scenario(cell)
-        waypoints = [Waypoint(float(scenario.start[0]), float(scenario.start[1]), 0.0, "approach",
-                              self._retract_limits())]
-        waypoints += [Waypoint(float(mv.target[0]), float(mv.target[1]), mv.dwell, mv.label,
-                               movement_limits(cell, mv.speed)) for mv in scenario.moves]
-        plan = plan_waypoints(start_xz, waypoints, movement_limits(cell, cell.movement.speed),
-                              label_phases=False)
-        self._check_clearance(cell, plan)
+        plan = approach_plan(self.cell_used, self.plan, start_xz, self._retract_limits())
+        if plan is not self.plan:
+            self._check_clearance(self.cell_used, plan)
         return plan
 
     def _retract_limits(self) -> MotionLimits:
@@ -238,22 +219,11 @@ class PlannerNode(Node):
         self._tool_pose = np.array(m.pose_xz(msg), dtype=float)
 
     def _tool_away(self) -> str:
-        """Why autostart is unsafe: the tool is neither at home nor at the plan's start.
-
-        A planner (re)started while the tool stands somewhere in a run must not
-        run a plan from its beginning on its own (safety principle 3): it
-        waits for ~/start, which plans an approach from where the tool is.
-        """
+        """Why autostart is unsafe (:func:`~rheo_shaping.planning.movement.autostart_refusal`)."""
         if self._tool_pose is None or self._hold is not None:
             return ""
-        tol = self.settings.start_tolerance
-        for name, where in (("home", self.cell_used.tool.home),
-                            ("the plan's start", self.plan.start)):
-            if np.hypot(*(self._tool_pose - np.asarray(where, float))) <= tol:
-                return ""
-        x, z = self._tool_pose
-        return (f"the tool is at ({x:.4f}, {z:.4f}) m, neither at home nor at the plan's start "
-                f"(start_tolerance {tol:g} m): no autostart; call ~/start to approach from there")
+        return autostart_refusal(self._tool_pose, self.cell_used.tool.home, self.plan.start,
+                                 self.settings.start_tolerance)
 
     def _on_abort(self, msg: String) -> None:
         self._abort(f"monitor: {msg.data}")

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..sheet.geometry import Cake, Workplane
 from ..params.params import CellParams
+from ..params.schema import ParameterError
 from .planning import Plan
 from ..sheet.tools import tool_shape
 
@@ -52,3 +53,18 @@ def plan_clearance(params: CellParams, plan: Plan, step: float = 2e-4,
             best = Clearance(float(d[k]), (float(pos[k, 0]),
                              float(pos[k, 1])), float(times[k]), name)
     return best
+
+
+def require_clearance(cell: CellParams, plan: Plan, factor: float) -> None:
+    """Refuse (:class:`ParameterError`) a plan that leaves less room than ``factor`` x the
+    sheet's thickness between tool and mould; ``factor`` 0 disables the check."""
+    if factor <= 0:
+        return
+    need = factor * cell.sheet.thickness
+    cl = plan_clearance(cell, plan)
+    if cl.gap < need - 1e-6:
+        raise ParameterError(
+            f"the plan brings the tool within {cl.gap * 1e3:.2f} mm of the {cl.obstacle} at "
+            f"({cl.at[0] * 1e3:.2f}, {cl.at[1] * 1e3:.2f}) mm, t = {cl.time:.1f} s: less than "
+            f"clearance_factor {factor:g} x sheet.thickness {cell.sheet.thickness * 1e3:g} mm "
+            f"pinches the sheet (parameter 'clearance_factor' = 0 disables the check)")

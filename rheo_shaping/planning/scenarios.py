@@ -22,6 +22,19 @@ from ..sheet.simulation import PolylinePath
 from ..sheet.tools import tool_shape
 
 
+#: The phases of a movement (paper Sec. 5), as plans, runs and reports name them, and
+#: how they are called for people (plots, tables): the one phase vocabulary.
+PHASES = {"approach": "approach", "forced": "forced deformation", "dwell": "dwell",
+          "release": "release", "settle": "settle"}
+#: A move that deforms the sheet has a label starting with FORCED; the way back is RETRACT.
+FORCED, RETRACT = "forced", "retract"
+
+
+def phase_label(name: str) -> str:
+    """The words for phase ``name`` (itself when it is not one of :data:`PHASES`)."""
+    return PHASES.get(name, name)
+
+
 @dataclass(frozen=True)
 class Move:
     """A straight move to ``target`` (x, z) [m] at ``speed`` [m/s], then ``dwell`` [s]."""
@@ -59,7 +72,7 @@ def movement_scenario(params: CellParams, number: int | None = None,
         start = tuple(getattr(mv, f"start_{number}"))
         end = tuple(getattr(mv, f"end_{number}"))
         return Scenario(start,
-                        (Move(end, speed, dwell, "forced"), Move(start, back, 0.0, "retract")))
+                        (Move(end, speed, dwell, FORCED), Move(start, back, 0.0, RETRACT)))
     if number == 4:
         d = mv.d if d is None else float(d)
         x_v = d + tool_inner_offset(params)
@@ -67,17 +80,17 @@ def movement_scenario(params: CellParams, number: int | None = None,
         corner = (x_v, mv.end_4[1])
         end = tuple(mv.end_4)
         return Scenario(start, (
-            Move(corner, speed, 0.5 * dwell, "forced_vertical"),
-            Move(end, speed, 0.5 * dwell, "forced_horizontal"),
-            Move(corner, back, 0.0, "retract"),
-            Move(start, back, 0.0, "retract")))
+            Move(corner, speed, 0.5 * dwell, f"{FORCED}_vertical"),
+            Move(end, speed, 0.5 * dwell, f"{FORCED}_horizontal"),
+            Move(corner, back, 0.0, RETRACT),
+            Move(start, back, 0.0, RETRACT)))
     if number == 0:
         pts = np.asarray(mv.waypoints, float).reshape(-1, 2)
         dwells = list(mv.dwells) + [0.0] * (len(pts) - len(mv.dwells))
         home = tuple(params.tool.home)
         moves = [Move(tuple(p), speed, dw, f"waypoint_{i}")
                  for i, (p, dw) in enumerate(zip(pts, dwells))]
-        moves.append(Move(home, back, 0.0, "retract"))
+        moves.append(Move(home, back, 0.0, RETRACT))
         return Scenario(home, tuple(moves))
     raise ValueError(
         f"parameter 'movement.number' = {number!r} is invalid: expected 0, 1, 2, 3 or 4")

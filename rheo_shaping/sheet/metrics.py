@@ -67,13 +67,20 @@ def residual_gap(nodes: np.ndarray, thickness: float) -> float:
     return float(best - 0.5 * thickness)
 
 
+def touching_tool(tool_force_on_masses: np.ndarray) -> np.ndarray:
+    """Which masses touch the tool: a nonzero contact force of the tool on them, (..., N, 2)
+    [N] -> (..., N) bool (one step or a whole run)."""
+    f = np.asarray(tool_force_on_masses, dtype=float)
+    return np.hypot(f[..., 0], f[..., 1]) > 0.0
+
+
 def contact_tension(tension: np.ndarray, tool_force_on_masses: np.ndarray) -> float:
     """Largest tension [N] in a link touching a mass that touches the tool (0 without contact).
 
     ``tension`` (N+1,) link forces; ``tool_force_on_masses`` (N, 2) contact
     force of the tool on each mass.
     """
-    touching = np.hypot(tool_force_on_masses[:, 0], tool_force_on_masses[:, 1]) > 0.0
+    touching = touching_tool(tool_force_on_masses)
     if not np.any(touching):
         return 0.0
     links = np.zeros(tension.shape[0], dtype=bool)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import RoundedConvexPolygon
+from .polygon import RoundedConvexPolygon
 from ..params.params import ToolParams
 
 

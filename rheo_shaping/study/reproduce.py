@@ -27,10 +27,12 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..jsonable import json_safe
 from ..parallel import run_tasks
 from ..params.params import CellParams
-from ..planning.scenarios import ScenarioPlan
+from ..planning.scenarios import FORCED, ScenarioPlan
 from ..planning.movement import movement_plan
+from ..sheet.metrics import touching_tool
 from ..sheet.simulation import RunResult, Simulation, run_scenario
 
 #: The paper's numbers (Table 2, Fig. 18, Fig. 19); SF = F_break / F_max.
@@ -106,13 +108,12 @@ class MovementRun:
 
 
 def _finite_or_none(x: float):
-    return float(x) if math.isfinite(x) else None
+    return json_safe(float(x))
 
 
 def _touching(result: RunResult) -> np.ndarray:
     """(K, N) bool: which spheres touch the tool at each step."""
-    f = result.tool_contact
-    return np.hypot(f[..., 0], f[..., 1]) > 0.0
+    return touching_tool(result.tool_contact)
 
 
 def movement_phases(plan: ScenarioPlan,
@@ -139,12 +140,12 @@ def movement_phases(plan: ScenarioPlan,
             continue
         if seg.kind == "dwell":
             phases.append((a, b, "dwell"))
-        elif seg.label.startswith("forced"):
+        elif seg.label.startswith(FORCED):
             c = min(max(a, t_first), b)
             if c > a:
                 phases.append((a, c, "approach"))
             if b > c:
-                phases.append((c, b, "forced"))
+                phases.append((c, b, FORCED))
                 forced_time += b - c
         else:                                       # retract
             if retract_start is None:
@@ -163,7 +164,7 @@ def movement_phases(plan: ScenarioPlan,
 def force_peaks(plan: ScenarioPlan, result: RunResult) -> list[tuple[float, float]]:
     """Largest link tension in each window that starts with a forcing move (Fig. 17's peaks)."""
     starts = [s.t_start for s in plan.plan.segments if s.kind ==
-              "move" and s.label.startswith("forced")]
+              "move" and s.label.startswith(FORCED)]
     if not starts:
         return []
     starts[0] = 0.0                                # the first window covers the approach too

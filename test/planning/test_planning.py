@@ -563,3 +563,26 @@ def test_property_random_waypoints(start, wps, lim):
         dt = plan.duration / 2e5
     check_limits(plan, lim, dt=dt)
     assert plan.max_speed <= lim.v_max * (1 + REL)
+
+
+def test_autostart_refusal_and_approach_plan():
+    """The planner node's start rules (planning.movement): autostart only at home or at
+    the plan's start; from elsewhere an approach at the given limits comes first."""
+    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.planning.movement import approach_plan, autostart_refusal, movement_plan
+    cell = CellParams()
+    plan = movement_plan(cell).plan
+    home, start = cell.tool.home, plan.start
+    assert autostart_refusal(home, home, start, 1e-3) == ""
+    assert autostart_refusal(np.asarray(start) + [5e-4, 0.0], home, start, 1e-3) == ""
+    why = autostart_refusal((0.5, 0.5), home, start, 1e-3)
+    assert "neither at home nor at the plan's start" in why and "(0.5000, 0.5000)" in why
+    assert approach_plan(cell, plan, None, DEFAULT_LIMITS) is plan
+    assert approach_plan(cell, plan, start, DEFAULT_LIMITS) is plan
+    away = np.asarray(start) + [0.0, 0.01]
+    ap = approach_plan(cell, plan, away, DEFAULT_LIMITS)
+    assert ap.start == pytest.approx(away)
+    assert ap.segments[0].label == "approach"
+    assert ap.duration > plan.duration
+    p_end = ap.sample(ap.duration)[0]
+    assert p_end == pytest.approx(plan.sample(plan.duration)[0], abs=1e-9)

@@ -7,14 +7,9 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from rheo_shaping.sheet.analytic import (
-    discretise_cable,
-    elastic_chain_equilibrium,
-    inextensible_catenary,
-    irvine_catenary,
-    solve_elastic_chain,
-    solve_irvine,
-)
+from rheo_shaping.sheet.analytic import elastic_chain_equilibrium, solve_elastic_chain
+from rheo_shaping.sheet.catenary import (discretise_cable, inextensible_catenary, irvine_catenary,
+                                         solve_irvine)
 
 G = 9.81
 # The paper's fondant strip: k1 = 95 N/m on the 0.1 m specimen -> EA = 9.5 N; 0.3 kg/m.

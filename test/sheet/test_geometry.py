@@ -12,7 +12,8 @@ from matplotlib.path import Path
 from scipy.spatial import ConvexHull
 
 from rheo_shaping.params.params import ToolParams
-from rheo_shaping.sheet.geometry import Cake, Workplane, circle, convex_polygon, rounded_rectangle
+from rheo_shaping.sheet.geometry import Cake, Workplane
+from rheo_shaping.sheet.polygon import circle, convex_polygon, rounded_rectangle
 from rheo_shaping.sheet.tools import tool_shape
 
 RNG = np.random.default_rng(20240607)

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from rheo_shaping.sheet import kernel as K
-from rheo_shaping.sheet.geometry import Cake, RoundedConvexPolygon, Workplane
+from rheo_shaping.sheet.geometry import Cake, Workplane
+from rheo_shaping.sheet.polygon import RoundedConvexPolygon
 from rheo_shaping.params.params import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.simulation import Simulation

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from rheo_shaping.sheet.analytic import elastic_chain_equilibrium
-from rheo_shaping.sheet.geometry import Cake, RoundedConvexPolygon, Workplane
+from rheo_shaping.sheet.geometry import Cake, Workplane
+from rheo_shaping.sheet.polygon import RoundedConvexPolygon
 from rheo_shaping.sheet.sheet import ChainConstants, Obstacle, SheetModel
 from rheo_shaping.sheet.simulation import settle
 

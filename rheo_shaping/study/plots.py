@@ -9,16 +9,13 @@ from typing import Sequence
 
 import numpy as np
 
-from .geometry import Cake
-from .simulation import RunResult
-from .tools import tool_shape
+from ..planning.scenarios import FORCED, phase_label
+from ..sheet.geometry import Cake
+from ..sheet.metrics import touching_tool
+from ..sheet.simulation import RunResult
+from ..sheet.tools import tool_shape
 
 #: Colours of the phases shaded in time plots.
-
-
-def phase_label(name: str) -> str:
-    """A phase's name as figures write it (the paper's words)."""
-    return "forced deformation" if name == "forced" else name
 
 
 PHASE_COLOURS = {"approach": "#e8f0ff", "forced": "#ffe8e8", "dwell": "#fff6d8",
@@ -184,7 +181,7 @@ def plot_phase_profiles(run, path: str | Path, title: str = "") -> Path:
     for ax, t, name in zip(axes.flat, times, names):
         k = int(np.argmin(np.abs(res.t - t)))
         draw_cell(ax, res, k, "C0")
-        touching = np.hypot(*np.moveaxis(res.tool_contact[k], -1, 0)) > 0
+        touching = touching_tool(res.tool_contact[k])
         if touching.any():
             ax.plot(res.x[k, touching, 0] * 1e3, res.x[k, touching, 1]
                     * 1e3, "o", color="C3", ms=3.5)
@@ -246,7 +243,7 @@ def plot_speed_comparison(full, half, path: str | Path, delta_limit: float | Non
                        "N, "
                        f"Delta {r.delta * 1e3:.2f} mm")
         for t0, t1, name in run.phases:
-            if name == "forced":
+            if name == FORCED:
                 ax1.axvspan(t0, t1, color=c, alpha=0.08, lw=0)
     ax1.axhline(full.result.params.material.F_break, color="k", ls="--", lw=0.8, label="F_break")
     ax1.set_xlabel("t [s] (shaded: forced deformation)")
