@@ -13,7 +13,7 @@ import json
 
 from ..jsonable import json_safe
 from . import UserError
-from .common import add_params_argument, cell_from_args
+from .common import add_movement_argument, add_params_argument, cell_from_args
 
 
 def add_parser(sub) -> None:
@@ -28,10 +28,7 @@ def add_parser(sub) -> None:
                                    "the cell in '/**', node settings in 'simulator', 'planner', "
                                    "'monitor' sections.")
     add_params_argument(p)
-    p.add_argument("--movement", type=int, choices=(0, 1, 2, 3, 4),
-                   help="paper movement (1 vertical, 2 horizontal, 3 inclined, 4 two-step; 0 the "
-                        "params "
-                        "file's waypoints); default: the params file's movement.number")
+    add_movement_argument(p)
     p.add_argument("--real-time-factor", type=float, default=50.0, metavar="X",
                    help="simulated seconds per wall-clock second (default 50; the run slows down "
                         "rather than skipping physics when the machine cannot keep up)")

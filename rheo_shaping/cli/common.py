@@ -18,6 +18,13 @@ def add_params_argument(parser: argparse.ArgumentParser) -> None:
                              "default cell")
 
 
+def add_movement_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--movement", type=int, choices=(0, 1, 2, 3, 4),
+                        help="paper movement (1 vertical, 2 horizontal, 3 inclined, 4 two-step; "
+                             "0 the params file's waypoints); default: the params file's "
+                             "movement.number")
+
+
 def cell_from_args(args: argparse.Namespace) -> CellParams:
     """The cell of ``--params`` (or the default), with user errors as :class:`UserError`."""
     try:

@@ -8,7 +8,7 @@ from dataclasses import replace
 
 from ..planning.movement import movement_plan
 from ..sheet.simulation import run_scenario
-from .common import add_params_argument, cell_from_args, output_path
+from .common import add_movement_argument, add_params_argument, cell_from_args, output_path
 
 
 def add_parser(sub) -> None:
@@ -17,10 +17,7 @@ def add_parser(sub) -> None:
                                    "and "
                                    "print F_max [N], SF and Delta [m].")
     add_params_argument(p)
-    p.add_argument("--movement", type=int, choices=(0, 1, 2, 3, 4),
-                   help="paper movement (1 vertical, 2 horizontal, 3 inclined, 4 two-step; "
-                        "0 the params file's waypoints); default: the params file's "
-                        "movement.number")
+    add_movement_argument(p)
     p.add_argument("--plot", metavar="PNG", help="write profile snapshots to PNG "
                    "(and the tension history beside it, *_history.png)")
     p.add_argument("--force", action="store_true", help="overwrite existing plot files")

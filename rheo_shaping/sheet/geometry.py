@@ -123,8 +123,21 @@ def sample_pieces(kinds: list[tuple], lengths: np.ndarray, n_points: int,
 # --------------------------------------------------------------------------- cake
 
 
+class _Region:
+    """An obstacle region: signed distance and containment from :func:`distance`."""
+
+    def signed_distance(self, points: Any,
+                        offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance ``d`` (M,) [m] (negative inside) and outward unit normal (M, 2)."""
+        return distance(self, points, offset)
+
+    def contains(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
+        """True for points inside or on the boundary."""
+        return self.signed_distance(points, offset)[0] <= 0.0
+
+
 @dataclass(frozen=True)
-class Cake:
+class Cake(_Region):
     """The cake's cross-section: x <= 0, z <= ``height`` [m], top outer corner filleted.
 
     ``fillet_radius`` [m] (0 for a sharp edge) rounds the corner (0, height)
@@ -151,15 +164,6 @@ class Cake:
                 f"fillet_radius [m]: {self.fillet_radius!r}, expected <= top_length = {tl!r}")
         # The region is the quadrant {x <= -r, z <= h - r} grown by a disc of radius r.
         object.__setattr__(self, "_centre", np.array([-r, h - r]))
-
-    def signed_distance(self, points: Any,
-                        offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
-        """Signed distance ``d`` (M,) [m] and outward unit normal ``n`` (M, 2)."""
-        return distance(self, points, offset)
-
-    def contains(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
-        """True for points inside or on the boundary."""
-        return self.signed_distance(points, offset)[0] <= 0.0
 
     def kernel_description(self) -> tuple[int, float, np.ndarray]:
         """(kind 0, fillet radius [m], quadrant corner (1, 2) [m]) for the compiled step
@@ -190,7 +194,7 @@ class Cake:
 
 
 @dataclass(frozen=True)
-class Workplane:
+class Workplane(_Region):
     """The half-plane z <= 0.  ``x_min``/``x_max`` [m] only bound the plotted outline."""
 
     x_min: float = -0.1
@@ -201,15 +205,6 @@ class Workplane:
         hi = check_finite("x_max [m]", self.x_max)
         if not hi > lo:
             raise ValueError(f"x_max [m]: {self.x_max!r}, expected > x_min = {lo!r}")
-
-    def signed_distance(self, points: Any,
-                        offset: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
-        """Signed distance ``d = z - offset_z`` (M,) [m] and normal (0, 1) (M, 2)."""
-        return distance(self, points, offset)
-
-    def contains(self, points: Any, offset: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
-        """True for points on or below the plane."""
-        return self.signed_distance(points, offset)[0] <= 0.0
 
     def kernel_description(self) -> tuple[int, float, np.ndarray]:
         """(kind 1, 0, no vertices) for the compiled step: the half-plane z <= 0."""
