@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
 import numpy as np
-from ..params.validators import check_finite, check_number, check_point, check_positive
+from ..params.validators import check_finite, check_non_negative, check_point, check_positive
 from .pieces import AxisBuilder, Pieces, append_trajectory, as_point, line_trajectory
 
 __all__ = [
@@ -79,12 +79,7 @@ class Waypoint:
     def __post_init__(self) -> None:
         check_finite("Waypoint.x [m]", self.x)
         check_finite("Waypoint.z [m]", self.z)
-        v = check_number("Waypoint.dwell_s [s]", self.dwell_s)
-        if not math.isfinite(v) or v < 0.0:
-            raise ValueError(
-                f"Waypoint.dwell_s [s] = {self.dwell_s!r} is out of range: expected a finite "
-                "value >= 0"
-            )
+        check_non_negative("Waypoint.dwell_s [s]", self.dwell_s)
 
     @property
     def xz(self) -> np.ndarray:
@@ -255,10 +250,7 @@ def rest_to_rest_time(distance: float, limits: MotionLimits) -> float:
     ``T = D/v + v/a + a/j``.  The other cases (no cruise, triangular
     acceleration) are handled too.
     """
-    d = check_number("distance [m]", distance)
-    if not math.isfinite(d) or d < 0.0:
-        raise ValueError(
-            f"distance [m] = {distance!r} is out of range: expected a finite value >= 0")
+    d = check_non_negative("distance [m]", distance)
     v, a, j = limits.v_max, limits.a_max, limits.j_max
     if v >= a * a / j:  # a_max is reached on the way to v_max
         if d >= v * (v / a + a / j):

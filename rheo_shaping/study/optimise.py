@@ -18,6 +18,7 @@ import numpy as np
 
 from ..parallel import executor_from_spec, run_tasks
 from ..params.params import CellParams
+from ..params.validators import check_positive
 from ..planning.movement import run_movement
 
 
@@ -43,8 +44,7 @@ class DChoice:
 
 def d_values(d_min: float, d_max: float, d_step: float) -> np.ndarray:
     """Candidates ``d_min, d_min + d_step, ...`` up to ``d_max`` [m] (both ends included)."""
-    if not (d_step > 0 and math.isfinite(d_step)):
-        raise ValueError(f"d_step = {d_step!r} m: expected a finite value > 0")
+    check_positive("d_step [m]", d_step)
     if d_max < d_min:
         raise ValueError(f"d_max = {d_max!r} m is below d_min = {d_min!r} m")
     n = int(math.floor((d_max - d_min) / d_step + 1e-9))
