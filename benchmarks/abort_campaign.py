@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import random
 import sys
@@ -58,9 +57,21 @@ from pathlib import Path
 
 import numpy as np
 
-from rheo_shaping.params import CellParams
+from rheo_shaping.params.params import CellParams
 
 RTF = 20.0  # simulated seconds per wall second in the closed-loop runs
+
+
+def _gap(later: float | None, earlier: float | None) -> float | None:
+    return later - earlier if later is not None and earlier is not None else None
+
+
+def stop_intervals(t_cross: float | None, abort_t: float | None,
+                   rest_t: float | None) -> dict:
+    """Threshold crossing to abort, crossing to rest, abort to rest [s] (None when a time is
+    missing): the latencies a campaign reports."""
+    return {"cross_to_abort_s": _gap(abort_t, t_cross), "cross_to_rest_s": _gap(rest_t, t_cross),
+            "abort_to_rest_s": _gap(rest_t, abort_t)}
 
 
 def sample_cell(base: CellParams, rng: random.Random) -> CellParams:
@@ -79,7 +90,8 @@ def sample_cell(base: CellParams, rng: random.Random) -> CellParams:
         kw["d"] = rng.uniform(0.010, 0.020)
     return replace(base,
                    movement=replace(mv, number=number, speed=mv.speed * factor, **kw),
-                   material=replace(m, k1=m.k1 * rng.uniform(0.8, 1.2), c2=m.c2 * rng.uniform(0.8, 1.2)))
+                   material=replace(m, k1=m.k1 * rng.uniform(0.8, 1.2),
+                                    c2=m.c2 * rng.uniform(0.8, 1.2)))
 
 
 @contextlib.contextmanager
@@ -112,15 +124,15 @@ def _campaign_task(shared: dict, item: tuple) -> dict:
 def offline_case(index: int, cell: CellParams):
     """A case's row and its offline run without a monitor (``would_tear``); (row with
     ``failed``, None) when the plan is refused or the core fails."""
-    from rheo_shaping.clearance import plan_clearance
-    from rheo_shaping.scenarios import movement_scenario, scenario_plan
-    from rheo_shaping.simulation import run_scenario
+    from rheo_shaping.planning.clearance import plan_clearance
+    from rheo_shaping.planning.movement import movement_plan
+    from rheo_shaping.sheet.simulation import run_scenario
     mv = cell.movement
     row = {"case": index, "movement": mv.number, "speed_factor": mv.speed / 1e-3,
            "k1": cell.material.k1, "c2": cell.material.c2, "F_break": cell.material.F_break,
            "d": mv.d if mv.number == 4 else None}
     try:
-        plan = scenario_plan(cell, movement_scenario(cell))
+        plan = movement_plan(cell)
         if plan_clearance(cell, plan.plan).gap < cell.sheet.thickness:
             return {**row, "failed": "plan refused by the clearance check"}, None
         offline = run_scenario(cell, plan)
@@ -135,7 +147,7 @@ def run_case(index: int, cell: CellParams, trend: bool = False) -> dict:
     """Offline (no monitor) and closed-loop run of one cell."""
     from rclpy.parameter import Parameter
 
-    from rheo_shaping.config import dump_cell
+    from rheo_shaping.params.config import dump_cell
     from rheo_shaping.nodes.cell import run_cell
 
     row, offline = offline_case(index, cell)
@@ -145,7 +157,8 @@ def run_case(index: int, cell: CellParams, trend: bool = False) -> dict:
         path = Path(tmp) / "cell.yaml"
         path.write_text(dump_cell(cell))
         try:
-            res = run_cell(path, real_time_factor=RTF, progress=None, log_level="fatal", timeout=120.0 / RTF * 6 + 30,
+            res = run_cell(path, real_time_factor=RTF, progress=None, log_level="fatal",
+                           timeout=120.0 / RTF * 6 + 30,
                            overrides={"simulator": [Parameter("publish_period", value=0.0)],
                                       "monitor": [Parameter("trend_abort", value=trend)]})
         except Exception as exc:  # noqa: BLE001 - counted, never dropped
@@ -160,14 +173,13 @@ def run_case(index: int, cell: CellParams, trend: bool = False) -> dict:
         t_cross = abort_t       # the trend prediction fired before the threshold was reached
     after = hist[hist[:, 0] >= abort_t, 1] if abort_t is not None else np.zeros(0)
     row.update({
-        "threshold_N": thr, "aborted": bool(res.aborted), "aborted_before_threshold": early, "reason": res.abort_reason,
+        "threshold_N": thr, "aborted": bool(res.aborted), "aborted_before_threshold": early,
+        "reason": res.abort_reason,
         "largest_N": float(hist[:, 1].max()) if hist.size else 0.0,
         "finished": bool(res.finished), "wall_time_s": res.wall_time_s,
         "false_abort": bool(res.aborted and offline.F_max < thr),
         "missed": bool(offline.F_max >= thr and not res.aborted),
-        "cross_to_abort_s": (abort_t - t_cross) if (abort_t is not None and t_cross is not None) else None,
-        "cross_to_rest_s": (rest_t - t_cross) if (rest_t is not None and t_cross is not None) else None,
-        "abort_to_rest_s": (rest_t - abort_t) if (rest_t is not None and abort_t is not None) else None,
+        **stop_intervals(t_cross, abort_t, rest_t),
         "max_tension_after_abort_N": float(after.max()) if after.size else None,
     })
     row["tore"] = bool(row["largest_N"] >= cell.material.F_break)
@@ -185,7 +197,8 @@ def _dist(values: list) -> dict:
 def summarise(rows: list[dict], wall: float) -> dict:
     ok = [r for r in rows if "failed" not in r]
     aborted = [r for r in ok if r["aborted"]]
-    after = [r["max_tension_after_abort_N"] for r in aborted if r["max_tension_after_abort_N"] is not None]
+    after = [r["max_tension_after_abort_N"]
+             for r in aborted if r["max_tension_after_abort_N"] is not None]
     out = {
         "runs": len(rows),
         "completed": len(ok),
@@ -197,7 +210,8 @@ def summarise(rows: list[dict], wall: float) -> dict:
         "aborted_before_threshold": sum(r["aborted_before_threshold"] for r in aborted),
         "false_aborts": sum(r["false_abort"] for r in ok),
         "missed": sum(r["missed"] for r in ok),
-        "threshold_ratio_median": float(np.median([r["threshold_N"] / r["F_break"] for r in ok])) if ok else None,
+        "threshold_ratio_median": (float(np.median([r["threshold_N"] / r["F_break"] for r in ok]))
+                                   if ok else None),
         "cross_to_abort_s": _dist([r["cross_to_abort_s"] for r in aborted]),
         "cross_to_rest_s": _dist([r["cross_to_rest_s"] for r in aborted]),
         "abort_to_rest_s": _dist([r["abort_to_rest_s"] for r in aborted]),
@@ -217,7 +231,8 @@ def table(s: dict) -> str:
     lines = [f"runs {s['runs']} (completed {s['completed']}, failed {s['failed']})",
              f"would tear without the monitor   {s['would_tear']}",
              f"tears with the monitor           {s['tears']}",
-             f"aborts                           {s['aborts']} ({s['aborted_before_threshold']} by the trend, before the threshold)",
+             f"aborts                           {s['aborts']} ({s['aborted_before_threshold']} by "
+             "the trend, before the threshold)",
              f"false aborts                     {s['false_aborts']}",
              f"missed (reached the threshold)   {s['missed']}",
              f"max tension after abort [N]      {s['max_tension_after_abort_N']}",
@@ -225,25 +240,31 @@ def table(s: dict) -> str:
     for key in ("cross_to_abort_s", "cross_to_rest_s", "abort_to_rest_s"):
         d = s[key]
         if d["n"]:
-            lines.append(f"{key:18s} {d['n']:5d} {d['median']:10.3f} {d['p99']:8.3f} {d['max']:8.3f}")
+            lines.append(
+                f"{key:18s} {d['n']:5d} {d['median']:10.3f} {d['p99']:8.3f} {d['max']:8.3f}")
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--runs", type=int, default=300, help="number of randomised runs (default 300)")
+    ap.add_argument("--runs", type=int, default=300,
+                    help="number of randomised runs (default 300)")
     ap.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
-    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                    help="worker processes (default: all cores)")
     ap.add_argument("--executor", metavar="SPEC", default=None,
-                    help="local (default), local:N, serial or dask://HOST:PORT (rheo_shaping.parallel)")
+                    help="local (default), local:N, serial or dask://HOST:PORT "
+                         "(rheo_shaping.parallel)")
     ap.add_argument("--domain", type=int, default=60,
                     help="first ROS domain id the cases may claim (default 60)")
     ap.add_argument("--trend", choices=("on", "off"), default="off",
                     help="the monitor's trend prediction (default off, the monitor's default)")
-    ap.add_argument("--indices", metavar="I,J,...", help="run only these case numbers of the seeded draw")
+    ap.add_argument("--indices", metavar="I,J,...",
+                    help="run only these case numbers of the seeded draw")
     ap.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    ap.add_argument("--save", metavar="FILE", help="also write the summary and every run to FILE (JSON)")
+    ap.add_argument("--save", metavar="FILE",
+                    help="also write the summary and every run to FILE (JSON)")
     args = ap.parse_args(argv)
     if args.runs < 1 or args.jobs < 1:
         print("abort_campaign: error: --runs and --jobs must be >= 1", file=sys.stderr)
@@ -258,7 +279,8 @@ def main(argv: list[str] | None = None) -> int:
     rng = random.Random(args.seed)
     base = CellParams()
     cells = [sample_cell(base, rng) for _ in range(args.runs)]
-    chosen = range(args.runs) if not args.indices else sorted({int(x) for x in args.indices.split(",")})
+    chosen = range(args.runs) if not args.indices else sorted(
+        {int(x) for x in args.indices.split(",")})
     t0 = time.monotonic()
     shared = {"domain": args.domain, "trend": args.trend == "on"}
     try:

@@ -4,9 +4,8 @@
 Measures, on this machine:
 
 * ``rtf_n25``: simulated seconds per wall second of the default cell's 120 s
-  two-step cycle (movement 4, ``run_scenario(p, scenario_plan(p,
-  movement_scenario(p, 4)))``) with N = 25 masses, on ONE core (the process
-  is pinned to one CPU and BLAS/OpenMP are limited to one thread).  The
+  two-step cycle (movement 4, ``run_movement(p, 4)``) with N = 25 masses,
+  on ONE core (the process is pinned to one CPU and BLAS/OpenMP are limited to one thread).  The
   settle (the inertial pre-sag, cached per cell in ``simulation._SETTLED``) is
   timed separately, with the cache cleared; the cycle is timed with the settle
   cached.  Medians of ``--repeats`` runs.
@@ -23,7 +22,7 @@ Measures, on this machine:
   own and cumulative time (the compiled kernel is one call), the kernel's work
   per step, and per-call costs measured without the profiler (``micro``).
 * ``effects``: the default cell's cycle (N = 63) with each effect of
-  :mod:`rheo_shaping.effects` alone at the top of its realistic range, timed
+  :mod:`rheo_shaping.sheet.effects` alone at the top of its realistic range, timed
   interleaved with the nominal cycle: the ratio of the two.
 * ``cold_start``: ``rheo-shaping simulate --json`` in a fresh process, first
   with an empty compile cache (a temporary ``NUMBA_CACHE_DIR``), then with the
@@ -60,40 +59,40 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
     os.environ.setdefault(_var, "1")        # one thread per process, set before numpy loads
 
-import argparse
-import collections
-import contextlib
-import cProfile
-import io
-import json
-import math
-import multiprocessing
-import platform
-import pstats
-import resource
-import statistics
-import sys
-import time
-import timeit
-import tracemalloc
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import asdict, replace
-from pathlib import Path
+import argparse  # noqa: E402
+import collections  # noqa: E402
+import contextlib  # noqa: E402
+import cProfile  # noqa: E402
+import io  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import multiprocessing  # noqa: E402
+import platform  # noqa: E402
+import pstats  # noqa: E402
+import resource  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import timeit  # noqa: E402
+import tracemalloc  # noqa: E402
+from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: E402
+from dataclasses import asdict, replace  # noqa: E402
+from pathlib import Path  # noqa: E402
 
-import numpy as np
-import scipy
+import numpy as np  # noqa: E402
+import scipy  # noqa: E402
 
 try:
     import rheo_shaping  # noqa: F401
 except ImportError:                                   # run from a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import rheo_shaping.simulation as simulation
-from rheo_shaping.analytic import elastic_chain_equilibrium
-from rheo_shaping.params import CellParams
-from rheo_shaping.scenarios import movement_scenario, scenario_plan
-from rheo_shaping.sheet import ChainConstants, SheetModel
-from rheo_shaping.simulation import Simulation, run_scenario
+import rheo_shaping.sheet.simulation as simulation  # noqa: E402
+from rheo_shaping.sheet.analytic import elastic_chain_equilibrium  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.planning.movement import movement_plan  # noqa: E402
+from rheo_shaping.sheet.sheet import ChainConstants, SheetModel  # noqa: E402
+from rheo_shaping.sheet.simulation import Simulation, run_scenario  # noqa: E402
 
 SIZES = (25, 50, 63, 100, 200, 400, 1000)
 MB = 1024.0 * 1024.0
@@ -140,7 +139,7 @@ def cycle(n: int):
     """The default cell with ``n`` masses and its movement-4 plan (read fresh)."""
     p = CellParams()
     p = replace(p, sheet=replace(p.sheet, n_masses=int(n)))
-    return p, scenario_plan(p, movement_scenario(p, 4))
+    return p, movement_plan(p, 4)
 
 
 def time_settle(p, plan) -> tuple[float, float]:
@@ -183,7 +182,7 @@ def _reset_peak_rss() -> bool:
 def counting(*given):
     """Count the solver's work during a run: the kernel's counters (SheetModel.stats) of every
     model made inside the block and of the ``given`` models, summed."""
-    from rheo_shaping import kernel as K
+    from rheo_shaping.sheet import kernel as K
     c = collections.Counter()
     models: list = [(m, m.stats.copy()) for m in given]
     init = SheetModel.__init__
@@ -239,7 +238,8 @@ def size_job(n: int, repeats: int, t_end: float | None, trace: bool = False) -> 
     wall = statistics.median(walls)
     return {
         "n": n, "sim_s": t_sim, "window_shortened": t_end is not None,
-        "steps": steps, "wall_s": wall, "wall_s_min": min(walls), "wall_s_loop": statistics.median(loops),
+        "steps": steps, "wall_s": wall, "wall_s_min": min(walls),
+        "wall_s_loop": statistics.median(loops),
         "cpu_s": statistics.median(cpus), "repeats": repeats,
         "wall_s_per_sim_s": wall / t_sim, "cpu_s_per_sim_s": statistics.median(cpus) / t_sim,
         "rtf": t_sim / wall, "settle_wall_s": settle_wall, "settle_cpu_s": settle_cpu,
@@ -280,8 +280,10 @@ def profile_cycle(n: int = 25, top: int = 12) -> dict:
     def table(idx):
         out = []
         for k, nc, tt, ct in sorted(rows, key=lambda r: -r[idx])[:top]:
-            out.append({"function": _label(k), "calls": nc, "own_s": round(tt, 5), "cum_s": round(ct, 5),
-                        "own_pct": round(100 * tt / total, 1), "cum_pct": round(100 * ct / total, 1)})
+            out.append({"function": _label(k), "calls": nc, "own_s": round(tt, 5),
+                        "cum_s": round(ct, 5),
+                        "own_pct": round(100 * tt / total, 1),
+                        "cum_pct": round(100 * ct / total, 1)})
         return out
 
     def calls(func, file_part=""):
@@ -317,7 +319,7 @@ def micro(n: int = 25, number: int = 2000) -> dict:
     """Per-call CPU costs [us] without the profiler, on the N = 25 cycle's state one step
     before the tool pushes hardest: one step as a Python call, its compiled parts."""
     try:
-        from rheo_shaping import kernel as K
+        from rheo_shaping.sheet import kernel as K
         p, plan = cycle(n)
         r = run_scenario(p, plan)
         k = max(int(np.argmax(np.hypot(r.tool_force[:, 0], r.tool_force[:, 1]))) - 1, 0)
@@ -328,14 +330,15 @@ def micro(n: int = 25, number: int = 2000) -> dict:
         m, s = sim.model, sim.state
         dt = p.solver.dt
         tool = plan.position(min(t + dt, float(r.t[-1])))
-        f = lambda fn: 1e6 * min(timeit.repeat(fn, timer=time.process_time, number=number,  # noqa: E731
-                                               repeat=3)) / number
+        f = lambda fn: 1e6 * min(timeit.repeat(  # noqa: E731
+            fn, timer=time.process_time, number=number, repeat=3)) / number
         shapes = {ob.name: ob for ob in m.obstacles}
         dts, tools = np.full(20, dt / 20), np.repeat(tool[None], 20, axis=0)
         x = s.x.copy()
         res = {
-            "state_t_s": t, "contacts": {ob.name: int(np.count_nonzero(np.abs(s.contact[i]).sum(1)))
-                                         for i, ob in enumerate(m.obstacles)},
+            "state_t_s": t,
+            "contacts": {ob.name: int(np.count_nonzero(np.abs(s.contact[i]).sum(1)))
+                         for i, ob in enumerate(m.obstacles)},
             "step_us": f(lambda: m.step(s, dt, tool)),
             "run_path_per_step_us": f(lambda: m.run_path(s, dts, tools)) / 20,
             "cake_signed_distance_us": f(lambda: shapes["cake"].shape.signed_distance(x)),
@@ -368,7 +371,8 @@ def elastic_problem(n=25, span=0.10, drop=-0.08, length=0.15, mu=0.3125, ea=9.5,
     c = ChainConstants(anchor_top=np.array([0.0, 0.0]), anchor_bottom=np.array([span, drop]),
                        rest_length=L, k1=ea / L, c1=np.zeros(n + 1), c2=np.full(n + 1, np.inf),
                        mass=np.full(n, mu * length / (n + 1)), radius=2e-3, gravity=g)
-    exact = elastic_chain_equilibrium(c.anchor_top, c.anchor_bottom, c.rest_length, c.k1, c.mass, g)
+    exact = elastic_chain_equilibrium(
+        c.anchor_top, c.anchor_bottom, c.rest_length, c.k1, c.mass, g)
     s = np.linspace(0.0, 1.0, n + 2)[1:-1, None]
     x0 = c.anchor_top + s * (c.anchor_bottom - c.anchor_top)
     return c, exact, x0
@@ -403,7 +407,8 @@ def ours_elastic(c, exact, x0, schedule, repeats=15, **kw) -> dict:
         st = run()
     t = [_timed(run) for _ in range(repeats)]
     return {"schedule_s": list(schedule), "error_m": _err(st.x, exact),
-            "wall_s": statistics.median(w for w, _ in t), "cpu_s": statistics.median(cp for _, cp in t),
+            "wall_s": statistics.median(w for w, _ in t),
+            "cpu_s": statistics.median(cp for _, cp in t),
             "newton_iterations": cnt["newton"], "evaluations": cnt["evaluate"]}
 
 
@@ -423,7 +428,8 @@ def mujoco_xml(c, x0, dt: float, damping: float, integrator: str = "implicitfast
         f'<spatial stiffness="{f(c.k1[i])}" springlength="0 {f(c.rest_length[i])}">'
         f'<site site="{sites[i]}"/><site site="{sites[i + 1]}"/></spatial>' for i in range(n + 1))
     a, b = c.anchor_top, c.anchor_bottom
-    return (f'<mujoco model="elastic_chain"><option timestep="{f(dt)}" gravity="0 0 {f(-c.gravity)}" '
+    return (f'<mujoco model="elastic_chain"><option timestep="{f(dt)}" gravity="0 0 '
+            f'{f(-c.gravity)}" '
             f'integrator="{integrator}"><flag contact="disable" constraint="disable"/></option>'
             f'<worldbody><site name="A" pos="{f(a[0])} 0 {f(a[1])}"/>'
             f'<site name="B" pos="{f(b[0])} 0 {f(b[1])}"/>{"".join(bodies)}</worldbody>'
@@ -502,18 +508,22 @@ def mujoco_compare(quick: bool = False, tol: float = 1e-6, repeats: int = 21) ->
         mujoco.mj_step(model, d)
     loop_s = time.perf_counter() - t0
     med = lambda t, i: statistics.median(x[i] for x in t)  # noqa: E731
-    ours = {"schedule_s": [1e3], "dynamic": False, "force_tol_N": 1e-9, "error_m": _err(st.x, exact),
+    ours = {"schedule_s": [1e3], "dynamic": False, "force_tol_N": 1e-9,
+            "error_m": _err(st.x, exact),
             "wall_s": med(t_ours, 0), "cpu_s": med(t_ours, 1),
             "newton_iterations": cnt["newton"], "evaluations": cnt["evaluate"]}
     alternatives = [ours_elastic(c, exact, x0, s_, repeats=repeats // 2 + 1)
                     for s_ in ([1e3, 1e3], [0.1, 1e3], [0.01, 0.1, 1e3])]
     mj_wall, mj_cpu = med(t_mj, 0), med(t_mj, 1)
     return {
-        "problem": {"n": c.n_masses, "span_m": 0.10, "drop_m": -0.08, "L0_m": 0.15, "mu_kg_per_m": 0.3125,
+        "problem": {"n": c.n_masses, "span_m": 0.10, "drop_m": -0.08, "L0_m": 0.15,
+                    "mu_kg_per_m": 0.3125,
                     "EA_N": 9.5, "tol_m": tol, "start": "straight line at rest (links slack)"},
         "ours": ours, "ours_alternatives": alternatives,
-        "mujoco": {"representation": "per mass: body with slide joints x and z, point mass; per link: "
-                                     "spatial tendon site-to-site, stiffness k_i, springlength '0 L_i' "
+        "mujoco": {"representation": "per mass: body with slide joints x and z, point mass; per "
+                                     "link: "
+                                     "spatial tendon site-to-site, stiffness k_i, springlength '0 "
+                                     "L_i' "
                                      "(tension-only linear spring); joint damping, implicitfast; "
                                      "contact and constraints disabled",
                    "timestep_s": best["timestep_s"], "damping_Ns_per_m": best["damping_Ns_per_m"],
@@ -530,8 +540,8 @@ def mujoco_compare(quick: bool = False, tol: float = 1e-6, repeats: int = 21) ->
 # ---------------------------------------------------------------- effects, cold start
 def effects_table(repeats: int = 3) -> dict:
     """Cycle cost of the default cell (N = 63) with each effect alone at the top of its
-    realistic range (rheo_shaping.effects), against the nominal cycle timed beside it."""
-    from rheo_shaping.effects import EFFECTS
+    realistic range (rheo_shaping.sheet.effects), against the nominal cycle timed beside it."""
+    from rheo_shaping.sheet.effects import EFFECTS
     p0, plan = cycle(CellParams().sheet.n_masses)
     rows = []
     for name, e in EFFECTS.items():
@@ -547,7 +557,8 @@ def effects_table(repeats: int = 3) -> dict:
             run_scenario(p, plan)
         steps = int(r.t.size - 1)
         rows.append({"effect": name, "values": [hi for _, hi in e.realistic],
-                     "cycle_s": statistics.median(on), "nominal_cycle_s": statistics.median(nominal),
+                     "cycle_s": statistics.median(on),
+                     "nominal_cycle_s": statistics.median(nominal),
                      "ratio": statistics.median(on) / statistics.median(nominal),
                      "settle_s": settle_wall, "steps": steps,
                      "newton_per_step": cnt["newton"] / steps,
@@ -637,16 +648,19 @@ def run(args) -> dict:
             bar.update(1)
     bar.close()
     out["scaling"] = [results[n] for n in sorted(results)]
-    out["scaling_note"] = (f"{args.jobs} worker processes on {os.cpu_count()} cores, a fresh process per size; "
+    out["scaling_note"] = (f"{args.jobs} worker processes on {os.cpu_count()} cores, a fresh "
+                           "process per size; "
                            f"medians of {args.repeats} runs for N <= 100, 2 for N <= 200, 1 above")
     out["peak_memory_mb"] = {
         f"n{s['n']}": {"tracemalloc_peak": s["tracemalloc_peak_mb"],
                        "peak_rss_during_cycles": s["peak_rss_during_cycles_mb"],
-                       "rss_before_cycles": s["rss_before_cycles_mb"], "ru_maxrss": s["ru_maxrss_mb"]}
+                       "rss_before_cycles": s["rss_before_cycles_mb"],
+                       "ru_maxrss": s["ru_maxrss_mb"]}
         for s in out["scaling"] if s["n"] in (25, biggest)}
     stale = sorted({s["cell_fingerprint"] for s in out["scaling"]} - {out["cell_fingerprint"]})
     if stale:
-        out["warning"] = (f"the default cell changed during the run (params.py edited): main process "
+        out["warning"] = ("the default cell changed during the run (params.py edited): main "
+                          "process "
                           f"{out['cell_fingerprint']}, workers {stale}")
     # 4. each effect alone, and the cold start of the CLI
     if not args.no_effects:
@@ -683,36 +697,50 @@ def print_report(o: dict) -> None:
     m = o["machine"]
     print(f"machine: {m['platform']} | {m['cpu']} | {m['cpus']} CPUs | python {m['python']} | "
           f"numpy {m['numpy']} | scipy {m['scipy']} | mujoco {m['mujoco']}")
-    print(f"default cell fingerprint {o['cell_fingerprint']} (sha1 of CellParams() as read at start)")
+    print(
+        f"default cell fingerprint {o['cell_fingerprint']} (sha1 of CellParams() as read at "
+        "start)")
     la, lb = o["load_average_start"], o["load_average_end"]
     print(f"load average (1, 5, 15 min) at start {la[0]:.2f} {la[1]:.2f} {la[2]:.2f}, at end "
-          f"{lb[0]:.2f} {lb[1]:.2f} {lb[2]:.2f} (other jobs share the machine: wall times include them)")
-    print(f"\nN = 25, default cell, movement 4, {o['cell']['process_time_s']:g} s cycle, one process, one thread"
+          f"{lb[0]:.2f} {lb[1]:.2f} {lb[2]:.2f} (other jobs share the machine: wall times include "
+          "them)")
+    print(f"\nN = 25, default cell, movement 4, {o['cell']['process_time_s']:g} s cycle, one "
+          "process, one thread"
           f"{', pinned to CPU %s' % o['pinned_cpu'] if o['pinned_cpu'] is not None else ''} "
           f"(median of {o['rtf_repeats']}):")
-    print(f"  cycle wall        {o['wall_s_n25']:.3f} s  -> rtf_n25 = {o['rtf_n25']:.0f}x real time "
-          f"(best run {o['rtf_n25_best']:.0f}x, CPU time {o['rtf_n25_cpu']:.0f}x, stepping loop alone "
+    print(f"  cycle wall        {o['wall_s_n25']:.3f} s  -> rtf_n25 = {o['rtf_n25']:.0f}x real "
+          "time "
+          f"(best run {o['rtf_n25_best']:.0f}x, CPU time {o['rtf_n25_cpu']:.0f}x, stepping loop "
+          "alone "
           f"{o['rtf_n25_stepping_loop']:.0f}x; {o['steps_n25']} steps)")
-    print(f"  settle (cold)     {o['settle_wall_s_n25']:.3f} s wall, {o['settle_cpu_s_n25']:.3f} s CPU for "
-          f"{o['settle_sim_s']:g} s of sag ({o['settle_steps']} inertial steps); cycle incl. settle "
+    print(f"  settle (cold)     {o['settle_wall_s_n25']:.3f} s wall, {o['settle_cpu_s_n25']:.3f} "
+          "s CPU for "
+          f"{o['settle_sim_s']:g} s of sag ({o['settle_steps']} inertial steps); cycle incl. "
+          "settle "
           f"{o['rtf_n25_with_settle']:.0f}x")
     print(f"  F_max {o['F_max_n25_N']:.4f} N, Delta {1e3 * o['delta_n25_m']:.3f} mm")
     print(f"\nscaling ({o['scaling_note']}):")
-    print(f"{'N':>5} {'sim s':>5} {'steps':>5} {'wall s':>7} {'wall/sim':>8} {'cpu/sim':>8} {'rtf':>6} "
-          f"{'settle s':>8} {'newton/st':>9} {'evals/st':>8} {'solves/st':>9} {'retry':>5} {'peak RSS MB':>11}")
+    print(f"{'N':>5} {'sim s':>5} {'steps':>5} {'wall s':>7} {'wall/sim':>8} {'cpu/sim':>8} "
+          f"{'rtf':>6} "
+          f"{'settle s':>8} {'newton/st':>9} {'evals/st':>8} {'solves/st':>9} {'retry':>5} "
+          f"{'peak RSS MB':>11}")
     for s in o["scaling"]:
         rss = s["peak_rss_during_cycles_mb"]
-        print(f"{s['n']:>5} {s['sim_s']:>5g} {s['steps']:>5} {s['wall_s']:7.3f} {s['wall_s_per_sim_s']:8.5f} "
+        print(f"{s['n']:>5} {s['sim_s']:>5g} {s['steps']:>5} {s['wall_s']:7.3f} "
+              f"{s['wall_s_per_sim_s']:8.5f} "
               f"{s['cpu_s_per_sim_s']:8.5f} {s['rtf']:6.1f} {s['settle_wall_s']:8.3f} "
               f"{s['newton_iterations_mean']:9.2f} {s['evaluations_per_step']:8.2f} "
               f"{s['banded_solves_per_step']:9.2f} {s['retried_steps']:>5} "
               f"{(f'{rss:11.1f}' if rss is not None else f'{chr(45):>11}')}")
     pr = o["profile"]
-    print(f"\nprofile of the N = 25 cycle (cProfile, {pr['profiled_wall_s']:.3f} s profiled, {pr['steps']} steps);"
+    print(f"\nprofile of the N = 25 cycle (cProfile, {pr['profiled_wall_s']:.3f} s profiled, "
+          f"{pr['steps']} steps);"
           " calls per step: " + ", ".join(f"{k} {v:.2f}" for k, v in pr["calls_per_step"].items()))
-    print(f"  {'own s':>7} {'own %':>6} {'cum s':>7} {'cum %':>6} {'calls':>6}  function (by own time)")
+    print(f"  {'own s':>7} {'own %':>6} {'cum s':>7} {'cum %':>6} {'calls':>6}  function (by own "
+          "time)")
     for r in pr["by_own_time"]:
-        print(f"  {r['own_s']:7.4f} {r['own_pct']:6.1f} {r['cum_s']:7.4f} {r['cum_pct']:6.1f} {r['calls']:>6}  "
+        print(f"  {r['own_s']:7.4f} {r['own_pct']:6.1f} {r['cum_s']:7.4f} {r['cum_pct']:6.1f} "
+              f"{r['calls']:>6}  "
               f"{r['function']}")
     print(f"  {'cum s':>7} {'cum %':>6} {'calls':>6}  function (by cumulative time)")
     for r in pr["by_cumulative_time"]:
@@ -728,20 +756,24 @@ def print_report(o: dict) -> None:
     if o.get("warning"):
         print(f"\nWARNING: {o['warning']}")
     print("\npeak memory [MB]: " + "; ".join(
-        f"{k}: tracemalloc peak {v['tracemalloc_peak'] if v['tracemalloc_peak'] is None else round(v['tracemalloc_peak'], 2)}, peak RSS during the cycles "
-        f"{v['peak_rss_during_cycles'] if v['peak_rss_during_cycles'] is None else round(v['peak_rss_during_cycles'], 1)} "
+        f"{k}: tracemalloc peak "
+        f"{_maybe_round(v['tracemalloc_peak'], 2)}, peak RSS during the cycles "
+        f"{_maybe_round(v['peak_rss_during_cycles'], 1)} "
         f"(RSS before {v['rss_before_cycles']:.1f}, process ru_maxrss {v['ru_maxrss']:.1f})"
         for k, v in o["peak_memory_mb"].items()))
     ef = o.get("effects")
     if ef:
         print(f"\neach effect alone at the top of its realistic range, default cell N = {ef['n']} "
-              f"(cycle with the settle cached; medians of {ef['repeats']}, interleaved with the nominal):")
+              f"(cycle with the settle cached; medians of {ef['repeats']}, interleaved with the "
+              "nominal):")
         print(f"  {'effect':<15} {'values':<22} {'cycle s':>8} {'nominal s':>9} {'ratio':>6} "
               f"{'settle s':>8} {'newton/st':>9} {'F_max N':>8}")
         for r in ef["rows"]:
             vals = ", ".join(f"{v:g}" for v in r["values"])
-            print(f"  {r['effect']:<15} {vals:<22} {r['cycle_s']:8.4f} {r['nominal_cycle_s']:9.4f} "
-                  f"{r['ratio']:6.2f} {r['settle_s']:8.4f} {r['newton_per_step']:9.2f} {r['F_max_N']:8.4f}")
+            print(f"  {r['effect']:<15} {vals:<22} {r['cycle_s']:8.4f} "
+                  f"{r['nominal_cycle_s']:9.4f} "
+                  f"{r['ratio']:6.2f} {r['settle_s']:8.4f} {r['newton_per_step']:9.2f} "
+                  f"{r['F_max_N']:8.4f}")
         print(f"  largest ratio {ef['max_ratio']:.2f}")
     cs = o.get("cold_start")
     if cs:
@@ -754,39 +786,66 @@ def print_report(o: dict) -> None:
             print(f"\nMuJoCo: {mj['error']}")
             return
         pb, ours, mm = mj["problem"], mj["ours"], mj["mujoco"]
-        print(f"\nshared elastic problem: N = {pb['n']}, span {pb['span_m']} m, drop {pb['drop_m']} m, "
-              f"L0 {pb['L0_m']} m, {pb['mu_kg_per_m']} kg/m, EA {pb['EA_N']} N, until max node error <= "
-              f"{pb['tol_m']:g} m vs the exact discrete equilibrium; {pb['start']} (medians of {mj['repeats']}, "
+        print(f"\nshared elastic problem: N = {pb['n']}, span {pb['span_m']} m, drop "
+              f"{pb['drop_m']} m, "
+              f"L0 {pb['L0_m']} m, {pb['mu_kg_per_m']} kg/m, EA {pb['EA_N']} N, until max node "
+              "error <= "
+              f"{pb['tol_m']:g} m vs the exact discrete equilibrium; {pb['start']} (medians of "
+              f"{mj['repeats']}, "
               "ours and MuJoCo interleaved)")
-        print(f"  ours:   quasi-static step(s) {ours['schedule_s']} s: {ours['newton_iterations']} Newton "
-              f"iterations, {ours['evaluations']} energy evaluations, error {ours['error_m']:.1e} m, "
+        print(f"  ours:   quasi-static step(s) {ours['schedule_s']} s: "
+              f"{ours['newton_iterations']} Newton "
+              f"iterations, {ours['evaluations']} energy evaluations, error {ours['error_m']:.1e} "
+              "m, "
               f"wall {1e3 * ours['wall_s']:.2f} ms (CPU {1e3 * ours['cpu_s']:.2f} ms)")
         for a in mj["ours_alternatives"]:
-            print(f"          (alternative {a['schedule_s']} s: {a['newton_iterations']} iterations, "
-                  f"{a['evaluations']} evaluations, error {a['error_m']:.1e} m, {1e3 * a['wall_s']:.2f} ms)")
-        print(f"  MuJoCo: dt {mm['timestep_s']:g} s, joint damping {mm['damping_Ns_per_m']:g} N s/m (best of a "
-              f"{len(mm['grid'])}-point grid): {mm['steps']} steps = {mm['sim_time_s']:.3f} s simulated, "
-              f"error {mm['error_m']:.1e} m, wall {1e3 * mm['wall_s']:.2f} ms (CPU {1e3 * mm['cpu_s']:.2f} ms, "
-              f"{mm['us_per_step']:.1f} us/step; one Python call per step {1e3 * mm['python_loop_wall_s']:.2f} ms;"
+            print(f"          (alternative {a['schedule_s']} s: {a['newton_iterations']} "
+                  "iterations, "
+                  f"{a['evaluations']} evaluations, error {a['error_m']:.1e} m, "
+                  f"{1e3 * a['wall_s']:.2f} ms)")
+        print(f"  MuJoCo: dt {mm['timestep_s']:g} s, joint damping {mm['damping_Ns_per_m']:g} N "
+              "s/m (best of a "
+              f"{len(mm['grid'])}-point grid): {mm['steps']} steps = {mm['sim_time_s']:.3f} s "
+              "simulated, "
+              f"error {mm['error_m']:.1e} m, wall {1e3 * mm['wall_s']:.2f} ms (CPU "
+              f"{1e3 * mm['cpu_s']:.2f} ms, "
+              f"{mm['us_per_step']:.1f} us/step; one Python call per step "
+              f"{1e3 * mm['python_loop_wall_s']:.2f} ms;"
               f" compile {1e3 * mm['compile_s']:.1f} ms)")
-        print(f"  mujoco_ratio = MuJoCo wall / ours = {mj['mujoco_ratio']:.2f} (CPU time {mj['mujoco_ratio_cpu']:.2f})")
+        print(
+            f"  mujoco_ratio = MuJoCo wall / ours = {mj['mujoco_ratio']:.2f} (CPU time "
+            f"{mj['mujoco_ratio_cpu']:.2f})")
         fails = [g for g in mm["grid"] if not g["steps_to_tol"]]
         if fails:
             print("  grid points that diverged or did not reach the tolerance in 20000 steps: " +
-                  ", ".join(f"(dt {g['timestep_s']:g}, c {g['damping_Ns_per_m']:g})" for g in fails))
+                  ", ".join(f"(dt {g['timestep_s']:g}, c "
+                            f"{g['damping_Ns_per_m']:g})" for g in fails))
+
+
+def _maybe_round(x, digits):
+    """``round(x, digits)``, None as it is."""
+    return x if x is None else round(x, digits)
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
-    ap.add_argument("--json", action="store_true", help="print one JSON object instead of the tables")
-    ap.add_argument("--quick", action="store_true", help="fewer repeats, sizes up to 200, small MuJoCo grid")
-    ap.add_argument("--repeats", type=int, default=None, help="timed repeats at N <= 100 (default 5, quick 3)")
-    ap.add_argument("--sizes", type=int, nargs="+", default=None, help="N of the scaling table (default 25 50 63 100 200 400 1000)")
-    ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="processes for the scaling sweep")
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 epilog=__doc__.split("\n\n", 1)[1])
+    ap.add_argument("--json", action="store_true",
+                    help="print one JSON object instead of the tables")
+    ap.add_argument("--quick", action="store_true",
+                    help="fewer repeats, sizes up to 200, small MuJoCo grid")
+    ap.add_argument("--repeats", type=int, default=None,
+                    help="timed repeats at N <= 100 (default 5, quick 3)")
+    ap.add_argument("--sizes", type=int, nargs="+", default=None,
+                    help="N of the scaling table (default 25 50 63 100 200 400 1000)")
+    ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
+                    help="processes for the scaling sweep")
     ap.add_argument("--t-end", type=float, default=None,
-                    help="shorten the simulated window [s] for N >= --shorten-from (default: whole 120 s)")
-    ap.add_argument("--shorten-from", type=int, default=200, help="smallest N whose window --t-end shortens")
+                    help="shorten the simulated window [s] for N >= --shorten-from (default: "
+                         "whole 120 s)")
+    ap.add_argument("--shorten-from", type=int, default=200,
+                    help="smallest N whose window --t-end shortens")
     ap.add_argument("--no-pin", dest="pin", action="store_false",
                     help="do not pin the single-core measurements to one CPU")
     ap.add_argument("--trace-largest", action="store_true",

@@ -51,10 +51,11 @@ Method: a seeded random (Latin hypercube) search over the bounds, then
 Nelder-Mead from the best few points, on 2 worker processes.  Run:
 
     PYTHONPATH=. python benchmarks/calibrate_cell.py                 # search + polish (~15 min)
-    PYTHONPATH=. python benchmarks/calibrate_cell.py --check         # residuals of the defaults only
+    PYTHONPATH=. python benchmarks/calibrate_cell.py --check         # residuals of the defaults
+    only
 
 It prints the objective, the chosen numbers and every residual; the numbers
-go into rheo_shaping/params.py and config/cell.yaml by hand.
+go into rheo_shaping/params/params.py and config/cell.yaml by hand.
 """
 from __future__ import annotations
 
@@ -69,13 +70,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rheo_shaping.drape import make_drape  # noqa: E402
+from rheo_shaping.sheet.drape import make_drape  # noqa: E402
 from rheo_shaping.parallel import executor_from_spec, run_tasks  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
-from rheo_shaping.reproduce import HALF_SPEED, PAPER, parabolic_minimum, run_movement, sweep_point  # noqa: E402
-from rheo_shaping import simulation  # noqa: E402
-from rheo_shaping.simulation import Simulation  # noqa: E402
-from rheo_shaping.tools import tool_shape  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.study.reproduce import (HALF_SPEED, PAPER, movement_run,  # noqa: E402
+                                          parabolic_minimum, sweep_point)
+from rheo_shaping.sheet import simulation  # noqa: E402
+from rheo_shaping.sheet.simulation import Simulation  # noqa: E402
+from rheo_shaping.sheet.tools import tool_shape  # noqa: E402
 
 #: name, lower bound, upper bound [m]
 DESIGN = (
@@ -98,14 +100,16 @@ START_RULE = "same_travel"   # or "clearance": each movement START_CLEARANCE bef
 PITCH = 6.4e-3            # m: 2e-3 kg spheres on 0.3125 kg/m
 SPHERE_MASS = 2e-3        # kg (paper Sec. 4.1)
 REFINE = 4                # masses per paper sphere in the default cell (--refine): N doubling
-                          # converges from N ~ 76 on (docs/model.md), the paper's 2 g lumps do not
-DIRECTIONS = {1: (0.0, 1.0), 2: (1.0, 0.0), 3: (2 ** -0.5, 2 ** -0.5)}   # from the end back to the start
+# converges from N ~ 76 on (docs/model.md), the paper's 2 g lumps do not
+DIRECTIONS = {1: (0.0, 1.0), 2: (1.0, 0.0), 3: (
+    2 ** -0.5, 2 ** -0.5)}   # from the end back to the start
 
 COARSE_D = tuple(np.round(np.arange(5e-3, 30e-3 + 1e-9, 2.5e-3), 6))
 
 
 def contact_travel(params: CellParams, end, u, nodes: np.ndarray, s_max: float = 0.15) -> float:
-    """Largest distance s [m] back from ``end`` along ``u`` where the tool still touches the sheet."""
+    """Largest distance s [m] back from ``end`` along ``u`` where the tool still touches the
+    sheet."""
     shape = tool_shape(params.tool)
     r = 0.5 * params.sheet.thickness
     # the centreline densely (links, not only spheres, must not pass through the tool)
@@ -135,9 +139,11 @@ def build_cell(x, base: CellParams | None = None, rounded: bool = False) -> Cell
     drape = make_drape(x["H"], x["Rf"], r, x["x_top"], x["x_bot"], x["extra"])
     paper_links = max(4, int(round(drape.length / PITCH)))
     n = REFINE * paper_links - 1             # each paper sphere split into REFINE masses
-    if REFINE == 1:   # the paper's lumps: every sphere exactly 2e-3 kg (a strip a hair off 0.3125 kg/m)
+    # the paper's lumps: every sphere exactly 2e-3 kg (a strip a hair off 0.3125 kg/m)
+    if REFINE == 1:
         mpl = SPHERE_MASS * paper_links / drape.length
-    else:             # the strip's own 0.3125 kg/m: no jump of the strip's mass when N steps by REFINE
+    # the strip's own 0.3125 kg/m: no jump of the strip's mass when N steps by REFINE
+    else:
         mpl = SPHERE_MASS / PITCH
     p = replace(
         p,
@@ -151,7 +157,8 @@ def build_cell(x, base: CellParams | None = None, rounded: bool = False) -> Cell
     travel = {m: contact_travel(p, end, u, nodes) + START_CLEARANCE for m, u in DIRECTIONS.items()}
     if START_RULE == "same_travel":
         travel = {m: max(travel.values()) for m in travel}
-    starts = {m: (q(end[0] + travel[m] * u[0]), q(end[1] + travel[m] * u[1])) for m, u in DIRECTIONS.items()}
+    starts = {m: (q(end[0] + travel[m] * u[0]), q(end[1] + travel[m] * u[1]))
+              for m, u in DIRECTIONS.items()}
     # home and movement 0 (the user's waypoints): movement 4 at the cell's d, written out
     x_d = q(p.movement.d + 0.5 * TOOL_W)
     home = (x_d, starts[1][1])
@@ -175,10 +182,11 @@ def _run(shared, job):
     if settled is not None:
         simulation._SETTLED.setdefault(_settled_key(params), settled)
     if kind == "movement":
-        r = run_movement(params, arg)
-        return {"F": r.F_max, "D": r.delta, "forced": r.forced_time, "contacts": r.min_contacts_forced}
+        r = movement_run(params, arg)
+        return {"F": r.F_max, "D": r.delta, "forced": r.forced_time,
+                "contacts": r.min_contacts_forced}
     if kind == "half":
-        r = run_movement(params, 1, speed=HALF_SPEED, dwell=0.0)
+        r = movement_run(params, 1, speed=HALF_SPEED, dwell=0.0)
         return {"F": r.F_max, "D": r.delta, "forced": r.forced_time}
     return sweep_point(params, arg)
 
@@ -237,7 +245,9 @@ class Problem:
         self.log.append((f, x.tolist(), res))
         if f < self.best[0]:
             self.best = (f, x, m)
-        print(f"\revaluation {self.evals}: {f:8.3f}  best {self.best[0]:.3f}", end="", file=sys.stderr)
+        print(
+            f"\revaluation {self.evals}: {f:8.3f}  best "
+            f"{self.best[0]:.3f}", end="", file=sys.stderr)
         return f
 
 
@@ -246,17 +256,23 @@ def report(x, m, file=sys.stdout) -> None:
     print("design:", file=file)
     for n, v in zip(NAMES, x):
         print(f"  {n:6s} = {v * 1e3:8.3f} mm", file=file)
-    print(f"objective = {objective(res):.3f}  (sum of squared residuals in tolerance units)", file=file)
+    print(
+        f"objective = {objective(res):.3f}  (sum of squared residuals in tolerance "
+        "units)", file=file)
     for k, ref in PAPER["movements"].items():
         mm = m["movements"][k]
-        print(f"  movement {k}: F_max {mm['F']:.3f} N (paper {ref['F_max']:.3f}, {res['F' + k]:+.2f} tol), "
-              f"Delta {mm['D'] * 1e3:.2f} mm (paper {ref['delta'] * 1e3:.2f}, {res['D' + k]:+.2f} tol)",
+        print(f"  movement {k}: F_max {mm['F']:.3f} N (paper {ref['F_max']:.3f}, "
+              f"{res['F' + k]:+.2f} tol), "
+              f"Delta {mm['D'] * 1e3:.2f} mm (paper {ref['delta'] * 1e3:.2f}, {res['D' + k]:+.2f} "
+              "tol)",
               file=file)
-    print(f"  d_opt {m['d_opt'] * 1e3:.1f} mm (paper 14.5, {res['d_opt']:+.2f} tol), interior {m['interior']}, "
+    print(f"  d_opt {m['d_opt'] * 1e3:.1f} mm (paper 14.5, {res['d_opt']:+.2f} tol), interior "
+          f"{m['interior']}, "
           f"peak gap {m['peak_gap'] * 100:.1f} %", file=file)
     print(f"  half speed: F_max {m['half']['F']:.3f} N, Delta {m['half']['D'] * 1e3:.2f} mm "
           f"(paper 6.6, {res['D_half']:+.2f} tol), forced {m['half']['forced']:.1f} s", file=file)
-    print(f"  movement 1 forced time {m['movements']['1']['forced']:.1f} s (30 s, {res['T_forced1']:+.2f} tol)",
+    print(f"  movement 1 forced time {m['movements']['1']['forced']:.1f} s (30 s, "
+          f"{res['T_forced1']:+.2f} tol)",
           file=file)
 
 
@@ -264,7 +280,8 @@ def current_design() -> dict:
     """The design vector of the default cell (inverse of :func:`build_cell`)."""
     p = CellParams()
     end = p.movement.end_1
-    return {"H": p.cake.height, "Rf": p.cake.fillet_radius, "x_top": p.sheet.top_bond_x, "x_bot": p.sheet.bottom_bond_x,
+    return {"H": p.cake.height, "Rf": p.cake.fillet_radius, "x_top": p.sheet.top_bond_x,
+            "x_bot": p.sheet.bottom_bond_x,
             "extra": p.sheet.excess_length, "R": p.tool.corner_radius,
             "g": end[0] - 0.5 * p.tool.width, "b": end[1] - 0.5 * p.tool.height}
 
@@ -276,30 +293,38 @@ def print_cell(p: CellParams) -> None:
     print(f"  sheet.n_masses {sh.n_masses}  sheet.mass_per_length {sh.mass_per_length}  "
           f"sheet.top_bond_x {sh.top_bond_x}  sheet.bottom_bond_x {sh.bottom_bond_x}  "
           f"sheet.excess_length {sh.excess_length}")
-    print(f"  tool.shape {t.shape}  width {t.width}  height {t.height}  corner_radius {t.corner_radius}  "
+    print(f"  tool.shape {t.shape}  width {t.width}  height {t.height}  corner_radius "
+          f"{t.corner_radius}  "
           f"home {list(t.home)}")
     for k in (1, 2, 3, 4):
-        print(f"  movement.start_{k} {list(getattr(mv, f'start_{k}'))}  end_{k} {list(getattr(mv, f'end_{k}'))}")
+        print(
+            f"  movement.start_{k} {list(getattr(mv, f'start_{k}'))}  end_{k} "
+            f"{list(getattr(mv, f'end_{k}'))}")
 
 
 def main(argv=None) -> int:
     global REFINE
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--samples", type=int, default=120, help="random search points (default 120)")
-    ap.add_argument("--polish", type=int, default=2, help="Nelder-Mead runs from the best points (default 2)")
-    ap.add_argument("--evals", type=int, default=200, help="objective evaluations per Nelder-Mead run")
+    ap.add_argument("--polish", type=int, default=2,
+                    help="Nelder-Mead runs from the best points (default 2)")
+    ap.add_argument("--evals", type=int, default=200,
+                    help="objective evaluations per Nelder-Mead run")
     ap.add_argument("--seed", type=int, default=20240601)
     ap.add_argument("--start", help="JSON design (mm) to polish instead of a random search")
     ap.add_argument("--check", action="store_true",
                     help="only evaluate the default cell (and check it is its design, rounded)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--executor", metavar="SPEC", default=None,
-                    help="local (default), local:N, serial or dask://HOST:PORT (rheo_shaping.parallel)")
+                    help="local (default), local:N, serial or dask://HOST:PORT "
+                         "(rheo_shaping.parallel)")
     ap.add_argument("--refine", type=int, default=REFINE,
                     help=f"masses per paper sphere (default {REFINE}; 1 = the paper's 2 g lumps)")
     ap.add_argument("--lsq", action="store_true",
-                    help="polish --start with a bounded least-squares (trust region, finite-difference "
-                         "Jacobian) instead of Nelder-Mead: ~10x fewer evaluations near an optimum")
+                    help="polish --start with a bounded least-squares (trust region, "
+                         "finite-difference "
+                         "Jacobian) instead of Nelder-Mead: ~10x fewer evaluations near an "
+                         "optimum")
     ap.add_argument("--log", help="write every evaluated design and its residuals (JSON lines)")
     args = ap.parse_args(argv)
     if args.refine < 1:
@@ -313,7 +338,9 @@ def main(argv=None) -> int:
         if args.check:
             x = current_design()
             p = build_cell(x, rounded=True)
-            print(f"default cell's design, {REFINE} masses per paper sphere (N = {p.sheet.n_masses}):")
+            print(
+                f"default cell's design, {REFINE} masses per paper sphere (N = "
+                f"{p.sheet.n_masses}):")
             report([x[n] for n in NAMES], evaluate(p, pool))
             print("default cell == build_cell(its design, rounded):", p == CellParams())
             print(f"{time.time() - t0:.0f} s")
@@ -336,17 +363,22 @@ def main(argv=None) -> int:
                 if not np.isfinite(f):
                     return np.full(len(residuals_template), 1e3)
                 return np.array([res[k] for k in residuals_template])
-            residuals_template = ["F1", "F2", "F3", "F4", "D1", "D2", "D3", "D4", "d_opt", "D_half", "T_forced1"]
+            residuals_template = ["F1", "F2", "F3", "F4", "D1",
+                                  "D2", "D3", "D4", "d_opt", "D_half", "T_forced1"]
             r = least_squares(resid, np.clip(starts[0], 0, 1), bounds=(0.0, 1.0), method="trf",
                               diff_step=0.02, max_nfev=args.evals, x_scale=1.0)
-            print(f"\nleast squares: objective {2 * r.cost:.3f} after {r.nfev} evaluations ({r.message})",
+            print(f"\nleast squares: objective {2 * r.cost:.3f} after {r.nfev} evaluations "
+                  f"({r.message})",
                   file=sys.stderr)
             starts = []
         for k, s in enumerate(starts):
             r = minimize(prob, s, method="Nelder-Mead",
                          options={"maxfev": args.evals, "xatol": 2e-3, "fatol": 1e-2,
-                                  "initial_simplex": np.vstack([s] + [s + 0.06 * e for e in np.eye(len(s))])})
-            print(f"\npolish {k + 1}: objective {r.fun:.3f} after {r.nfev} evaluations", file=sys.stderr)
+                                  "initial_simplex": np.vstack(
+                                      [s] + [s + 0.06 * e for e in np.eye(len(s))])})
+            print(
+                f"\npolish {k + 1}: objective {r.fun:.3f} after {r.nfev} "
+                "evaluations", file=sys.stderr)
         f, x, m = prob.best
         print(f"{prob.evals} evaluations in {time.time() - t0:.0f} s")
         print("best design:")

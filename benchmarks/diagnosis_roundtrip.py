@@ -13,10 +13,10 @@ import tempfile
 from dataclasses import replace
 from pathlib import Path
 
-from rheo_shaping.config import dump_cell, load_cell
+from rheo_shaping.params.config import dump_cell, load_cell
 from rheo_shaping.diagnosis.benchmark import base_cell, make_case
 from rheo_shaping.diagnosis.engine import diagnose
-from rheo_shaping.measurement import synthesize_record
+from rheo_shaping.records.measurement import synthesize_record
 
 KINDS = ("single", "single", "none")
 

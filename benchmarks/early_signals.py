@@ -82,7 +82,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     nodes = [n for n in args.nodes.split(",") if n]
     if args.runs < 1 or any(n not in READY for n in nodes):
-        print(f"early_signals: error: --runs >= 1 and --nodes from {sorted(READY)}", file=sys.stderr)
+        print(
+            f"early_signals: error: --runs >= 1 and --nodes from {sorted(READY)}", file=sys.stderr)
         return 2
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     env.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))

@@ -25,10 +25,10 @@ try:
 except ImportError:                                   # a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rheo_shaping.effects import EFFECTS  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
-from rheo_shaping.scenarios import movement_scenario, scenario_plan  # noqa: E402
-from rheo_shaping.simulation import Simulation, run_scenario  # noqa: E402
+from rheo_shaping.sheet.effects import EFFECTS  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.sheet.simulation import Simulation, run_scenario  # noqa: E402
 
 #: effect name -> (value, how it is printed): typical values inside each realistic range
 CASES = {
@@ -44,10 +44,11 @@ CASES = {
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    ap.add_argument("--json", action="store_true",
+                    help="print one JSON object instead of the table")
     args = ap.parse_args(argv)
     base = CellParams()
-    plan = scenario_plan(base, movement_scenario(base))
+    plan = movement_plan(base)
     Simulation(base)                                  # settle once (cached) outside the timings
     t0 = time.perf_counter()
     nominal = run_scenario(base, plan)
@@ -61,19 +62,25 @@ def main(argv=None) -> int:
         wall = time.perf_counter() - t0
         rows.append({"effect": name, "value": label,
                      "F_max_change": r.F_max / nominal.F_max - 1.0, "delta_m": r.delta,
-                     "profile_change_m": float(np.max(np.linalg.norm(r.x[-1] - nominal.x[-1], axis=1))),
+                     "profile_change_m": float(np.max(np.linalg.norm(r.x[-1] - nominal.x[-1],
+                                                                     axis=1))),
                      "wall_s": wall})
-    out = {"n_masses": base.sheet.n_masses, "nominal": {"F_max_N": nominal.F_max, "delta_m": nominal.delta,
-                                                        "wall_s": wall0}, "effects": rows}
+    out = {"n_masses": base.sheet.n_masses,
+           "nominal": {"F_max_N": nominal.F_max, "delta_m": nominal.delta,
+                       "wall_s": wall0}, "effects": rows}
     if args.json:
         print(json.dumps(out, indent=1))
         return 0
-    print(f"movement 4 of the default cell (N = {base.sheet.n_masses}): F_max {nominal.F_max:.4f} N, "
+    print(f"movement 4 of the default cell (N = {base.sheet.n_masses}): F_max {nominal.F_max:.4f} "
+          "N, "
           f"Delta {nominal.delta * 1e3:.2f} mm, {wall0:.2f} s")
-    print(f"| effect | value | F_max | Delta | largest change of the final profile | wall time (nominal {wall0:.2f} s) |")
+    print(
+        "| effect | value | F_max | Delta | largest change of the final profile | wall time "
+        f"(nominal {wall0:.2f} s) |")
     print("|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['effect']} | {r['value']} | {r['F_max_change'] * 100:+.1f} % | {r['delta_m'] * 1e3:.2f} mm | "
+        print(f"| {r['effect']} | {r['value']} | {r['F_max_change'] * 100:+.1f} % | "
+              f"{r['delta_m'] * 1e3:.2f} mm | "
               f"{r['profile_change_m'] * 1e3:.1f} mm | {r['wall_s']:.2f} s |")
     return 0
 

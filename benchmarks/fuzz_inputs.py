@@ -6,14 +6,14 @@ changed to a string, list, bool, null, NaN, infinity, a huge, zero or negative
 number; keys deleted or added; the ``ros__parameters`` level dropped; YAML
 syntax broken by inserted, deleted or swapped characters and truncation; YAML
 tags such as ``!!python/object/apply``) go into the core loader
-(``rheo_shaping.config.load_cell``), a sample into ``rheo-shaping simulate
+(``rheo_shaping.params.config.load_cell``), a sample into ``rheo-shaping simulate
 --params`` and, with ``--nodes N``, N of them into each node executable.
 
 Records: a short valid record is written with ``rheo-shaping record``, then
 mutated (the MCAP file truncated, bytes flipped, deleted, emptied; messages
 with NaN and infinite values, out-of-order and duplicate stamps, empty and huge
 topics, wrong message types; ``scenario.yaml`` mutated as above, YAML tags
-included) and read with ``rheo_shaping.records.read_record``; a sample goes
+included) and read with ``rheo_shaping.records.records.read_record``; a sample goes
 through ``rheo-shaping diagnose ... --out DIR``.
 
 Pass: never a traceback (in-process: only ``ConfigError`` / ``RecordError``
@@ -110,7 +110,8 @@ def mutate_params(text: str, rng: random.Random, canary: Path) -> str:
                 _delete(data, path)
                 leaves = list(_leaves(data)) or [("x",)]
             elif op == "extra":
-                _set(data, path[:-1] + (rng.choice(["speed", "k", "n_masses2", "", "ros__parameters"]),),
+                _set(data,
+                     path[:-1] + (rng.choice(["speed", "k", "n_masses2", "", "ros__parameters"]),),
                      rng.uniform(-1, 1))
             elif op == "unwrap":
                 data = {k: v.get("ros__parameters", v) if isinstance(v, dict) else v
@@ -122,7 +123,7 @@ def mutate_params(text: str, rng: random.Random, canary: Path) -> str:
 
 def check_load(path: Path) -> str:
     """'ok', 'refused' or the traceback-class failure."""
-    from rheo_shaping.config import ConfigError, load_cell
+    from rheo_shaping.params.config import ConfigError, load_cell
     try:
         load_cell(path)
         return "ok"
@@ -222,7 +223,8 @@ def mutate_record(base: Path, dest: Path, rng: random.Random, canary: Path) -> s
         sc = dest / "scenario.yaml"
         text = sc.read_text()
         sc.write_text(mutate_params(text, rng, canary) if kind == "scenario"
-                      else text.replace("k1: 95.0", "k1: " + rng.choice(TAGS).format(canary=canary)))
+                      else text.replace("k1: 95.0",
+                                        "k1: " + rng.choice(TAGS).format(canary=canary)))
     else:
         _rewrite_messages(base, dest, kind, rng)
     return kind
@@ -277,7 +279,7 @@ def _rewrite_messages(base: Path, dest: Path, kind: str, rng: random.Random) -> 
 
 
 def check_read(path: Path) -> str:
-    from rheo_shaping.records import RecordError, read_record
+    from rheo_shaping.records.records import RecordError, read_record
     try:
         read_record(path)
         return "ok"

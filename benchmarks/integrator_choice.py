@@ -26,13 +26,13 @@ import time
 
 import numpy as np
 
-from rheo_shaping.geometry import Cake, Workplane
-from rheo_shaping.material import elongation_step
-from rheo_shaping.params import CellParams
-from rheo_shaping.scenarios import movement_scenario, scenario_plan
-from rheo_shaping.sheet import Obstacle, SheetModel
-from rheo_shaping.simulation import build_chain, run_scenario, settle
-import rheo_shaping.simulation as simulation
+from rheo_shaping.sheet.geometry import Cake, Workplane
+from rheo_shaping.material.material import elongation_step
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.sheet.sheet import Obstacle, SheetModel
+from rheo_shaping.sheet.simulation import build_chain, run_scenario, settle
+import rheo_shaping.sheet.simulation as simulation
 
 
 def explicit_settle(params: CellParams, kc: float, window: float, safety: float = 0.5):
@@ -56,7 +56,7 @@ def explicit_settle(params: CellParams, kc: float, window: float, safety: float 
     for _ in range(n):
         nodes = np.vstack((c.anchor_top, x, c.anchor_bottom))
         d = np.diff(nodes, axis=0)
-        l = np.hypot(d[:, 0], d[:, 1])
+        l = np.hypot(d[:, 0], d[:, 1])  # noqa: E741
         F, e1, p = elongation_step(c.k1, c.c1, c.c2, e1, p, l - lam, dt)
         lam = c.rest_length + e1 + p
         f = (F / l)[:, None] * d
@@ -89,7 +89,8 @@ def implicit_settle(params: CellParams, window: float, dt: float):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--window", type=float, default=0.2, help="simulated settle window [s] (default 0.2)")
+    ap.add_argument("--window", type=float, default=0.2,
+                    help="simulated settle window [s] (default 0.2)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args(argv)
     params = CellParams()
@@ -108,7 +109,7 @@ def main(argv=None) -> int:
     # the process itself: quasi-static long steps
     simulation._SETTLED.clear()
     simulation.Simulation(params)          # settle once (cached), not part of the process
-    plan = scenario_plan(params, movement_scenario(params, 4))
+    plan = movement_plan(params, 4)
     res = run_scenario(params, plan)
     rows.append({"integrator": "implicit backward Euler (quasi-static process, movement 4)",
                  "contact_stiffness_N_per_m": params.solver.contact_stiffness,
@@ -117,14 +118,17 @@ def main(argv=None) -> int:
     # same physics? the explicit (stiff contact) and implicit settles after the window
     _, _, _, x_exp = explicit_settle(params, 1e7, args.window)
     _, _, x_imp = implicit_settle(params, args.window, 2e-3)
-    out = {"machine": f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}",
+    out = {"machine": f"{platform.machine()} {platform.processor() or ''} python "
+                      f"{platform.python_version()}",
            "window_s": args.window, "rows": rows,
            "explicit_vs_implicit_settle_max_diff_m": float(np.max(np.abs(x_exp - x_imp)))}
     if args.json:
         print(json.dumps(out))
         return 0
     print(f"settle window {args.window} s of the default cell; {out['machine']}")
-    print(f"{'integrator':58s} {'K_c [N/m]':>9s} {'dt [s]':>9s} {'wall/sim':>9s} {'max pen [m]':>11s} {'120 s [s]':>9s}")
+    print(
+        f"{'integrator':58s} {'K_c [N/m]':>9s} {'dt [s]':>9s} {'wall/sim':>9s} "
+        f"{'max pen [m]':>11s} {'120 s [s]':>9s}")
     for r in rows:
         pen = "-" if r["max_penetration_m"] is None else f"{r['max_penetration_m']:.1e}"
         print(f"{r['integrator']:58s} {r['contact_stiffness_N_per_m']:9.0e} {r['dt_s']:9.1e} "

@@ -9,7 +9,8 @@ whether any case would change class (would tear, false abort, missed). Use it
 after a change of the core's numerics to tell whether a campaign still
 stands; a change of class means: re-run the campaign.
 
-    PYTHONPATH=. python benchmarks/rescore_campaign.py --campaign benchmarks/results/abort_campaign.json
+    PYTHONPATH=. python benchmarks/rescore_campaign.py --campaign
+    benchmarks/results/abort_campaign.json
 """
 from __future__ import annotations
 
@@ -25,19 +26,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import abort_campaign as ac  # noqa: E402
-from rheo_shaping.params import CellParams  # noqa: E402
+from rheo_shaping.params.params import CellParams  # noqa: E402
 
 
 def _score(cell) -> tuple[float, float]:
-    """(offline F_max [N], the monitor's default threshold [N]) of a cell, with the core as it is."""
-    from rheo_shaping.abort_budget import abort_horizon, configured_speed_threshold
-    from rheo_shaping.node_params import MonitorNodeParams
-    from rheo_shaping.scenarios import movement_scenario, scenario_plan
-    from rheo_shaping.simulation import run_scenario
+    """(offline F_max [N], the monitor's default threshold [N]) of a cell, with the core as it
+    is."""
+    from rheo_shaping.safety.abort_budget import abort_horizon, configured_speed_threshold
+    from rheo_shaping.params.node_params import MonitorNodeParams
+    from rheo_shaping.planning.movement import run_movement
 
-    f_off = run_scenario(cell, scenario_plan(cell, movement_scenario(cell))).F_max
+    f_off = run_movement(cell).F_max
     s = MonitorNodeParams()
-    threshold, _, _ = configured_speed_threshold(cell, abort_horizon(cell, s.detect_time, s.stop_time),
+    threshold, _, _ = configured_speed_threshold(cell,
+                                                 abort_horizon(cell, s.detect_time, s.stop_time),
                                                  s.noise_sigma)
     return float(f_off), float(threshold)
 
@@ -66,13 +68,19 @@ def main(argv=None) -> int:
         tear = f >= r["F_break"]
         false_abort = r["aborted"] and f < t
         missed = f >= t and not r["aborted"]
-        # a closed-loop run whose largest tension lies between the old and the new threshold could flip
+        # a closed-loop run whose largest tension lies between the old and the new threshold could
+        # flip
         near = min(r["threshold_N"], t) <= r["largest_N"] <= max(r["threshold_N"], t)
-        if tear != r["would_tear"] or false_abort != r["false_abort"] or missed != r["missed"] or near:
+        if (tear != r["would_tear"] or false_abort != r["false_abort"]
+                or missed != r["missed"] or near):
             changed.append(r["case"])
     print(f"{len(runs)} cases of {args.campaign}")
-    print(f"offline F_max moved: max {max(d_off):.2e} N, median {sorted(d_off)[len(d_off) // 2]:.2e} N")
-    print(f"default threshold moved: max {max(d_thr):.2e} N, median {sorted(d_thr)[len(d_thr) // 2]:.2e} N")
+    print(
+        f"offline F_max moved: max {max(d_off):.2e} N, median "
+        f"{sorted(d_off)[len(d_off) // 2]:.2e} N")
+    print(
+        f"default threshold moved: max {max(d_thr):.2e} N, median "
+        f"{sorted(d_thr)[len(d_thr) // 2]:.2e} N")
     print(f"cases that would change class: {changed if changed else 'none'}")
     return 0 if not changed else 1
 

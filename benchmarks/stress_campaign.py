@@ -105,7 +105,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
     """Offline run, then the cell as three processes (inside ``prefix``); figures from logs."""
     import yaml
 
-    from rheo_shaping.config import dump_cell
+    from rheo_shaping.params.config import dump_cell
 
     row, offline = campaign.offline_case(index, cell)
     if offline is None:
@@ -120,14 +120,16 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
         data["/**/planner"] = {"ros__parameters": {"use_sim_time": True, "autostart": True}}
         data["/**/monitor"] = {"ros__parameters": {"use_sim_time": True}}
         params.write_text(yaml.safe_dump(data, sort_keys=False))
-        env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        env = dict(os.environ, ROS_DOMAIN_ID=str(domain),
+                   ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                    FASTDDS_BUILTIN_TRANSPORTS="UDPv4", RCUTILS_LOGGING_BUFFERED_STREAM="0")
         logs = {n: Path(tmp) / f"{n}.log" for n in ("simulator", "planner", "monitor")}
         procs = {}
         for n, log in logs.items():
             procs[n] = subprocess.Popen([*prefix, str(BIN / n), "--ros-args", "--params-file",
                                          str(params)], stdout=open(log, "w"),
-                                        stderr=subprocess.STDOUT, env=env, stdin=subprocess.DEVNULL,
+                                        stderr=subprocess.STDOUT, env=env,
+                                        stdin=subprocess.DEVNULL,
                                         start_new_session=True)
         t0 = time.monotonic()
         done = False
@@ -175,9 +177,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
         "reason": reason, "largest_N": largest, "finished": True, "wall_time_s": None,
         "false_abort": bool(aborted and offline.F_max < thr),
         "missed": bool(offline.F_max >= thr and not aborted),
-        "cross_to_abort_s": (abort_t - t_cross) if (abort_t is not None and t_cross is not None) else None,
-        "cross_to_rest_s": (rest_t - t_cross) if (rest_t is not None and t_cross is not None) else None,
-        "abort_to_rest_s": (rest_t - abort_t) if (rest_t is not None and abort_t is not None) else None,
+        **campaign.stop_intervals(t_cross, abort_t, rest_t),
         "max_tension_after_abort_N": largest if aborted else None,
     })
     row["tore"] = bool(largest >= cell.material.F_break)
@@ -188,7 +188,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
 def run_condition(condition: str, seed: int, args) -> dict:
     import random
 
-    from rheo_shaping.params import CellParams
+    from rheo_shaping.params.params import CellParams
     rng = random.Random(seed)
     cells = [campaign.sample_cell(CellParams(), rng) for _ in range(args.runs)]
     t0 = time.monotonic()
@@ -224,7 +224,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--domain", type=int, default=120, help="first ROS domain id to claim")
     ap.add_argument("--timeout", type=float, default=120.0, help="wall time per loss run [s]")
     ap.add_argument("--json", action="store_true")
-    ap.add_argument("--save", metavar="FILE", help="write every run to FILE (JSON); never overwritten")
+    ap.add_argument("--save", metavar="FILE",
+                    help="write every run to FILE (JSON); never overwritten")
     args = ap.parse_args(argv)
     conditions = [c for c in args.conditions.split(",") if c]
     bad = [c for c in conditions if c not in ("idle", "cpu", "loss")]

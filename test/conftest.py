@@ -1,53 +1,51 @@
-"""Session-wide test environment: keep ROS 2 traffic on this machine and private.
+"""Session-wide test set-up: which tests this virtualenv runs, and a private ROS 2 domain.
 
-Every ROS process a test starts (and rclpy inside the test process) inherits:
-
-* ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``: DDS discovery stays on this host;
-* ``ROS_DOMAIN_ID``: one per test session, so concurrent runs do not see each
-  other's nodes. ``python3 dev.py test`` claims one and passes it down; when
-  pytest is run directly, a free id is claimed here the same way (a flock'ed
-  lock file per id in the temp dir, held until the session ends).
-
-Harmless where ROS is not installed (test/core runs in .venv-core).
+* ``--stage core|ros|all`` (default ``core``, so a bare ``pytest`` or ``colcon test`` runs
+  the ROS-free tests): test folders are split between the stages by
+  ``_support/stages.py``, the one place that decides it (dev.py reads it too).
+* Every ROS process a test starts (and rclpy inside the test process) inherits
+  ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (DDS discovery stays on this host) and a
+  ``ROS_DOMAIN_ID`` of this session's own: ``python3 dev.py test`` claims one and passes
+  it down; when pytest runs directly, a free id is claimed here the same way
+  (``_support/domains.py``: a flock'ed lock file per id, held until the session ends).
 """
 from __future__ import annotations
 
-import importlib.util
 import os
-from pathlib import Path
 
 import pytest
 
-
-def _dev():
-    """dev.py, loaded once for the session: its module holds every claimed lock file open."""
-    if _dev.module is None:
-        spec = importlib.util.spec_from_file_location("rheo_dev", Path(__file__).resolve().parents[1] / "dev.py")
-        _dev.module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(_dev.module)
-    return _dev.module
+from _support.domains import claim_domain_id
+from _support.stages import STAGES, stage_of
 
 
-_dev.module = None
+def pytest_addoption(parser):
+    parser.addoption("--stage", choices=(*STAGES, "all"), default="core",
+                     help="which tests to collect: core (ROS-free, the default), ros, all "
+                          "(test/_support/stages.py)")
 
 
-def _claim_domain_id() -> int:
-    """dev.py's lock-file claim of a free ROS_DOMAIN_ID (one implementation for both)."""
-    return _dev().claim_domain_id()
+def pytest_ignore_collect(collection_path, config):
+    stage = config.getoption("--stage")
+    of = stage_of(collection_path)
+    if stage == "all" or of is None or of == stage:
+        return None
+    return True
 
 
 @pytest.fixture(scope="session")
 def claim_ros_domain():
     """Claim another free ROS_DOMAIN_ID, held until the session ends: ``claim_ros_domain()``."""
-    return _claim_domain_id
+    return claim_domain_id
 
 
 def pytest_configure(config):
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     if not os.environ.get("ROS_DOMAIN_ID"):
-        os.environ["ROS_DOMAIN_ID"] = str(_claim_domain_id())
+        os.environ["ROS_DOMAIN_ID"] = str(claim_domain_id())
 
 
 def pytest_report_header(config):
-    return (f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')} "
+    return (f"stage {config.getoption('--stage')}; "
+            f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')} "
             f"ROS_AUTOMATIC_DISCOVERY_RANGE={os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')}")

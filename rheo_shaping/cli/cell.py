@@ -10,23 +10,25 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 
+from ..jsonable import json_safe
 from . import UserError
-from .common import add_params_argument, cell_from_args
+from .common import add_movement_argument, add_params_argument, cell_from_args
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("cell", help="run the ROS 2 shaping cell (simulator, planner, monitor) in one process",
-                       description="Run the shaping cell's ROS 2 nodes (simulator, planner, monitor) in "
-                                   "one process, faster than real time, and print F_max [N], SF and "
-                                   "Delta [m] of the process.  The params file is a ROS --params-file: "
+    p = sub.add_parser("cell", help="run the ROS 2 shaping cell (simulator, planner, monitor) in "
+                                    "one process",
+                       description="Run the shaping cell's ROS 2 nodes (simulator, planner, "
+                                   "monitor) in "
+                                   "one process, faster than real time, and print F_max [N], SF "
+                                   "and "
+                                   "Delta [m] of the process.  The params file is a ROS "
+                                   "--params-file: "
                                    "the cell in '/**', node settings in 'simulator', 'planner', "
                                    "'monitor' sections.")
     add_params_argument(p)
-    p.add_argument("--movement", type=int, choices=(0, 1, 2, 3, 4),
-                   help="paper movement (1 vertical, 2 horizontal, 3 inclined, 4 two-step; 0 the params "
-                        "file's waypoints); default: the params file's movement.number")
+    add_movement_argument(p)
     p.add_argument("--real-time-factor", type=float, default=50.0, metavar="X",
                    help="simulated seconds per wall-clock second (default 50; the run slows down "
                         "rather than skipping physics when the machine cannot keep up)")
@@ -47,7 +49,8 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     params = cell_from_args(args)            # the cell part of the file, checked without ROS
     if not (0.0 < args.real_time_factor <= 1000.0):
-        raise UserError(f"--real-time-factor = {args.real_time_factor:g}: expected a value in (0, 1000]")
+        raise UserError(
+            f"--real-time-factor = {args.real_time_factor:g}: expected a value in (0, 1000]")
     if not args.timeout > 0:
         raise UserError(f"--timeout = {args.timeout:g}: expected a value > 0")
     try:
@@ -55,11 +58,12 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as exc:
         raise UserError(f"the cell needs ROS 2 (rclpy): {exc}; use the full venv "
                         f"(python3 dev.py setup, then .venv/bin/rheo-shaping cell)") from None
-    from ..schema import ParameterError
+    from ..params.schema import ParameterError
     say = None if (args.quiet or args.json) else (lambda msg: print(msg, flush=True))
     try:
         result = run_cell(args.params, movement=args.movement,
-                          real_time_factor=args.real_time_factor, timeout=args.timeout, progress=say,
+                          real_time_factor=args.real_time_factor, timeout=args.timeout,
+                          progress=say,
                           log_level="info" if args.verbose else "warn",
                           namespace=_namespace(args.namespace))
     except ParameterError as exc:
@@ -71,27 +75,29 @@ def run(args: argparse.Namespace) -> int:
     out = {**result.summary()}
     if args.compare:
         from dataclasses import replace
-        from ..scenarios import movement_scenario, scenario_plan
-        from ..simulation import run_scenario
+        from ..planning.movement import run_movement
         p = params
         p = replace(p, movement=replace(p.movement, number=result.movement,
                                         **({"d": result.d} if result.movement == 4 else {})))
-        offline = run_scenario(p, scenario_plan(p, movement_scenario(p)))
-        out["offline"] = {"F_max": offline.F_max, "SF": offline.SF, "delta": offline.delta}
+        offline = run_movement(p)
+        out["offline"] = offline.run_summary.as_dict()
     if args.json:
-        print(json.dumps(_finite(out)))
+        print(json.dumps(json_safe(out)))
     else:
         state = (f"ABORTED ({result.abort_reason})" if result.aborted
                  else "finished" if result.finished else f"timed out ({result.planner_state})")
         print(f"movement {result.movement}: {state}; process {result.process_time:g} s (run to "
               f"{result.extra['run_time']:.1f} s) in {result.wall_time_s:.1f} s wall, "
               f"x{result.achieved_factor:.0f} real time")
-        print(f"  F_max = {result.F_max:.4f} N in link {result.F_max_link} at t = {result.F_max_time:.1f} s")
+        print(
+            f"  F_max = {result.F_max:.4f} N in link {result.F_max_link} at t = "
+            f"{result.F_max_time:.1f} s")
         print(f"  SF    = {result.SF:.3f}  (F_break = {result.F_break:g} N)")
         print(f"  Delta = {result.delta * 1e3:.2f} mm  (quality limit 5 mm)")
         if args.compare:
             o = out["offline"]
-            print(f"  offline (core, same plan): F_max = {o['F_max']:.4f} N ({(result.F_max / o['F_max'] - 1) * 100:+.2f} %), "
+            print(f"  offline (core, same plan): F_max = {o['F_max']:.4f} N "
+                  f"({(result.F_max / o['F_max'] - 1) * 100:+.2f} %), "
                   f"SF = {o['SF']:.3f}, Delta = {o['delta'] * 1e3:.2f} mm "
                   f"({(result.delta - o['delta']) * 1e3:+.3f} mm)")
     if not result.finished:
@@ -109,12 +115,3 @@ def _namespace(text: str) -> str:
         raise UserError(f"--namespace = {text!r}: expected a ROS namespace such as /cell2 "
                         "(tokens of letters, digits and _, each starting with a letter)")
     return "/" + ns.lstrip("/")
-
-
-def _finite(value):
-    """JSON-safe: non-finite floats become null."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    return value

@@ -7,14 +7,22 @@ import os
 from pathlib import Path
 from typing import Iterator
 
-from ..config import ConfigError, load_cell
-from ..params import CellParams
+from ..params.config import ConfigError, load_cell
+from ..params.params import CellParams
 from . import UserError
 
 
 def add_params_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--params", metavar="FILE",
-                        help="params YAML of the cell (ROS --params-file format); default: the default cell")
+                        help="params YAML of the cell (ROS --params-file format); default: the "
+                             "default cell")
+
+
+def add_movement_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--movement", type=int, choices=(0, 1, 2, 3, 4),
+                        help="paper movement (1 vertical, 2 horizontal, 3 inclined, 4 two-step; "
+                             "0 the params file's waypoints); default: the params file's "
+                             "movement.number")
 
 
 def cell_from_args(args: argparse.Namespace) -> CellParams:

@@ -1,4 +1,5 @@
-"""``rheo-shaping diagnose``: where the model parts from recorded runs, which effect causes it, how far the gap shrinks."""
+"""``rheo-shaping diagnose``: where the model parts from recorded runs, which effect causes it,
+how far the gap shrinks."""
 from __future__ import annotations
 
 import argparse
@@ -8,8 +9,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from ..effects import EFFECT_NAMES
-from ..records import RecordError, read_record
+from ..sheet.effects import EFFECT_NAMES
+from ..records.records import RecordError, read_record
 from . import UserError
 from .common import add_executor_arguments, executor_from_args, output_path
 
@@ -20,13 +21,16 @@ def add_parser(sub) -> None:
         description="Compare recorded runs (record directories: rosbag2 MCAP + scenario.yaml, "
                     "docs/records.md) with their model: first a baseline calibrated within what a "
                     "careful user knows (material, mass, bonds, sag, cake, vision and load cell), "
-                    "then which side of the sensors, then which unmodelled effect explains what the "
-                    "baseline cannot (every effect of the library fitted to RECORD..., checked on "
-                    "--holdout, with its p-value), else 'unexplained' with the residual's "
-                    "signature; and how far the gap shrinks. Method: docs/diagnosis.md.")
+                    "then which side of the sensors, then which unmodelled effect explains what "
+                    "the baseline cannot (every effect of the library fitted to RECORD..., "
+                    "checked on --holdout, with its p-value), else 'unexplained' with the "
+                    "residual's signature; and how far the gap shrinks. "
+                    "Method: docs/diagnosis.md.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="record directories to fit")
-    p.add_argument("--holdout", nargs="+", default=[], metavar="RECORD", help="record directories held out")
-    p.add_argument("--effects", metavar="NAMES", help="comma-separated candidate effects (default: all: "
+    p.add_argument("--holdout", nargs="+", default=[],
+                   metavar="RECORD", help="record directories held out")
+    p.add_argument("--effects", metavar="NAMES",
+                   help="comma-separated candidate effects (default: all: "
                    + ", ".join(EFFECT_NAMES) + ")")
     p.add_argument("--out", metavar="DIR", help="write report.md and PNG figures to DIR")
     p.add_argument("--force", action="store_true", help="write into an existing --out directory")
@@ -62,8 +66,8 @@ def run(args: argparse.Namespace) -> int:
         library = tuple(x.strip() for x in args.effects.split(",") if x.strip())
         bad = [x for x in library if x not in EFFECT_NAMES]
         if bad or not library:
-            raise UserError(f"--effects: unknown effect '{bad[0] if bad else args.effects}': expected some of "
-                            + ", ".join(EFFECT_NAMES))
+            raise UserError(f"--effects: unknown effect '{bad[0] if bad else args.effects}': "
+                            "expected some of " + ", ".join(EFFECT_NAMES))
     scen = output_path(args.write_scenario, args.force, "--write-scenario file")
     out = Path(args.out) if args.out else None
     if out is not None:
@@ -93,10 +97,11 @@ def run(args: argparse.Namespace) -> int:
     result["wall_time_s"] = time.monotonic() - t0
     process = None
     if scen is not None:
-        from ..config import dump_cell
+        from ..params.config import dump_cell
         from ..diagnosis.result import process_figures
         scen.write_text("# rheo-shaping diagnose: calibrated baseline + verdict "
-                        f"'{diag.verdict}' of {', '.join(diag.records)}\n" + dump_cell(diag.corrected))
+                        f"'{diag.verdict}' of {', '.join(diag.records)}\n"
+                        + dump_cell(diag.corrected))
         nominal = fit[0].scenario
         process = process_figures(replace(nominal, movement=replace(nominal.movement, number=4)),
                                   replace(diag.corrected,
@@ -113,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
     if diag.verdict_fit:
         for n, v in diag.verdict_fit.values.items():
             iv = diag.verdict_fit.interval[n]
-            print(f"  {n} = " + ", ".join(f"{x:.4g} [{lo:.4g}, {hi:.4g}]" for x, (lo, hi) in zip(v, iv)))
+            print(f"  {n} = "
+                  + ", ".join(f"{x:.4g} [{lo:.4g}, {hi:.4g}]" for x, (lo, hi) in zip(v, iv)))
         print(f"  p = {diag.verdict_fit.p:.3g}")
     print(f"gap test: baseline J - 1 = {diag.J_base - 1:.4f}, p_gap = {diag.p_gap:.3g}; "
           f"baseline took {100 * diag.baseline_took:.0f} % of the nominal gap; "
@@ -127,7 +133,9 @@ def run(args: argparse.Namespace) -> int:
     for grp in ("fit", "holdout"):
         b, a = diag.gap_before.get(grp), diag.gap_after.get(grp)
         if b:
-            print(f"gap on {grp} records: profile RMS {b['profile_rms_m'] * 1e3:.3f} -> {a['profile_rms_m'] * 1e3:.3f} mm, "
+            print(f"gap on {grp} records: profile RMS {b['profile_rms_m'] * 1e3:.3f} -> "
+                  f"{a['profile_rms_m'] * 1e3:.3f} mm, "
                   f"gap beyond noise {b['gap']:.3f} -> {a['gap']:.3f}")
-    print(f"{diag.runs} simulations, {result['wall_time_s']:.0f} s" + (f"; report in {out}" if out else ""))
+    print(f"{diag.runs} simulations, {result['wall_time_s']:.0f} s"
+          + (f"; report in {out}" if out else ""))
     return 0

@@ -1,4 +1,5 @@
-"""``rheo-shaping diagnose-benchmark``: the diagnosis scored on stand-in records with withheld effects."""
+"""``rheo-shaping diagnose-benchmark``: the diagnosis scored on stand-in records with withheld
+effects."""
 from __future__ import annotations
 
 import argparse
@@ -11,13 +12,14 @@ from .common import add_executor_arguments, executor_from_args, output_path
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
-        "diagnose-benchmark", help="score the diagnosis on synthetic records with withheld effects",
+        "diagnose-benchmark",
+        help="score the diagnosis on synthetic records with withheld effects",
         description="Make records without the inverse crime (a true cell on a finer chain, "
                     "half steps and a softer contact than the scenario the diagnosis is told, its "
-                    "written values and the measurement chain off within their tolerances) with one "
-                    "effect, none, a sensor error or an effect outside the library, diagnose each "
-                    "case on two records with a third held out, and score: top-1 accuracy, false "
-                    "names on effect-free records, the measurement side on sensor errors, "
+                    "written values and the measurement chain off within their tolerances) with "
+                    "one effect, none, a sensor error or an effect outside the library, diagnose "
+                    "each case on two records with a third held out, and score: top-1 accuracy, "
+                    "false names on effect-free records, the measurement side on sensor errors, "
                     "'unexplained' on out-of-library effects, holdout gap shrink, the fitted "
                     "baseline against the truth (docs/diagnosis.md).")
     p.add_argument("--n", type=int, default=60, help="number of cases (default 60)")
@@ -27,9 +29,11 @@ def add_parser(sub) -> None:
                    help="length of each record [s] (default 70)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     add_executor_arguments(p)
-    p.add_argument("--save", metavar="FILE", help="also write the summary with every case to FILE (JSON)")
+    p.add_argument("--save", metavar="FILE",
+                   help="also write the summary with every case to FILE (JSON)")
     p.add_argument("--force", action="store_true", help="overwrite --save's file")
-    p.add_argument("--json", action="store_true", help="print one JSON object (summary) instead of a table")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object (summary) instead of a table")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -43,7 +47,6 @@ def run(args: argparse.Namespace) -> int:
     from ..diagnosis.benchmark import run_benchmark
     bar = tqdm(total=args.n, desc="diagnose-benchmark", unit="case", file=sys.stderr,
                disable=args.quiet)
-
 
     if args.n_masses < 3:
         raise UserError(f"--n-masses = {args.n_masses} is invalid: expected at least 3")
@@ -64,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
           f"{out['wall_time_s']:.0f} s")
     for key, target in (("top1_accuracy", ">= 0.90"), ("top1_accuracy_beyond_noise", ">= 0.90"),
                         ("ranked_first_right", ""), ("param_rel_error_median", ""),
-                        ("no_effect_false_name_rate", "<= 0.05"), ("no_effect_none_rate", ">= 0.95"),
+                        ("no_effect_false_name_rate", "<= 0.05"),
+                        ("no_effect_none_rate", ">= 0.95"),
                         ("sensor_no_sheet_name_rate", ""), ("sensor_side_right_rate", ""),
                         ("out_of_library_unexplained_rate", ">= 0.80"),
                         ("out_of_library_cause_right", ""),

@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 from . import UserError
-from ..estimates import Estimate
-from ..material import SPECIMEN_LENGTH_M
-from ..material_data import (
+from ..identification.estimates import Estimate
+from ..material.material import SPECIMEN_LENGTH_M
+from ..identification.material_data import (
     CreepCurve,
     CreepResiduals,
     DataFormatError,
@@ -34,14 +34,18 @@ _UNITS = {"k1": "N/m", "c1": "N s/m", "c2": "N s/m", "k2": "N/m"}
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "identify", help="identify k1, c1, c2 from creep and tensile tests",
-        description="Identify the material constants (on the 0.1 m specimen) from a creep residual "
-                    "table or creep curves and, optionally, tensile curves. Formats: docs/material.md.")
+        description="Identify the material constants (on the 0.1 m specimen) from a creep "
+                    "residual "
+                    "table or creep curves and, optionally, tensile curves. Formats: "
+                    "docs/material.md.")
     p.add_argument("--creep", metavar="FILE", action="append", required=True,
-                   help="creep residual table (F_N,t1_s,x_residual_m) or creep curve (t_s,F_N,x_m); repeatable")
+                   help="creep residual table (F_N,t1_s,x_residual_m) or creep curve "
+                        "(t_s,F_N,x_m); repeatable")
     p.add_argument("--tensile", metavar="FILE", nargs="+", action="extend", default=[],
                    help="tensile curve(s) (t_s,F_N), pulled at constant speed from t = 0")
     p.add_argument("--method", choices=("paper", "joint"), default="paper",
-                   help="paper: the three steps of Sec. 3.4 (default); joint: nonlinear fit of all "
+                   help="paper: the three steps of Sec. 3.4 (default); joint: nonlinear fit of "
+                        "all "
                         "data with model choice (Maxwell / three-element / Burgers)")
     p.add_argument("--speed", metavar="M_PER_S", type=float, default=None,
                    help=f"pull speed of the tensile curves [m/s] (default: the file's "
@@ -50,7 +54,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--force", action="store_true", help="overwrite an existing --plot file")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.add_argument("--noise-rel", type=float, default=0.01, metavar="FRACTION",
-                   help="joint: assumed relative noise of the force (shape of the weights, default 0.01)")
+                   help="joint: assumed relative noise of the force (shape of the weights, "
+                        "default 0.01)")
     p.add_argument("--noise-abs", type=float, default=1e-3, metavar="N",
                    help="joint: assumed absolute noise floor of the force [N] (default 1e-3)")
     p.set_defaults(func=run)
@@ -67,7 +72,8 @@ def _read_inputs(args) -> tuple[list[CreepResiduals], list[CreepCurve], list[Ten
             elif kind == "creep_curve":
                 creep_curves.append(read_creep_curve(f))
             elif kind == "tensile_curve":
-                raise UserError(f"{f}: is a tensile curve (columns t_s,F_N); give it with --tensile")
+                raise UserError(
+                    f"{f}: is a tensile curve (columns t_s,F_N); give it with --tensile")
             else:
                 read_creep_residuals(f)      # raises, naming the missing columns
         for f in args.tensile:
@@ -119,7 +125,8 @@ def _curve_info(curves) -> list[dict]:
     out = []
     for c in curves:
         out.append({"source": c.source, "speed_m_per_s": c.speed, "length_m": c.length,
-                    "offset_N": c.offset, "crack_found": c.crack.found, "t_crack_s": c.crack.t_crack,
+                    "offset_N": c.offset, "crack_found": c.crack.found,
+                    "t_crack_s": c.crack.t_crack,
                     "F_crack_N": c.crack.F_crack, "points_kept": int(c.t.size)})
     return out
 
@@ -137,21 +144,23 @@ def _json_doc(method: str, model: str | None, params: dict[str, Estimate], extra
 
 
 def _run_paper(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]:
-    from ..identification import identify_paper, merge_residuals
+    from ..identification.identification import identify_paper, merge_residuals
     creep = merge_residuals(residuals) if residuals else None
     try:
         r = identify_paper(creep, tensile, creep_curves)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     params = {"k1": r.k1, "c1": r.c1, "c2": r.c2,
-              "k2": Estimate(math.inf, None, None, "N/m", "no series spring in the three-element model")}
+              "k2": Estimate(math.inf, None, None, "N/m", "no series spring in the three-element "
+                                                          "model")}
     if args.plot:
-        from ..identification_plots import plot_paper
+        from ..identification.identification_plots import plot_paper
         plot_paper(r, args.plot, tensile)
     extra = {"b": r.b.as_dict(), "model_choice": None, "curves": _curve_info(r.curves),
              "creep_tests": len(r.creep) if r.creep is not None else 0,
              "notes": [e.note for e in (r.c2, r.c1, r.k1) if e.note], "plot": args.plot}
-    lines = [f"method: paper (Sec. 3.4: Eq. 10, Eq. 11, Eq. 12-13); model: {r.model or 'not determined'}",
+    lines = ["method: paper (Sec. 3.4: Eq. 10, Eq. 11, Eq. 12-13); model: "
+             f"{r.model or 'not determined'}",
              f"constants on the {SPECIMEN_LENGTH_M} m specimen:"] + _table(params)
     lines += _data_lines(r.curves, extra["creep_tests"], len(creep_curves))
     lines += [f"  note: {n}" for n in extra["notes"]]
@@ -159,16 +168,18 @@ def _run_paper(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]
 
 
 def _run_joint(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]:
-    from ..model_choice import identify_joint
+    from ..identification.model_choice import identify_joint
     try:
-        r = identify_joint(tensile, residuals, creep_curves, noise_rel=args.noise_rel, noise_abs=args.noise_abs)
+        r = identify_joint(tensile, residuals, creep_curves,
+                           noise_rel=args.noise_rel, noise_abs=args.noise_abs)
     except (ValueError, RuntimeError) as exc:
         raise UserError(str(exc)) from None
     if args.plot:
-        from ..identification_plots import plot_joint
+        from ..identification.identification_plots import plot_joint
         plot_joint(r, args.plot, tensile)
     rows = r.table()
-    extra = {"model_choice": {"rule": "BIC", "best_aic": r.best_aic, "best_bic": r.best_bic, "table": rows},
+    extra = {"model_choice": {"rule": "BIC", "best_aic": r.best_aic, "best_bic": r.best_bic,
+                              "table": rows},
              "fits": {m: {"params": {n: e.as_dict() for n, e in f.params.items()},
                           "offsets_N": [o.as_dict() for o in f.offsets],
                           "converged": f.success} for m, f in r.fits.items()},
@@ -181,9 +192,12 @@ def _run_joint(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]
              f"constants on the {SPECIMEN_LENGTH_M} m specimen:"] + _table(r.params)
     if rows:
         lines.append("model choice:")
-        lines.append(f"  {'model':14s} {'k':>3s} {'ln L':>11s} {'AIC':>11s} {'BIC':>11s} {'dAIC':>8s} {'dBIC':>8s}")
+        lines.append(
+            f"  {'model':14s} {'k':>3s} {'ln L':>11s} {'AIC':>11s} {'BIC':>11s} {'dAIC':>8s} "
+            f"{'dBIC':>8s}")
         for row in rows:
-            lines.append(f"  {row['model']:14s} {row['k']:3d} {row['loglik']:11.2f} {row['aic']:11.2f} "
+            lines.append(f"  {row['model']:14s} {row['k']:3d} {row['loglik']:11.2f} "
+                         f"{row['aic']:11.2f} "
                          f"{row['bic']:11.2f} {row['delta_aic']:8.2f} {row['delta_bic']:8.2f}")
     lines += _data_lines(r.data.curves, extra["creep_tests"], len(creep_curves))
     lines += [f"  note: {n}" for n in r.notes]
@@ -191,9 +205,12 @@ def _run_joint(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]
 
 
 def _data_lines(curves, n_creep: int, n_creep_curves: int) -> list[str]:
-    lines = [f"data: {n_creep} creep test(s), {n_creep_curves} creep curve(s), {len(curves)} tensile curve(s)"]
+    lines = [
+        f"data: {n_creep} creep test(s), {n_creep_curves} creep curve(s), {len(curves)} tensile "
+        "curve(s)"]
     for c in curves:
-        crack = (f"crack at t = {c.crack.t_crack:.1f} s, F = {c.crack.F_crack:.3f} N" if c.crack.found
+        crack = (f"crack at t = {c.crack.t_crack:.1f} s, F = {c.crack.F_crack:.3f} "
+                 "N" if c.crack.found
                  else "no crack found (all points kept)")
         off = "no samples at rest" if c.offset is None else f"offset {c.offset:+.4f} N"
         lines.append(f"  {c.source}: v = {c.speed:g} m/s, {off}, {crack}, {c.t.size} points kept")

@@ -4,20 +4,25 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..csv_import import import_csv
-from ..records import RecordError, write_record
+from ..records.csv_import import import_csv
+from ..records.records import RecordError, write_record
 from . import UserError
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("import-csv", help="make a record directory from CSV tables",
-                       description="Turn a real cell's CSV tables (pose t,x,z; profile t,x,z one row "
-                                   "per point; optional wrench t,fx,fz) and the nominal cell's params "
-                                   "file into a record directory (rosbag2 MCAP + scenario.yaml) that "
+                       description="Turn a real cell's CSV tables (pose t,x,z; profile t,x,z one "
+                                   "row "
+                                   "per point; optional wrench t,fx,fz) and the nominal cell's "
+                                   "params "
+                                   "file into a record directory (rosbag2 MCAP + scenario.yaml) "
+                                   "that "
                                    "`rheo-shaping diagnose` reads. Formats: docs/records.md.")
-    p.add_argument("--scenario", required=True, metavar="FILE", help="params YAML of the nominal cell")
+    p.add_argument("--scenario", required=True, metavar="FILE",
+                   help="params YAML of the nominal cell")
     p.add_argument("--pose", required=True, metavar="CSV", help="tool pose table t,x,z [s, m]")
-    p.add_argument("--profile", required=True, metavar="CSV", help="vision points table t,x,z [s, m]")
+    p.add_argument("--profile", required=True, metavar="CSV",
+                   help="vision points table t,x,z [s, m]")
     p.add_argument("--wrench", metavar="CSV", help="tool force table t,fx,fz [s, N] (optional)")
     p.add_argument("--out", required=True, metavar="DIR", help="record directory to create")
     p.add_argument("--force", action="store_true", help="replace an existing record directory")

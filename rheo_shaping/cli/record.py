@@ -3,13 +3,13 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 
-from ..effects import active_effects
-from ..measurement import MeasurementParams, synthesize_record
-from ..records import RecordError, write_record
-from ..schema import ParameterError, iter_fields, validate_value
+from ..sheet.effects import active_effects
+from ..records.measurement import MeasurementParams, synthesize_record
+from ..records.records import RecordError, write_record
+from ..params.schema import ParameterError, iter_fields, validate_value
 from . import UserError
 from .common import add_params_argument, cell_from_args
 
@@ -17,23 +17,29 @@ from .common import add_params_argument, cell_from_args
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "record", help="write a synthetic recorded run (rosbag2 MCAP + scenario.yaml)",
-        description="Run the cell of --params (with the effects its 'effects' section switches on) "
+        description="Run the cell of --params (with the effects its 'effects' section switches "
+                    "on) "
                     "and measure it like a real cell: the robot's tool pose, a vision system's "
                     "points along the sheet (not the masses) with noise, rate and dropouts, and a "
                     "load cell. Writes a record directory (docs/records.md): the bag, "
-                    "scenario.yaml (the nominal cell, effects off) and truth.yaml (for benchmarks).")
+                    "scenario.yaml (the nominal cell, effects off) and truth.yaml (for "
+                    "benchmarks).")
     add_params_argument(p)
     p.add_argument("--out", required=True, metavar="DIR", help="record directory to create")
-    p.add_argument("--movement", type=int, choices=(0, 1, 2, 3, 4), help="movement (default: the params file's)")
-    p.add_argument("--seed", type=int, default=None, help="noise and dropout seed (default: random)")
+    p.add_argument("--movement", type=int, choices=(0, 1, 2, 3, 4),
+                   help="movement (default: the params file's)")
+    p.add_argument("--seed", type=int, default=None,
+                   help="noise and dropout seed (default: random)")
     for fi in iter_fields(MeasurementParams):
         flag = "--" + fi.name.replace("_", "-")
         if fi.kind is bool:
-            p.add_argument(flag, dest=fi.name, action=argparse.BooleanOptionalAction, default=fi.default,
+            p.add_argument(flag, dest=fi.name, action=argparse.BooleanOptionalAction,
+                           default=fi.default,
                            help=f"{fi.spec.description} (default {fi.default})")
         else:
             p.add_argument(flag, dest=fi.name, type=float, default=fi.default, metavar="X",
-                           help=f"{fi.spec.description} [{fi.spec.unit or '-'}] (default {fi.default:g}, "
+                           help=f"{fi.spec.description} [{fi.spec.unit or '-'}] (default "
+                                f"{fi.default:g}, "
                                 f"range {fi.spec.range_text()})")
     p.add_argument("--force", action="store_true", help="replace an existing record directory")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -44,7 +50,8 @@ def measurement_from_args(args: argparse.Namespace) -> MeasurementParams:
     values = {}
     for fi in iter_fields(MeasurementParams):
         try:
-            values[fi.name] = validate_value(fi.name.replace("_", "-"), getattr(args, fi.name), fi.kind, fi.spec)
+            values[fi.name] = validate_value(fi.name.replace(
+                "_", "-"), getattr(args, fi.name), fi.kind, fi.spec)
         except ParameterError as exc:
             raise UserError(str(exc).replace("parameter '", "option '--")) from None
     return MeasurementParams(**values)
@@ -68,15 +75,19 @@ def run(args: argparse.Namespace) -> int:
     summary = {"record": str(out), "movement": params.movement.number,
                "duration_s": record.duration, "pose_samples": int(record.pose_t.size),
                "profile_frames": len(record.profiles),
-               "points_per_frame": float(sum(len(f) for f in record.profiles) / max(len(record.profiles), 1)),
+               "points_per_frame": float(sum(len(f) for f in record.profiles)
+                                         / max(len(record.profiles), 1)),
                "wrench_samples": int(record.wrench_t.size) if record.has_wrench else 0,
-               "effects": active_effects(params), "F_max_true": run_.F_max, "delta_true": run_.delta}
+               "effects": active_effects(params), "F_max_true": run_.F_max,
+               "delta_true": run_.delta}
     if args.json:
         print(json.dumps(summary))
     else:
         print(f"wrote {out}: movement {summary['movement']}, {summary['duration_s']:.1f} s, "
               f"{summary['pose_samples']} poses, {summary['profile_frames']} profile frames "
-              f"(~{summary['points_per_frame']:.0f} points), {summary['wrench_samples']} wrench samples")
-        print(f"  effects on: {', '.join(summary['effects']) or 'none'}; true F_max {run_.F_max:.4f} N, "
+              f"(~{summary['points_per_frame']:.0f} points), {summary['wrench_samples']} wrench "
+              "samples")
+        print(f"  effects on: {', '.join(summary['effects']) or 'none'}; true F_max "
+              f"{run_.F_max:.4f} N, "
               f"Delta {run_.delta * 1e3:.2f} mm")
     return 0

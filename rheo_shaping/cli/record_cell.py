@@ -42,7 +42,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     scenario = None
     if args.params:
-        from ..effects import nominal
+        from ..sheet.effects import nominal
         scenario = nominal(cell_from_args(args))
     for name in ("duration", "idle_timeout", "timeout"):
         value = getattr(args, name)
@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         from ..nodes.recorder import RecordCellError, record_cell
     except ImportError as exc:
         raise UserError(f"record-cell needs ROS 2 (rclpy): {exc}; use the full venv") from None
-    from ..records import RecordError
+    from ..records.records import RecordError
     say = None if (args.quiet or args.json) else (lambda msg: print(msg, flush=True))
     try:
         path, rec = record_cell(out, namespace=_namespace(args.namespace), scenario=scenario,

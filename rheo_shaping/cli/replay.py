@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
         from ..nodes.recorder import replay
     except ImportError as exc:
         raise UserError(f"replay needs ROS 2 (rclpy): {exc}; use the full venv") from None
-    from ..records import RecordError
+    from ..records.records import RecordError
     say = None if (args.quiet or args.json) else (lambda msg: print(msg, flush=True))
     try:
         result = replay(Path(args.record), namespace=_namespace(args.namespace), rate=args.rate,

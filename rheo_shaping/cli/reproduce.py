@@ -16,7 +16,8 @@ import time
 from pathlib import Path
 
 from . import UserError
-from .common import (add_executor_arguments, add_params_argument, cell_from_args, executor_from_args,
+from .common import (add_executor_arguments, add_params_argument, cell_from_args,
+                     executor_from_args,
                      executor_label)
 
 
@@ -28,8 +29,10 @@ def add_parser(sub) -> None:
     add_params_argument(p)
     p.add_argument("--out", metavar="DIR", help="write the figures (PNG) into this folder "
                    "(created if missing; an existing folder must be empty unless --force)")
-    p.add_argument("--force", action="store_true", help="write into a folder that already holds files")
-    p.add_argument("--json", action="store_true", help="print one JSON object instead of the tables")
+    p.add_argument("--force", action="store_true",
+                   help="write into a folder that already holds files")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object instead of the tables")
     add_executor_arguments(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -74,9 +77,10 @@ class _Progress:
 
 def write_figures(study, out: Path) -> list[Path]:
     """All figures of the study into ``out``; returns their paths."""
-    from ..plots import (plot_movement_history, plot_phase_profiles, plot_sag, plot_speed_comparison,
-                         plot_sweep)
-    from ..reproduce import MOVEMENT_NAMES, PAPER
+    from ..study.plots import (plot_movement_history, plot_phase_profiles, plot_sag,
+                               plot_speed_comparison,
+                               plot_sweep)
+    from ..study.reproduce import MOVEMENT_NAMES, PAPER
     files = []
     for k, run in study.movements.items():
         name = MOVEMENT_NAMES[int(k)]
@@ -103,7 +107,7 @@ def _pct(ours: float, paper: float) -> str:
 
 
 def table_lines(study) -> list[str]:
-    from ..reproduce import MOVEMENT_NAMES, PAPER
+    from ..study.reproduce import MOVEMENT_NAMES, PAPER
     lines = ["Table 2: paper | ours | difference",
              f"  {'movement':<20s} {'F_max [N]':^27s}   {'SF':^17s}   {'Delta [mm]':^23s}",
              f"  {'':<20s} {'paper':>7s} {'ours':>7s} {'diff':>9s}   {'paper':>5s} {'ours':>5s} "
@@ -112,26 +116,32 @@ def table_lines(study) -> list[str]:
         ref = PAPER["movements"][k]
         lines.append(
             f"  {k + ' ' + MOVEMENT_NAMES[int(k)]:<20s} {ref['F_max']:7.3f} {run.F_max:7.3f} "
-            f"{_pct(run.F_max, ref['F_max']):>9s}   {ref['SF']:5.2f} {run.SF:5.2f} {run.SF - ref['SF']:+5.2f}   "
-            f"{ref['delta'] * 1e3:6.2f} {run.delta * 1e3:6.2f} {(run.delta - ref['delta']) * 1e3:+6.2f} mm")
+            f"{_pct(run.F_max, ref['F_max']):>9s}   {ref['SF']:5.2f} {run.SF:5.2f} "
+            f"{run.SF - ref['SF']:+5.2f}   "
+            f"{ref['delta'] * 1e3:6.2f} {run.delta * 1e3:6.2f} "
+            f"{(run.delta - ref['delta']) * 1e3:+6.2f} mm")
     sw = study.sweep
     i = sw.i_min
     lines += [
         "",
-        f"Fig. 18 (movement 4, d from {sw.d[0] * 1e3:g} to {sw.d[-1] * 1e3:g} mm, {sw.d.size} runs):",
+        f"Fig. 18 (movement 4, d from {sw.d[0] * 1e3:g} to {sw.d[-1] * 1e3:g} mm, {sw.d.size} "
+        "runs):",
         f"  F_max smallest at d = {sw.d_opt * 1e3:.1f} mm (paper 14.5 mm, "
         f"{(sw.d_opt - PAPER['d_opt']) * 1e3:+.1f} mm): F_max = {sw.F_opt:.3f} N"
         + ("" if sw.interior else "  [at the end of the range]"),
-        f"  at the best sampled d = {sw.d[i] * 1e3:.0f} mm: peak 1 (vertical) {sw.peak1[i]:.3f} N, "
+        f"  at the best sampled d = {sw.d[i] * 1e3:.0f} mm: peak 1 (vertical) {sw.peak1[i]:.3f} "
+        "N, "
         f"peak 2 (horizontal) {sw.peak2[i]:.3f} N ({sw.peak_gap_at_min * 100:.1f} % apart)",
         f"  movement 4 of Table 2 runs at the cell's d = {study.movements['4'].d * 1e3:.1f} mm",
     ]
     h, m1 = study.half_speed, study.movements["1"]
     lines += [
         "",
-        f"Fig. 19 (movement 1 at {h.speed * 1e3:.1f} mm/s, no stop; forced deformation {h.forced_time:.0f} s,"
+        f"Fig. 19 (movement 1 at {h.speed * 1e3:.1f} mm/s, no stop; forced deformation "
+        f"{h.forced_time:.0f} s,"
         f" movement 1: {m1.forced_time:.0f} s + {m1.dwell:.0f} s stop):",
-        f"  F_max = {h.F_max:.3f} N (movement 1: {m1.F_max:.3f} N), Delta = {h.delta * 1e3:.2f} mm "
+        f"  F_max = {h.F_max:.3f} N (movement 1: {m1.F_max:.3f} N), Delta = {h.delta * 1e3:.2f} "
+        "mm "
         f"(paper 6.6 mm; quality limit 5 mm)",
     ]
     s = study.sag
@@ -151,7 +161,7 @@ def table_lines(study) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..reproduce import DEFAULT_D_VALUES, reproduce
+    from ..study.reproduce import DEFAULT_D_VALUES, reproduce
     params = cell_from_args(args)
     out = _out_dir(args.out, args.force)
     wall = time.perf_counter()

@@ -5,19 +5,19 @@ import argparse
 import json
 from dataclasses import replace
 
-from ..scenarios import movement_scenario, scenario_plan
-from ..simulation import run_scenario
-from .common import add_params_argument, cell_from_args, output_path
+
+from ..planning.movement import movement_plan
+from ..sheet.simulation import run_scenario
+from .common import add_movement_argument, add_params_argument, cell_from_args, output_path
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("simulate", help="run one shaping movement on the cell",
-                       description="Run one shaping movement of the paper (Sec. 5) on the cell and "
+                       description="Run one shaping movement of the paper (Sec. 5) on the cell "
+                                   "and "
                                    "print F_max [N], SF and Delta [m].")
     add_params_argument(p)
-    p.add_argument("--movement", type=int, choices=(0, 1, 2, 3, 4),
-                   help="paper movement (1 vertical, 2 horizontal, 3 inclined, 4 two-step; "
-                        "0 the params file's waypoints); default: the params file's movement.number")
+    add_movement_argument(p)
     p.add_argument("--plot", metavar="PNG", help="write profile snapshots to PNG "
                    "(and the tension history beside it, *_history.png)")
     p.add_argument("--force", action="store_true", help="overwrite existing plot files")
@@ -33,11 +33,11 @@ def run(args: argparse.Namespace) -> int:
     history = None
     if plot is not None:
         history = output_path(str(plot.with_name(plot.stem + "_history.png")), args.force, "plot")
-    plan = scenario_plan(params, movement_scenario(params))
+    plan = movement_plan(params)
     result = run_scenario(params, plan)
     out = {"movement": params.movement.number, **result.summary()}
     if plot is not None:
-        from ..plots import plot_history, plot_profiles
+        from ..study.plots import plot_history, plot_profiles
         t_end = result.t[-1]
         plot_profiles(result, [0.0, *plan.knots()[1:-1], t_end], plot,
                       f"movement {params.movement.number}")
@@ -48,7 +48,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"movement {out['movement']}: {out['steps']} steps, {out['wall_time_s']:.2f} s wall "
               f"for {params.movement.process_time:g} s of process")
-        print(f"  F_max = {out['F_max']:.4f} N in link {out['F_max_link']} at t = {out['F_max_time']:.1f} s")
+        print(
+            f"  F_max = {out['F_max']:.4f} N in link {out['F_max_link']} at t = "
+            f"{out['F_max_time']:.1f} s")
         print(f"  SF    = {out['SF']:.3f}  (F_break = {params.material.F_break:g} N)")
         print(f"  Delta = {out['delta'] * 1e3:.2f} mm  (quality limit 5 mm)")
         for p in out.get("plots", []):

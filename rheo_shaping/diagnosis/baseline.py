@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from ..params import CellParams
+from ..params.params import CellParams
 
 
 @dataclass(frozen=True)

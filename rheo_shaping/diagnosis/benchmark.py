@@ -33,13 +33,13 @@ from typing import Callable
 
 import numpy as np
 
-from ..effects import EFFECT_NAMES, EFFECTS
-from ..measurement import MeasurementParams, measure
+from ..sheet.effects import EFFECT_NAMES, EFFECTS
+from ..records.measurement import MeasurementParams, measure
 from ..parallel import run_tasks
-from ..params import CellParams
-from ..record import Record
-from ..scenarios import movement_scenario, scenario_plan
-from ..simulation import run_scenario
+from ..params.params import CellParams
+from ..records.record import Record
+from ..planning.movement import movement_plan
+from ..sheet.simulation import run_scenario
 from .baseline import CHAIN, SHEET, with_sheet
 from .check import REFINEMENT
 from .signature import KIND_OF_EFFECT
@@ -131,7 +131,7 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
             t_cell = replace(truth, movement=replace(truth.movement, number=mv))
             w_cell = replace(written, movement=replace(written.movement, number=mv))
             try:
-                path = scenario_plan(t_cell, movement_scenario(t_cell))
+                path = movement_plan(t_cell)
                 run = run_scenario(t_cell, path)
             except (RuntimeError, ValueError):
                 ok = False
@@ -240,7 +240,7 @@ def summarise(rows: list[dict], wall: float) -> dict:
         "out_of_library_unexplained_rate_beyond_noise": frac(ool_moved),
         "out_of_library_beyond_noise_cases": len(ool_moved),
         "out_of_library_wrong_name_rate": (sum(r["verdict"] not in ("none", "unexplained",
-                                                                     "measurement chain")
+                                                                    "measurement chain")
                                                for r in by["out_of_library"])
                                            / len(by["out_of_library"])
                                            if by["out_of_library"] else None),

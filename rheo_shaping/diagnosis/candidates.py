@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..effects import EFFECTS
+from ..sheet.effects import EFFECTS
 from . import stats
 from .evaluate import Candidate
 from .linear import Solver
@@ -67,7 +67,6 @@ class Explanation:
         return self.k
 
 
-
 def rank_key(f: Explanation):
     return (not f.checked, f.p if math.isfinite(f.p) else 1.0, f.J)
 
@@ -105,7 +104,7 @@ def fit_single(name, resp, zB_raw, solver: Solver, lo, hi, G, n_eff, parts_B):
             vals_fit[k] = float(x)
         z = solver.residual(zB_raw, u, E)
         c = Explanation((name,), {name: tuple(vals_fit)}, J, G.stack.J_parts(z), k=len(cols),
-                       baseline_u=u[:solver.A.shape[1]])
+                        baseline_u=u[:solver.A.shape[1]])
         # 95 % interval: the value whose LR drop is 3.84 (effective sample size), the baseline
         # refitted (the column with the baseline's columns projected out)
         e_perp = E - solver.Q @ (solver.Q.T @ E)
@@ -166,7 +165,7 @@ def _lr_interval(grid: np.ndarray, Js: np.ndarray, i: int, ntot: float) -> tuple
 
 
 def fit_pair(a: Explanation, b: Explanation, responses, zB_raw, solver: Solver, lo, hi, G, n_eff,
-              parts_B):
+             parts_B):
     """Two effects together on the linearised model (responses add)."""
     na, nb = a.names[0], b.names[0]
     best = None
@@ -218,7 +217,7 @@ def fit_pair(a: Explanation, b: Explanation, responses, zB_raw, solver: Solver, 
     z = zB_raw + shift + solver.A @ u[:k0] + (E @ u[k0:] if E is not None else 0.0)
     names = tuple(sorted((na, nb)))
     c = Explanation(names, {n: values[n] for n in names}, J, G.stack.J_parts(z),
-                   k=a.k + b.k, baseline_u=u[:solver.A.shape[1]])
+                    k=a.k + b.k, baseline_u=u[:solver.A.shape[1]])
     c.interval = {n: [(v, v) for v in values[n]] for n in names}
     c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
     return c

@@ -22,9 +22,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..params import CellParams
+from ..params.params import CellParams
 
-from ..effects import EFFECTS
+from ..sheet.effects import EFFECTS
 from . import stats
 from .candidates import PROBES, magnitude
 from .evaluate import Task, all_ok, apply
@@ -136,7 +136,7 @@ def _widen(c, dz: np.ndarray, A: np.ndarray, E: np.ndarray) -> None:
 
 
 def check(cands, run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit, parts_B, n_eff,
-           J_base_h, m, chain_free=None, refine=None) -> None:
+          J_base_h, m, chain_free=None, refine=None) -> None:
     """Simulate the candidates at their fitted values (fit and holdout records).
 
     With ``refine = (A_sheet, responses, steps)``, each effect candidate then takes up to
@@ -147,7 +147,7 @@ def check(cands, run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit, par
     for c in cands:
         points.append((c, np.clip(u_s + c.baseline_u[:n_s], -1, 1), c.values))
     simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
-                     chain_free, first=True)
+                    chain_free, first=True)
     if refine is None:
         return
     A_sheet, responses, steps = refine
@@ -180,7 +180,7 @@ def relinearise(cands, run, fit_d, G, base_params, n_s) -> None:
     (forward differences of half a tolerance, toward the inside of the +-1 box): the
     baseline's Jacobian is taken without any effect, and a strong effect (a large creep, a
     friction) changes how the knobs act, so chord steps from it stall short of the fit."""
-    from ..schema import ParameterError
+    from ..params.schema import ParameterError
     nf = len(fit_d)
     for c in cands:
         u = np.asarray(c.baseline_u[:n_s], float)
@@ -206,7 +206,7 @@ def relinearise(cands, run, fit_d, G, base_params, n_s) -> None:
 
 
 def simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
-                     chain_free, first: bool) -> None:
+                    chain_free, first: bool) -> None:
     tasks = []
     for c, u_sheet, vals in points:
         cand = tuple((n, vals[n]) for n in c.names)

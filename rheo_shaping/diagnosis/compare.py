@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..metrics import residual_gap
-from ..params import CellParams
-from ..record import Record
-from ..simulation import PolylinePath, RunResult, run_scenario
+from ..sheet.metrics import residual_gap
+from ..params.params import CellParams
+from ..records.record import Record
+from ..sheet.simulation import PolylinePath, RunResult, run_scenario
 
 #: Width [s] of the moving average applied to the measured pose before it drives the model.
 POSE_WINDOW = 0.4
@@ -77,7 +77,8 @@ class RecordData:
     @classmethod
     def of(cls, record: Record) -> "RecordData":
         pts = [np.asarray(f, float).reshape(-1, 2) for f in record.profiles]
-        frame = np.concatenate([np.full(len(f), i) for i, f in enumerate(pts)]) if pts else np.zeros(0, int)
+        frame = np.concatenate([np.full(len(f), i)
+                               for i, f in enumerate(pts)]) if pts else np.zeros(0, int)
         return cls(record, tool_path(record), np.vstack(pts), frame.astype(int), pts[-1])
 
 
@@ -119,11 +120,13 @@ def residuals(data: RecordData, run: RunResult) -> Residuals:
     rel = data.point_xz[:, None, :] - a
     s = np.clip(np.einsum("psk,psk->ps", rel, seg) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
     foot = a + s[..., None] * seg
-    d2 = np.einsum("psk,psk->ps", data.point_xz[:, None, :] - foot, data.point_xz[:, None, :] - foot)
+    d2 = np.einsum("psk,psk->ps", data.point_xz[:, None,
+                   :] - foot, data.point_xz[:, None, :] - foot)
     j = np.argmin(d2, axis=1)
     idx = np.arange(len(j))
     seg_j, foot_j = seg[idx, j], foot[idx, j]
-    cross = seg_j[:, 0] * (data.point_xz[:, 1] - foot_j[:, 1]) - seg_j[:, 1] * (data.point_xz[:, 0] - foot_j[:, 0])
+    cross = (seg_j[:, 0] * (data.point_xz[:, 1] - foot_j[:, 1])
+             - seg_j[:, 1] * (data.point_xz[:, 0] - foot_j[:, 0]))
     dist = np.sqrt(d2[idx, j]) * np.sign(cross)
     seg_len = np.sqrt(L2)
     cum = np.concatenate((np.zeros((len(lines), 1)), np.cumsum(np.sqrt(np.einsum(

@@ -44,10 +44,10 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..effects import EFFECT_NAMES
-from ..params import CellParams
-from ..record import Record
-from ..schema import ParameterError
+from ..sheet.effects import EFFECT_NAMES
+from ..params.params import CellParams
+from ..records.record import Record
+from ..params.schema import ParameterError
 from . import stats
 from .baseline import CHAIN, SHEET, with_sheet
 from .candidates import (CHECKED, PAIRED, PROBES, REFINE_STEPS, Explanation, fit_pair,
@@ -58,6 +58,7 @@ from .compare import RecordData, noise_level, residuals
 from .evaluate import Outcome, Runner, Task, all_ok, apply
 from .linear import Solver, Stack
 from .result import Diagnosis, as_residuals, baseline_table, chain_correct, num as _num
+
 
 class _Group:
     """The records of one group (fit or holdout) and their stacked residuals."""
@@ -74,7 +75,6 @@ class _Group:
 
     def J(self, z: np.ndarray) -> float:
         return float(z @ z)
-
 
 
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
@@ -186,7 +186,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         # 4. which side: the chain beyond its tolerance (no simulation: linear), checked
         u_ch, J_ch = solver.solve(zB_raw, np.r_[-1 - u_s, -chain_free], np.r_[1 - u_s, chain_free])
         chain_c = Explanation((), {}, J_ch, G.stack.J_parts(solver.residual(zB_raw, u_ch)),
-                             baseline_u=u_ch, chain_free=True)
+                              baseline_u=u_ch, chain_free=True)
         outside = [k.name for k, v in zip(CHAIN, u_ch[n_s:]) if abs(v) > 1.0 + 1e-6]
         chain_c.k = max(len(outside), 1)
         chain_c.LR = stats.likelihood_ratio(parts_B, chain_c.J_parts, n_eff)
@@ -215,7 +215,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             bhi = np.r_[1 - u_s, chain_lim]
             for name in library:
                 c = fit_single(name, responses[name], zB_raw, base_solver, blo, bhi, G, n_eff,
-                                parts_B)
+                               parts_B)
                 if c is not None:
                     effects.append(c)
             m = len(effects) + math.comb(min(PAIRED, len(effects)), 2)
@@ -240,7 +240,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                          responses)
         elif gap_left:
             check([chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
-                   parts_B, n_eff, J_base_h, 1, chain_free)
+                  parts_B, n_eff, J_base_h, 1, chain_free)
         # decision
         verdict_fit = None
         if not gap_left or not library:
@@ -263,8 +263,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 for i, a in enumerate(top):
                     for b in top[i + 1:]:
                         pc = fit_pair(a, b, responses, zB_raw, Solver(A),
-                                       np.r_[-1 - u_s, -chain_lim],
-                                       np.r_[1 - u_s, chain_lim], G, n_eff, parts_B)
+                                      np.r_[-1 - u_s, -chain_lim],
+                                      np.r_[1 - u_s, chain_lim], G, n_eff, parts_B)
                         if pc is not None:
                             pc.p = min(1.0, stats.chi2_sf(pc.LR, pc.k) * m)
                             pairs.append(pc)
@@ -316,7 +316,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
     corrected = (apply(base_params(fit_d[0], vfc.baseline_u[:n_s]), vfc.candidate)
                  if vfc else base_params(fit_d[0], u_s))
     baseline_tab = baseline_table(fit_d[0].record.scenario,
-                                   vfc.baseline_u if vfc else np.r_[u_s, u_c])
+                                  vfc.baseline_u if vfc else np.r_[u_s, u_c])
     nom_res = [residuals(d, o.run) for d, o in zip(data, nominal)]
     base_runs = [o.run for o in base_outs]
     base_res = [chain_correct(residuals(d, o.run), o, u_c) for d, o in zip(data, base_outs)]

@@ -19,10 +19,10 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..effects import EFFECTS
+from ..sheet.effects import EFFECTS
 from ..parallel import run_tasks
-from ..params import CellParams
-from ..simulation import RunResult
+from ..params.params import CellParams
+from ..sheet.simulation import RunResult
 from .compare import RecordData, residuals, simulate
 
 Candidate = tuple  # tuple[tuple[str, tuple[float, ...]], ...]: (effect name, values) pairs

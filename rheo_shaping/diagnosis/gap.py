@@ -33,7 +33,8 @@ def _group(data, res, idx, sp, sf) -> dict | None:
            "profile_max_m": float(np.max(np.abs(prof))),
            "profile_max_rel": float(np.max(np.abs(prof)) / length),
            "profile_systematic_m": float(math.sqrt(max(np.mean(prof ** 2) - sp ** 2, 0.0))),
-           "delta_error_m": float(np.mean([abs(res[i].delta_measured - res[i].delta_model) for i in idx]))}
+           "delta_error_m": float(np.mean([abs(res[i].delta_measured - res[i].delta_model)
+                                           for i in idx]))}
     J_p = float(np.mean(prof ** 2) / sp ** 2)
     J = J_p
     if forces:
@@ -48,7 +49,8 @@ def _group(data, res, idx, sp, sf) -> dict | None:
 
 def figures(data, res, fit_idx, hold_idx, sp, sf, before: dict | None = None) -> dict:
     """``{"fit": {...}, "holdout": {...} or None}``; with ``before``, each also gets ``shrink``."""
-    out = {"fit": _group(data, res, fit_idx, sp, sf), "holdout": _group(data, res, hold_idx, sp, sf)}
+    out = {"fit": _group(data, res, fit_idx, sp, sf),
+           "holdout": _group(data, res, hold_idx, sp, sf)}
     if before is not None:
         for key, g in out.items():
             b = before.get(key)

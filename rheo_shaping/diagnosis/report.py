@@ -55,7 +55,8 @@ def residual_map(diag, path: Path) -> None:
 
 
 def effects_chart(diag, path: Path) -> None:
-    """Explained fraction of the baseline's excess misfit per candidate, fit and holdout records."""
+    """Explained fraction of the baseline's excess misfit per candidate, fit and holdout
+    records."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -92,26 +93,29 @@ def _g(v):
 
 def markdown(diag, figures: dict, process: dict | None = None) -> str:
     """The report (see docs/diagnosis.md for every figure)."""
-    from ..effects import EFFECTS
+    from ..sheet.effects import EFFECTS
     from . import stats
     j = diag.to_json()
     lines = ["# Sim-to-real gap diagnosis", "",
-             f"Records fitted: {', '.join(diag.records)}; held out: {', '.join(diag.holdout) or 'none'}.",
+             f"Records fitted: {', '.join(diag.records)}; "
+             f"held out: {', '.join(diag.holdout) or 'none'}.",
              f"Noise estimated from the records: profile {diag.noise['profile_m'] * 1e3:.3f} mm, "
-             f"tool force {diag.noise['force_N']:.4f} N. Balanced misfit (1 = within noise; profile "
-             f"and tool force weigh one half each): nominal J0 = {diag.J0:.3f} on the fit records "
-             f"({_fmt(diag.J0_holdout)} holdout), calibrated baseline {diag.J_base:.3f} "
+             f"tool force {diag.noise['force_N']:.4f} N. Balanced misfit (1 = within noise; "
+             f"profile and tool force weigh one half each): nominal J0 = {diag.J0:.3f} on the "
+             f"fit records ({_fmt(diag.J0_holdout)} holdout), "
+             f"calibrated baseline {diag.J_base:.3f} "
              f"({_fmt(diag.J_base_holdout)} holdout).", "",
              f"## Verdict: **{diag.verdict}**", ""]
-    lines.append(f"Gap test: the baseline's excess J - 1 = {diag.J_base - 1:.4f} against effect-free "
-                 f"records (95 % of them stay below {stats.null_quantile():.4f}): p_gap = "
-                 f"{diag.p_gap:.3g}.")
+    lines.append(f"Gap test: the baseline's excess J - 1 = {diag.J_base - 1:.4f} against "
+                 f"effect-free records (95 % of them stay below "
+                 f"{stats.null_quantile():.4f}): p_gap = {diag.p_gap:.3g}.")
     vf = diag.verdict_fit
     if vf:
         pv = f"{vf.p:.3g}" if vf.p > 0 else "< 1e-300"
         lines.append(f"Strength: likelihood ratio {vf.LR:.1f} on {vf.k} parameter(s), p = {pv} "
                      f"(Bonferroni over the candidates); what it leaves: J - 1 = {vf.J - 1:.4f} "
-                     f"(fit), {_fmt(vf.J_holdout - 1 if math.isfinite(vf.J_holdout) else None, 1, 4)} "
+                     f"(fit), "
+                     f"{_fmt(vf.J_holdout - 1 if math.isfinite(vf.J_holdout) else None, 1, 4)} "
                      "(holdout).")
         b = diag.numerics_base
         if math.isfinite(vf.J_num_perp) and b is not None:
@@ -141,8 +145,8 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
                      "tolerances (" + ", ".join(diag.side["chain_outside"]) + ") the baseline "
                      "explains the records; no effect of the sheet is named.")
     else:
-        lines.append("No candidate accounts for what the baseline leaves (significant and adequate "
-                     "on fit and holdout records): see the signature below.")
+        lines.append("No candidate accounts for what the baseline leaves (significant and "
+                     "adequate on fit and holdout records): see the signature below.")
     lines += ["", "## Baseline: what a careful user knows within a tolerance", "",
               f"The baseline took {_fmt(diag.baseline_took, 100, 1)} % of the nominal model's "
               "excess misfit.", "",
@@ -154,7 +158,8 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
     lines += ["", "## Which side of the sensors", "",
               f"Side: **{diag.side['side']}**. The measurement chain beyond its tolerances "
               f"({', '.join(cc['outside']) or 'none needed'}) leaves J = {cc['J']:.4f} "
-              f"(holdout {_fmt(cc['J_holdout'])}), p = {_g(cc['p'])}, adequate: {cc['adequate']}.", ""]
+              f"(holdout {_fmt(cc['J_holdout'])}), p = {_g(cc['p'])}, "
+              f"adequate: {cc['adequate']}.", ""]
     lines += ["## Candidates", "",
               "| rank | effect | parameters | J fit | J holdout | LR | p | adequate | checked |",
               "|---|---|---|---|---|---|---|---|---|"]
@@ -169,14 +174,17 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
         lines += ["", "## Signature of what the baseline leaves", "",
                   "- observables (excess J - 1): " + ", ".join(
                       f"{k} {v:.4f}" for k, v in sig["observables"].items()),
-                  f"- along the sheet: peaks in arc-length band {sig['where']['peak_band'] + 1} of 5 "
+                  f"- along the sheet: peaks in arc-length band "
+                  f"{sig['where']['peak_band'] + 1} of 5 "
                   f"(fraction {sig['where']['peak_band_arc_fraction'][0]:.1f}-"
                   f"{sig['where']['peak_band_arc_fraction'][1]:.1f} from the cake-top bond)",
-                  "- in the process: " + ", ".join(f"{k} {v * 1e3:.3f} mm" for k, v in sig["when"].items())
+                  "- in the process: "
+                  + ", ".join(f"{k} {v * 1e3:.3f} mm" for k, v in sig["when"].items())
                   + f" (before contact: {sig['before_contact'] * 100:.0f} %)",
-                  f"- in time: {sig['trend']['kind']} (late / early {sig['trend']['late_over_early']:.2f})",
+                  f"- in time: {sig['trend']['kind']} "
+                  f"(late / early {sig['trend']['late_over_early']:.2f})",
                   "- correlation with: " + ", ".join(f"{k} {v:+.2f}" for k, v in
-                                                      sig["proportional_to"].items()),
+                                                     sig["proportional_to"].items()),
                   f"- tool force: lag {_g(sig['force_lag_s'])} s, gain {_g(sig['force_gain'])}",
                   "", "Kinds of cause, ranked (feature score; share of the gap a library "
                   "effect of that kind imitates on its own, which ranks a kind first from "
@@ -201,12 +209,13 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
             if key in b:
                 lines.append(f"| {grp} | {label} | {_fmt(b[key], s)} | {_fmt(m[key], s)} | "
                              f"{_fmt(a[key], s)} |")
-        lines.append(f"| {grp} | shrink of the gap | | {_fmt(m.get('shrink'))} | {_fmt(a.get('shrink'))} |")
+        lines.append(
+            f"| {grp} | shrink of the gap | | {_fmt(m.get('shrink'))} | {_fmt(a.get('shrink'))} |")
     if process:
         lines += ["", "## What the corrected model changes for the process (movement 4)", "",
                   "| figure | nominal | corrected |", "|---|---|---|"]
-        for key, label, s in (("F_max", "F_max [N]", 1), ("SF", "SF", 1), ("delta", "Delta [mm]", 1e3),
-                              ("d_opt", "d_opt [mm]", 1e3)):
+        for key, label, s in (("F_max", "F_max [N]", 1), ("SF", "SF", 1),
+                              ("delta", "Delta [mm]", 1e3), ("d_opt", "d_opt [mm]", 1e3)):
             lines.append(f"| {label} | {_fmt(process['nominal'].get(key), s)} | "
                          f"{_fmt(process['corrected'].get(key), s)} |")
     lines += ["", "## Where (calibrated baseline)", "",
@@ -215,9 +224,9 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
     for w in diag.where:
         s = 1e3 if w["unit"] == "m" else 1.0
         u = "mm" if w["unit"] == "m" else "N"
-        lines.append(f"| {w['rank']} | {w['kind']} | {w['name']} | {w['n']} | {_fmt(w['rms'], s)} {u} | "
-                     f"{_fmt(w['systematic_rms'], s)} {u} | {_fmt(w['relative'], 1, 2)} | "
-                     f"{_fmt(w['mean'], s)} {u} |")
+        lines.append(f"| {w['rank']} | {w['kind']} | {w['name']} | {w['n']} | "
+                     f"{_fmt(w['rms'], s)} {u} | {_fmt(w['systematic_rms'], s)} {u} | "
+                     f"{_fmt(w['relative'], 1, 2)} | {_fmt(w['mean'], s)} {u} |")
     lines += ["", "## Figures", ""]
     for title, name in figures.items():
         lines.append(f"![{title}]({name})")
@@ -228,7 +237,8 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
 
 def write(diag, out_dir: Path, process: dict | None = None) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
-    figs = {"residual over time and arc length": "residual_map.png", "candidate effects": "effects.png"}
+    figs = {"residual over time and arc length": "residual_map.png",
+            "candidate effects": "effects.png"}
     residual_map(diag, out_dir / figs["residual over time and arc length"])
     effects_chart(diag, out_dir / figs["candidate effects"])
     if not (diag.effects or diag.pairs):

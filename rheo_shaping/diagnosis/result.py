@@ -1,4 +1,5 @@
-"""What a diagnosis says: the :class:`Diagnosis`, its JSON, and the corrected cell's process figures."""
+"""What a diagnosis says: the :class:`Diagnosis`, its JSON, and the corrected cell's process
+figures."""
 from __future__ import annotations
 
 import math
@@ -8,7 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..params import CellParams
+from ..params.params import CellParams
 from .baseline import CHAIN, SHEET, values as knob_values
 from .candidates import Explanation, rank_key
 from .compare import RecordData
@@ -135,11 +136,11 @@ def process_figures(nominal: CellParams, corrected: CellParams,
                     executor: Executor | None = None) -> dict:
     """Movement 4 of the nominal and the corrected cell: F_max [N], SF, Delta [m], d_opt [m].
 
-    d_opt is the planner's choice (:func:`rheo_shaping.optimise.best_d`: smallest
+    d_opt is the planner's choice (:func:`rheo_shaping.study.optimise.best_d`: smallest
     F_max with Delta <= ``delta_limit``) over ``d_candidates`` (default: the
     cell's d +- 3 mm in 1 mm steps); None when no candidate meets the limit.
     """
-    from ..optimise import run_d
+    from ..study.optimise import run_d
     d0 = nominal.movement.d
     ds = list(d_candidates) if d_candidates is not None else [d0 + k * 1e-3 for k in range(-3, 4)]
     jobs = [(p, d) for p in (nominal, corrected) for d in [d0] + ds]
@@ -161,5 +162,5 @@ def process_figures(nominal: CellParams, corrected: CellParams,
 
 
 def _run_d(args):
-    from ..optimise import run_d
+    from ..study.optimise import run_d
     return run_d(*args)

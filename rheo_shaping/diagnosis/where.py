@@ -3,7 +3,8 @@
 Places, from the model's own geometry at the frame's time (first match wins):
 
 * ``tool contact``: the foot point lies within one thickness of the tool's outline;
-* ``top edge``: on the cake top or its rounded edge (z above height - fillet radius, x < one thickness);
+* ``top edge``: on the cake top or its rounded edge (z above height - fillet radius,
+  x < one thickness);
 * ``cake bottom``: within three thicknesses of the wall's foot (x = 0, z = 0);
 * ``workplane``: lower than 1.5 thicknesses;
 * ``free span``: the rest.
@@ -22,7 +23,7 @@ import math
 
 import numpy as np
 
-from ..tools import tool_shape
+from ..sheet.tools import tool_shape
 
 PLACES = ("top edge", "free span", "tool contact", "cake bottom", "workplane")
 PHASES = ("approach", "forced deformation", "dwell", "release", "settle")

@@ -130,22 +130,19 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
                 break
         wall = time.monotonic() - t_wall
         run_wall = time.monotonic() - (t_started if t_started is not None else t_wall)
-        s = sim.summary
-        if s is None:      # timed out (or aborted before the end): the figures so far
-            F, link, when = sim.peak
-            s = {"F_max": F, "F_max_link": link, "F_max_time": when,
-                 "SF": cell.material.F_break / F if F > 0 else math.inf,
-                 "delta": sim.sim.delta(), "process_time": sim.process_time}
+        s = sim.run.summary_so_far()      # timed out or aborted before the end: so far
+        done = sim.summary is not None
         return CellResult(
-            movement=cell.movement.number, F_max=s["F_max"], F_max_link=s["F_max_link"],
-            F_max_time=s["F_max_time"], SF=s["SF"], delta=s["delta"],
-            F_break=cell.material.F_break, process_time=s["process_time"],
+            movement=cell.movement.number, F_max=s.F_max, F_max_link=s.F_max_link,
+            F_max_time=s.F_max_time, SF=s.SF, delta=s.delta,
+            F_break=cell.material.F_break,
+            process_time=sim.run.cell.movement.process_time if done else sim.process_time,
             aborted=planner.aborted or monitor.state == "aborted",
             abort_reason=planner.abort_reason or monitor.abort_reason,
             planner_state=planner.state, wall_time_s=wall,
             achieved_factor=sim.process_time / run_wall if run_wall > 0 else math.nan,
             finished=finished, d=cell.movement.d if cell.movement.number == 4 else math.nan,
-            extra={"run_time": sim.process_time, "lockstep_waits": sim._waits,
+            extra={"run_time": sim.process_time, "lockstep_waits": sim.lockstep_waits,
                    "abort_threshold": monitor.threshold,
                    "history": list(sim.history), **_stop_times(planner, sim)})
     finally:
@@ -159,7 +156,7 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
 def _stop_times(planner: PlannerNode, sim: SimulatorNode) -> dict:
     """When the abort's stop started and reached rest, in process time [s] (None without)."""
     st = planner.streamer
-    if st is None or st.abort_time is None or sim._offset_ns is None:
+    if st is None or st.abort_time is None or sim.process_offset_ns is None:
         return {"abort_time": None, "rest_time": None}
-    offset = sim._offset_ns / 1e9
+    offset = sim.process_offset_ns / 1e9
     return {"abort_time": st.abort_time - offset, "rest_time": st.rest_time - offset}

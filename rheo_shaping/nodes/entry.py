@@ -4,7 +4,7 @@ A signal must end a node cleanly at any moment of its start-up, with exit code 0
 no traceback.  Before ``rclpy.init`` nothing of ROS exists yet, so SIGINT and SIGTERM
 end the process at once (:func:`_early_exit`); this covers the imports (numpy, scipy,
 numba) and the loading or first compilation of the sheet kernel
-(:func:`rheo_shaping.sheet.warm_up`), which therefore happen here, before ROS.  From
+(:func:`rheo_shaping.planning.movement.warm_up`), which therefore happen here, before ROS.  From
 ``rclpy.init`` on, rclpy's own handler shuts the context down and
 :func:`rheo_shaping.nodes.spin.run_node` ends the node cleanly.  This module imports
 nothing heavy, so its handlers are in place within milliseconds of the start.
@@ -44,5 +44,6 @@ def monitor() -> int:
 if __name__ == "__main__":  # pragma: no cover - python -m rheo_shaping.nodes.entry NODE ...
     name = sys.argv.pop(1) if len(sys.argv) > 1 else ""
     if name not in ("simulator", "planner", "monitor"):
-        sys.exit("usage: python -m rheo_shaping.nodes.entry simulator|planner|monitor [--ros-args ...]")
+        sys.exit(
+            "usage: python -m rheo_shaping.nodes.entry simulator|planner|monitor [--ros-args ...]")
     sys.exit(_run(name))

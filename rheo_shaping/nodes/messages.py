@@ -17,10 +17,10 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import ColorRGBA, Float64, Float64MultiArray, Header, MultiArrayDimension
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
+from ..units import NS
 
 FRAME = "cake"
 JOINTS = ("tool_x", "tool_z")
-NS = 1_000_000_000
 
 
 # -- time -----------------------------------------------------------------------
@@ -98,7 +98,7 @@ def wrench_msg(force_xz: Sequence[float], ns: int) -> WrenchStamped:
 
 # -- plan -------------------------------------------------------------------------
 def trajectory_msg(plan, t0_ns: int, period: float) -> JointTrajectory:
-    """A :class:`~rheo_shaping.planning.Plan` as joints ``tool_x``, ``tool_z``.
+    """A :class:`~rheo_shaping.planning.planning.Plan` as joints ``tool_x``, ``tool_z``.
 
     ``header.stamp`` is when the plan starts (t = 0 of the plan); points every
     ``period`` [s] and at every jerk switch, with positions, velocities and
@@ -129,7 +129,8 @@ def diagnostics_msg(ns: int, name: str, level: str, message: str, values: dict,
                     hardware_id: str = "shaping_cell") -> DiagnosticArray:
     status = DiagnosticStatus(level=LEVELS[level], name=name, message=message,
                               hardware_id=hardware_id,
-                              values=[KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()])
+                              values=[KeyValue(key=str(k), value=_fmt(v)) for k,
+                                      v in values.items()])
     msg = DiagnosticArray(status=[status])
     msg.header.stamp = time_msg(ns)
     return msg

@@ -1,11 +1,11 @@
 """The ``planner`` node: jerk-limited tool plans, streamed as set-points, with a planned stop.
 
-The plan is the core's: ``scenarios.scenario_plan(params, movement_scenario(params))``
+The plan is the core's: ``movement.movement_plan(params)``
 (the paper's movements 1-4, or movement 0 = the params file's waypoints and
 dwells), a chain of ruckig state-to-state segments, at rest at every waypoint,
 straight lines by phase synchronisation, dwells between.  It is the same plan
 the offline run (``rheo-shaping simulate``) uses.  With ``optimise_d`` the node
-first picks movement 4's d with the core model (:func:`rheo_shaping.optimise.best_d`).
+first picks movement 4's d with the core model (:func:`rheo_shaping.study.optimise.best_d`).
 
 Interlock (safety principle 6, docs/safety-principles.md).  With ``wait_for_monitor`` the planner
 starts only while the monitor's ``/shaping/ready`` heartbeat says ready and is
@@ -13,7 +13,7 @@ younger than ``monitor_timeout`` (steady clock); a heartbeat that stops or
 turns false while the tool moves is treated as an abort.
 
 Streaming.  From the start time t0 (the node clock: simulated time with
-``use_sim_time``) a :class:`~rheo_shaping.stopping.TrajectoryStreamer` gives
+``use_sim_time``) a :class:`~rheo_shaping.planning.stopping.TrajectoryStreamer` gives
 the set-point at t0 + k / ``control_rate``; they are published on
 ``/tool/command``, each stamped with its time (on simulated time, when /clock
 jumps by more than one period, every set-point in between is published, plus
@@ -42,21 +42,21 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from ..clearance import plan_clearance
-from ..node_params import PlannerNodeParams
-from ..optimise import best_d, d_values
-from ..params import CellParams
-from ..planning import MotionLimits, Plan, Waypoint, plan_waypoints
-from ..scenarios import movement_limits, movement_scenario, scenario_plan
-from ..schema import ParameterError
-from ..stopping import TrajectoryStreamer
-from ..watchdog import StallGuard
+from ..planning.clearance import require_clearance
+from ..params.node_params import PlannerNodeParams
+from ..study.optimise import best_d, d_values
+from ..params.params import CellParams
+from ..planning.planning import MotionLimits, Plan
+from ..planning.movement import approach_plan, autostart_refusal, movement_plan
+from ..params.schema import ParameterError
+from ..planning.stopping import TrajectoryStreamer
+from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
 from .spin import run_node
+from ..units import NS
 
-NS = 1_000_000_000
 #: Most set-points published in one timer call (a huge clock jump skips ahead).
 MAX_BATCH = 5000
 
@@ -158,11 +158,12 @@ class PlannerNode(Node):
             except ValueError as exc:
                 raise ParameterError(f"optimise_d: {exc}") from None
             self.get_logger().info(
-                f"optimise_d: d = {choice.d * 1e3:.2f} mm, predicted F_max = {choice.F_max:.4f} N, "
+                f"optimise_d: d = {choice.d * 1e3:.2f} mm, predicted F_max = {choice.F_max:.4f} "
+                "N, "
                 f"Delta = {choice.delta * 1e3:.3f} mm (limit {s.delta_limit * 1e3:g} mm)")
             cell = replace(cell, movement=replace(cell.movement, d=choice.d))
         try:
-            plan = scenario_plan(cell, movement_scenario(cell)).plan
+            plan = movement_plan(cell).plan
         except (ValueError, RuntimeError) as exc:
             raise ParameterError(f"the movement cannot be planned: {exc}") from None
         self._check_clearance(cell, plan)
@@ -170,31 +171,13 @@ class PlannerNode(Node):
 
     def _check_clearance(self, cell: CellParams, plan: Plan) -> None:
         """Refuse a plan that leaves less room than the sheet between tool and mould."""
-        factor = self.settings.clearance_factor
-        if factor <= 0:
-            return
-        need = factor * cell.sheet.thickness
-        cl = plan_clearance(cell, plan)
-        if cl.gap < need - 1e-6:
-            raise ParameterError(
-                f"the plan brings the tool within {cl.gap * 1e3:.2f} mm of the {cl.obstacle} at "
-                f"({cl.at[0] * 1e3:.2f}, {cl.at[1] * 1e3:.2f}) mm, t = {cl.time:.1f} s: less than "
-                f"clearance_factor {factor:g} x sheet.thickness {cell.sheet.thickness * 1e3:g} mm "
-                f"pinches the sheet (parameter 'clearance_factor' = 0 disables the check)")
+        require_clearance(cell, plan, self.settings.clearance_factor)
 
     def _plan_from(self, start_xz) -> Plan:
         """The plan, preceded by an approach from ``start_xz`` when the tool is elsewhere."""
-        if start_xz is None or np.hypot(*(np.asarray(start_xz) - self.plan.start)) <= 1e-6:
-            return self.plan
-        cell = self.cell_used
-        scenario = movement_scenario(cell)
-        waypoints = [Waypoint(float(scenario.start[0]), float(scenario.start[1]), 0.0, "approach",
-                              self._retract_limits())]
-        waypoints += [Waypoint(float(mv.target[0]), float(mv.target[1]), mv.dwell, mv.label,
-                               movement_limits(cell, mv.speed)) for mv in scenario.moves]
-        plan = plan_waypoints(start_xz, waypoints, movement_limits(cell, cell.movement.speed),
-                              label_phases=False)
-        self._check_clearance(cell, plan)
+        plan = approach_plan(self.cell_used, self.plan, start_xz, self._retract_limits())
+        if plan is not self.plan:
+            self._check_clearance(self.cell_used, plan)
         return plan
 
     def _retract_limits(self) -> MotionLimits:
@@ -236,21 +219,11 @@ class PlannerNode(Node):
         self._tool_pose = np.array(m.pose_xz(msg), dtype=float)
 
     def _tool_away(self) -> str:
-        """Why autostart is unsafe: the tool is neither at home nor at the plan's start.
-
-        A planner (re)started while the tool stands somewhere in a run must not
-        run a plan from its beginning on its own (safety principle 3): it
-        waits for ~/start, which plans an approach from where the tool is.
-        """
+        """Why autostart is unsafe (:func:`~rheo_shaping.planning.movement.autostart_refusal`)."""
         if self._tool_pose is None or self._hold is not None:
             return ""
-        tol = self.settings.start_tolerance
-        for name, where in (("home", self.cell_used.tool.home), ("the plan's start", self.plan.start)):
-            if np.hypot(*(self._tool_pose - np.asarray(where, float))) <= tol:
-                return ""
-        x, z = self._tool_pose
-        return (f"the tool is at ({x:.4f}, {z:.4f}) m, neither at home nor at the plan's start "
-                f"(start_tolerance {tol:g} m): no autostart; call ~/start to approach from there")
+        return autostart_refusal(self._tool_pose, self.cell_used.tool.home, self.plan.start,
+                                 self.settings.start_tolerance)
 
     def _on_abort(self, msg: String) -> None:
         self._abort(f"monitor: {msg.data}")
@@ -280,9 +253,11 @@ class PlannerNode(Node):
 
     def _on_start(self, request, response):
         if self.streamer is not None:
-            response.success, response.message = False, f"already started ({self._state}); ~/reset first"
+            response.success = False
+            response.message = f"already started ({self._state}); ~/reset first"
         elif self.aborted:
-            response.success, response.message = False, f"aborted ({self.abort_reason}); ~/reset first"
+            response.success = False
+            response.message = f"aborted ({self.abort_reason}); ~/reset first"
         else:
             self._start_requested = True
             if self._tool_away():
@@ -305,8 +280,9 @@ class PlannerNode(Node):
         self._start_failed = ""
         self._set_state("idle" if not self.settings.autostart else "waiting")
         response.success = True
-        response.message = "re-armed" + (f"; the tool holds at ({self._hold[0]:.4f}, {self._hold[1]:.4f}) m"
-                                          if self._hold is not None else "")
+        response.message = "re-armed" + (f"; the tool holds at ({self._hold[0]:.4f}, "
+                                         f"{self._hold[1]:.4f}) m"
+                                         if self._hold is not None else "")
         self.get_logger().info(f"reset: {response.message}")
         return response
 
@@ -359,7 +335,8 @@ class PlannerNode(Node):
                                       retract_limits=self._retract_limits())
         streamer.start(plan, now_ns / NS)
         self.streamer, self._t0_ns, self._k, self._last_cmd_ns = streamer, now_ns, 0, None
-        self.pub_trajectory.publish(m.trajectory_msg(plan, now_ns, self.settings.trajectory_period))
+        self.pub_trajectory.publish(m.trajectory_msg(
+            plan, now_ns, self.settings.trajectory_period))
         self.get_logger().info(f"starting the plan at t = {now_ns / NS:.3f} s "
                                f"({plan.duration:.1f} s, {len(plan.segments)} segments)")
         self._stream()

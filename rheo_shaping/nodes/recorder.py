@@ -27,16 +27,16 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from ..config import cell_from_flat
-from ..effects import nominal
-from ..params import CellParams
-from ..record import Record
-from ..records import write_record
-from ..schema import iter_fields
+from ..params.config import cell_from_flat
+from ..sheet.effects import nominal
+from ..params.params import CellParams
+from ..records.record import Record
+from ..records.records import write_record
+from ..params.schema import iter_fields
 from . import messages as m
 from . import topics as T
+from ..units import NS
 
-NS = 1_000_000_000
 #: How close [m] the last tool pose before the start must be to the first set-point for
 #: the cell to count as at rest there.
 REST_TOLERANCE = 1e-4
@@ -308,7 +308,7 @@ def replay(record_dir: Path, *, namespace: str = "", rate: float = 1.0, clock: b
     """
     from rosbags.rosbag2 import Reader
 
-    from ..records import read_record
+    from ..records.records import read_record
     read_record(record_dir)                       # a valid record, or RecordError
     args = ["replay", "--ros-args"] + (["-r", f"__ns:={namespace}"] if namespace else [])
     context = Context()

@@ -1,8 +1,8 @@
-"""ROS 2 parameters declared from the project's schema (rheo_shaping.schema).
+"""ROS 2 parameters declared from the project's schema (rheo_shaping.params.schema).
 
-Every leaf field of a parameter dataclass (:class:`~rheo_shaping.params.CellParams`
+Every leaf field of a parameter dataclass (:class:`~rheo_shaping.params.params.CellParams`
 with dotted names such as ``material.k1``; a node's settings from
-:mod:`rheo_shaping.node_params` with plain names) becomes a ROS parameter with
+:mod:`rheo_shaping.params.node_params` with plain names) becomes a ROS parameter with
 
 * a ``ParameterDescriptor`` whose description holds the field's description,
   unit and valid range, with a ``FloatingPointRange`` / ``IntegerRange`` where
@@ -38,9 +38,9 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..config import CELL_SECTIONS
-from ..node_params import ROS_BUILTIN_PARAMETERS
-from ..schema import FieldInfo, ParameterError, from_flat, iter_fields, validate_value
+from ..params.config import CELL_SECTIONS
+from ..params.node_params import ROS_BUILTIN_PARAMETERS
+from ..params.schema import FieldInfo, ParameterError, from_flat, iter_fields, validate_value
 
 
 #: The process's command line as rclpy.init got it (run_node sets it; else sys.argv).

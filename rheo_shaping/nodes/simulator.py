@@ -1,6 +1,6 @@
 """The ``simulator`` node: the sheet model of the cell under the streamed tool set-point.
 
-It runs the core (:class:`rheo_shaping.simulation.Simulation`) and publishes
+It runs the core (:class:`rheo_shaping.sheet.simulation.Simulation`) and publishes
 the cell's state (docs/interfaces.md): ``/sheet/profile``, ``/sheet/tensions``,
 ``/sheet/contact_tension``, ``/tool/pose``, ``/tool/wrench``, and
 ``/sheet/markers`` for RViz; its own status on ``/diagnostics``.
@@ -38,22 +38,20 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from ..geometry import Cake
-from ..measurement import MeasurementParams, profile_frame
-from ..metrics import safety_factor
-from ..node_params import SimulatorNodeParams
-from ..params import CellParams
-from ..scenarios import movement_scenario
-from ..sheet import ConvergenceError
-from ..simulation import Simulation
-from ..tools import tool_shape
-from ..watchdog import Freshness
+from ..sheet.geometry import Cake
+from ..records.measurement import MeasurementParams, profile_frame
+from ..params.node_params import SimulatorNodeParams
+from ..params.params import CellParams
+from ..planning.scenarios import movement_scenario
+from ..sheet.setpoints import SetpointRun
+from ..sheet.tools import tool_shape
+from ..safety.watchdog import Freshness
 from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
 from .spin import run_node
+from ..units import NS
 
-NS = 1_000_000_000
 
 class SimulatorNode(Node):
     """Steps the sheet under /tool/command and publishes the cell's state."""
@@ -75,12 +73,14 @@ class SimulatorNode(Node):
         self.pub_markers = pub(T.MARKERS)
         self.pub_diag = pub(T.DIAGNOSTICS)
         self.pub_camera = pub(T.MEASURED_PROFILE)
-        self.pub_clock = None                  # only while this node is the clock (_configure_time)
+        # only while this node is the clock (_configure_time)
+        self.pub_clock = None
         self.create_subscription(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name, self._on_command,
                                  T.TOOL_COMMAND.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
-        self._t_ns = 0                 # time of the latest computed state (node or simulated clock)
+        # time of the latest computed state (node or simulated clock)
+        self._t_ns = 0
         self._pending = False          # a step is due (lockstep may hold it back)
         self._waits = 0                # lockstep waits so far
         self._late_steps = 0           # steps taken without their set-point (stream lost/late)
@@ -95,11 +95,13 @@ class SimulatorNode(Node):
         self.achieved_factor = math.nan
         self._configure_time()
         self._new_run()
-        self._timer = self.create_timer(self.settings.step_period, self._on_timer, clock=self._steady)
+        self._timer = self.create_timer(self.settings.step_period,
+                                        self._on_timer, clock=self._steady)
         mode = (f"simulated time x{self.settings.real_time_factor:g}, publishing /clock"
                 if self._sim_clock else "wall-clock time")
         self.get_logger().info(
-            f"simulator up: {self.cell.sheet.n_masses} masses, movement {self.cell.movement.number}, "
+            f"simulator up: {self.cell.sheet.n_masses} masses, movement "
+            f"{self.cell.movement.number}, "
             f"{mode}, step {self._dt_ns / NS:g} s every {self.settings.step_period:g} s")
 
     def _publisher(self, topic: T.Topic, qos=None):
@@ -142,33 +144,54 @@ class SimulatorNode(Node):
             self.get_logger().info(f"cell parameters {sorted(names - settings)} changed: "
                                    "they take effect at ~/reset")
 
-    # -- the run ----------------------------------------------------------------------
+    # -- the run (the core's SetpointRun) ---------------------------------------------
     def _new_run(self) -> None:
         """Settled sheet at process time 0, tool at the movement's start."""
         cell = self.cell
-        start = movement_scenario(cell).start
-        self.sim = Simulation(cell, tool_start=start)
+        self.run = SetpointRun(cell, movement_scenario(cell).start)
         self._run_cell = cell
         self._tool_outline = tool_shape(cell.tool).outline(48)
         self._cake_outline = Cake(cell.cake.height, cell.cake.fillet_radius,
                                   cell.cake.radius).outline(48)
-        self._cmds: list[tuple[int, float, float]] = []
         self._commands_fresh = Freshness(self.settings.command_timeout)
-        self._offset_ns = None     # process time 0 on the node/simulated clock, once started
-        self._broken = ""
-        self.peak = (-math.inf, 0, 0.0)          # F_max [N], link, process time [s]
-        #: (process time [s], largest link tension [N]) of every step (for the cell runner)
-        self.history: list[tuple[float, float]] = []
-        self.summary: dict | None = None
         self._next_progress = self.settings.progress_period
 
     @property
+    def sim(self):
+        """The core's :class:`~rheo_shaping.sheet.simulation.Simulation` of this run."""
+        return self.run.sim
+
+    @property
     def started(self) -> bool:
-        return self._offset_ns is not None
+        return self.run.started
 
     @property
     def process_time(self) -> float:
-        return float(self.sim.state.t)
+        return self.run.process_time
+
+    @property
+    def process_offset_ns(self) -> int | None:
+        """Process time 0 on the node (or simulated) clock [ns]; None before the start."""
+        return self.run.offset_ns
+
+    @property
+    def peak(self):
+        """F_max so far (:class:`~rheo_shaping.sheet.metrics.PeakTension`)."""
+        return self.run.peak
+
+    @property
+    def history(self) -> list[tuple[float, float]]:
+        """(process time [s], largest link tension [N]) of every step (for the cell runner)."""
+        return self.run.history
+
+    @property
+    def summary(self):
+        """The :class:`~rheo_shaping.sheet.metrics.RunSummary` once the process has ended."""
+        return self.run.summary
+
+    @property
+    def lockstep_waits(self) -> int:
+        return self._waits
 
     def _on_reset(self, request, response):
         self._new_run()
@@ -189,21 +212,12 @@ class SimulatorNode(Node):
             self.get_logger().warning(f"ignored /tool/command in frame '{msg.header.frame_id}': "
                                       f"expected '{m.FRAME}'", throttle_duration_sec=5.0)
             return
-        if self._cmds and t <= self._cmds[-1][0]:
-            # A set-point for a time already commanded replaces what followed (newest wins).
-            self._cmds = [c for c in self._cmds if c[0] < t]
-        self._cmds.append((t, x, z))
+        started = self.run.command(t, x, z)
         self._commands_fresh.received(self._steady.now().nanoseconds)
-        if not self.started:
-            # Process time 0 is the first set-point's time, even when the planner's clock was
-            # a little behind this node's physics: the settled sheet waited at t = 0, and the
-            # next step catches up through the buffered set-points, as offline.
-            self._offset_ns = t
-            self.sim.tool_start = np.array([x, z])
-            self.sim.reset()                           # the process starts with the tool here
-            self._track(self.sim.state)                # t = 0 counts, as offline
-            self.get_logger().info(f"process starts at {self._offset_ns / NS:.3f} s (set-point stamp "
-                                   f"{t / NS:.3f} s): first set-point ({x * 1e3:.2f}, {z * 1e3:.2f}) mm")
+        if started:
+            self.get_logger().info(
+                f"process starts at {t / NS:.3f} s (set-point stamp {t / NS:.3f} s): first "
+                f"set-point ({x * 1e3:.2f}, {z * 1e3:.2f}) mm")
         if self._pending:
             self._try_step()
 
@@ -211,28 +225,6 @@ class SimulatorNode(Node):
         """Whether set-points still stream: one arrived within command_timeout (wall), judged
         fairly after a stall of this node's own process (:class:`Freshness`)."""
         return not self._commands_fresh.stale(self._steady.now().nanoseconds)
-
-    def _tool_at_sim(self, t_ns: float) -> np.ndarray:
-        """Set-point at simulated/node time ``t_ns``: linear between stamps, then hold."""
-        cmds = self._cmds
-        if not cmds:
-            return self.sim.state.tool.copy()
-        if t_ns >= cmds[-1][0]:
-            return np.array(cmds[-1][1:])
-        if t_ns <= cmds[0][0]:
-            return np.array(cmds[0][1:])
-        ts = np.fromiter((c[0] for c in cmds), dtype=np.int64, count=len(cmds))
-        k = int(np.searchsorted(ts, t_ns, side="right"))
-        (t0, x0, z0), (t1, x1, z1) = cmds[k - 1], cmds[k]
-        s = (t_ns - t0) / (t1 - t0)
-        return np.array([x0 + s * (x1 - x0), z0 + s * (z1 - z0)])
-
-    def _prune(self) -> None:
-        keep_from = self._t_ns
-        ts = [c[0] for c in self._cmds]
-        k = max(int(np.searchsorted(ts, keep_from, side="right")) - 1, 0)
-        if k > 0:
-            del self._cmds[:k]
 
     # -- stepping ---------------------------------------------------------------------
     def _on_timer(self) -> None:
@@ -245,14 +237,14 @@ class SimulatorNode(Node):
         s = self.settings
         if self._sim_clock:
             target = self._t_ns + self._dt_ns
-            if self.started and self._cmds and self._cmds[-1][0] < target:
+            if self.run.lacks_setpoint(target):
                 if s.lockstep and self._stream_live():
                     self._waits += 1
                     return                              # wait for the step's set-point
                 self._late_steps += 1                   # the tool holds its last set-point
                 self.get_logger().warning(
                     f"step to {target / NS:.3f} s without its set-point (newest "
-                    f"{self._cmds[-1][0] / NS:.3f} s): the tool holds; late steps so far "
+                    f"{self.run.cmds[-1][0] / NS:.3f} s): the tool holds; late steps so far "
                     f"{self._late_steps}", throttle_duration_sec=5.0)
             self.pub_clock.publish(m.clock_msg(target + self._dt_ns))   # one step ahead
         else:
@@ -263,53 +255,32 @@ class SimulatorNode(Node):
         self._step_to(target)
 
     def _step_to(self, target: int) -> None:
-        cell = self._run_cell
-        if self._offset_ns is None and not self.settings.start_on_command:
-            self._offset_ns = target                    # the process starts with this step
-            self._track(self.sim.state)
-        if self.started and not self._broken:
-            offset = self._offset_ns
-            tool_at = lambda p: self._tool_at_sim(offset + p * NS)   # noqa: E731
-            p_end = (target - offset) / NS
-            pt = cell.movement.process_time
-            try:
-                if self.summary is None and self.sim.state.t < pt <= p_end + 1e-9:
-                    self.sim.advance_to(pt, tool_at(pt), on_step=self._track, tool_at=tool_at)
-                    self._finish(pt)
-                    if pt < p_end - 1e-9:          # the state at the process end is published
-                        self._publish_state(offset + int(round(pt * NS)))
-                    else:
-                        self._force_publish = True
-                if p_end > self.sim.state.t:
-                    self.sim.advance_to(p_end, tool_at(p_end), on_step=self._track, tool_at=tool_at)
-            except (ConvergenceError, FloatingPointError, ValueError) as exc:
-                self._broken = f"{type(exc).__name__}: {exc}"
+        run = self.run
+        if not run.started and not self.settings.start_on_command:
+            run.start_at(target)                        # the process starts with this step
+        if run.started and not run.broken:
+            finished = run.advance(target)
+            if finished is not None:
+                self._finish(finished)
+                if finished < run.process_time_at(target) - 1e-9:
+                    # the state at the process end is published, then the run goes on
+                    self._publish_state(run.offset_ns + int(round(finished * NS)))
+                    run.advance(target)
+                else:
+                    self._force_publish = True
+            if run.broken:
                 self.get_logger().error(f"the sheet solver failed at process time "
-                                        f"{self.sim.state.t:.2f} s: {self._broken}; tensions are "
+                                        f"{self.sim.state.t:.2f} s: {run.broken}; tensions are "
                                         f"published as NaN until ~/reset")
         self._t_ns = target
-        self._prune()
+        self.run.prune(self._t_ns)
         self._publish(target)
 
-    def _track(self, state) -> None:
-        i = int(np.argmax(state.tension))
-        value = float(state.tension[i])
-        if len(self.history) < 1_000_000:
-            self.history.append((float(state.t), value))
-        if state.t <= self._run_cell.movement.process_time + 1e-9:
-            if value > self.peak[0]:
-                self.peak = (value, i + 1, float(state.t))
-
     def _finish(self, pt: float) -> None:
-        cell = self._run_cell
-        F, link, when = self.peak
-        self.summary = {"F_max": F, "F_max_link": link, "F_max_time": when,
-                        "SF": safety_factor(cell.material.F_break, F), "delta": self.sim.delta(),
-                        "process_time": pt, "steps": self.sim.steps, "lockstep_waits": self._waits,
-                        "late_steps": self._late_steps}
+        s = self.summary
         self.get_logger().info(
-            f"process time {pt:g} s reached: F_max = {F:.4f} N (link {link}, t = {when:.1f} s), "
-            f"SF = {self.summary['SF']:.3f}, Delta = {self.summary['delta'] * 1e3:.3f} mm "
+            f"process time {pt:g} s reached: F_max = {s.F_max:.4f} N (link {s.F_max_link}, "
+            f"t = {s.F_max_time:.1f} s), SF = {s.SF:.3f}, Delta = {s.delta * 1e3:.3f} mm "
             f"({self._late_steps} steps without their set-point)")
 
     # -- publishing -------------------------------------------------------------------
@@ -329,7 +300,7 @@ class SimulatorNode(Node):
                                   or now - self._last_marker >= s.marker_period * NS):
             self._last_marker = now
             self.pub_markers.publish(m.markers_msg(
-                t_ns, self.sim.nodes(), self._tensions(), self._run_cell.material.F_break,
+                t_ns, self.sim.nodes(), self.run.tensions(), self._run_cell.material.F_break,
                 self._run_cell.sheet.thickness, self._tool_outline + self.sim.state.tool,
                 self._cake_outline))
         if self._last_diag is None or now - self._last_diag >= s.diagnostics_period * NS:
@@ -338,24 +309,20 @@ class SimulatorNode(Node):
             self.pub_diag.publish(self._diagnostics(t_ns))
         self._progress()
 
-    def _tensions(self) -> np.ndarray:
-        st = self.sim.state
-        return np.full_like(st.tension, np.nan) if self._broken else st.tension
-
     def _publish_state(self, t_ns: int) -> None:
         self._last_pub_ns = t_ns
         st = self.sim.state
-        contact = math.nan if self._broken else self.sim.contact_tension()
+        contact = math.nan if self.run.broken else self.sim.contact_tension()
         self.pub_profile.publish(m.profile_msg(st.x, t_ns))
-        self.pub_tensions.publish(m.tensions_msg(self._tensions()))
+        self.pub_tensions.publish(m.tensions_msg(self.run.tensions()))
         self.pub_contact.publish(m.float_msg(contact))
         self.pub_pose.publish(m.pose_msg(st.tool, t_ns))
         self.pub_wrench.publish(m.wrench_msg(self.sim.tool_force(), t_ns))
 
     def _publish_camera(self, t_ns: int) -> None:
-        """A frame of the simulated camera (rheo_shaping.measurement.profile_frame)."""
+        """A frame of the simulated camera (rheo_shaping.records.measurement.profile_frame)."""
         s = self.settings
-        if self._broken or self._camera_rng.random() < s.camera_frame_dropout:
+        if self.run.broken or self._camera_rng.random() < s.camera_frame_dropout:
             return
         ms = MeasurementParams(profile_spacing=s.camera_spacing, profile_noise=s.camera_noise,
                                point_dropout=s.camera_point_dropout)
@@ -384,28 +351,29 @@ class SimulatorNode(Node):
         self.get_logger().info(
             f"t = {st.t:6.1f} s: tool ({st.tool[0] * 1e3:.2f}, {st.tool[1] * 1e3:.2f}) mm, "
             f"largest tension {float(np.max(st.tension)):.4f} N, contact "
-            f"{self.sim.contact_tension():.4f} N, F_max so far {self.peak[0]:.4f} N, "
+            f"{self.sim.contact_tension():.4f} N, F_max so far {self.peak.value:.4f} N, "
             f"x{self.achieved_factor:.1f} real time")
 
     def _diagnostics(self, t_ns: int):
         st = self.sim.state
-        if self._broken:
-            level, message = "ERROR", f"sheet solver failed: {self._broken}"
+        if self.run.broken:
+            level, message = "ERROR", f"sheet solver failed: {self.run.broken}"
         elif not self.started:
             level, message = "OK", "waiting for the first /tool/command"
         elif self.summary is None:
             level, message = "OK", f"process time {st.t:.1f} s"
         else:
-            level, message = "OK", f"process done at {self.summary['process_time']:g} s"
-        values = {"process_time": float(st.t), "tool_x": float(st.tool[0]), "tool_z": float(st.tool[1]),
-                  "tension_max": float(np.max(self._tensions())),
-                  "F_max": float(self.peak[0]) if self.started else 0.0,
+            level, message = "OK", f"process done at {self._run_cell.movement.process_time:g} s"
+        values = {"process_time": float(st.t), "tool_x": float(st.tool[0]),
+                  "tool_z": float(st.tool[1]),
+                  "tension_max": float(np.max(self.run.tensions())),
+                  "F_max": float(self.peak.value) if self.started else 0.0,
                   "real_time_factor": self.settings.real_time_factor,
                   "achieved_factor": float(self.achieved_factor), "lockstep_waits": self._waits,
                   "late_steps": self._late_steps}
         if self.summary is not None:
-            values.update({"final_F_max": self.summary["F_max"], "final_SF": self.summary["SF"],
-                           "final_delta": self.summary["delta"]})
+            values.update({"final_F_max": self.summary.F_max, "final_SF": self.summary.SF,
+                           "final_delta": self.summary.delta})
         return m.diagnostics_msg(t_ns, "rheo_shaping/simulator", level, message, values)
 
 

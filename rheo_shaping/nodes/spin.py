@@ -3,7 +3,7 @@
 In the style of ros2/demos: ``rclpy.init``, spin until SIGINT or an external
 shutdown, destroy the node, exit 0.  An invalid parameter at start is logged
 with the schema's message and exits with code 2; so is a params file that the
-core refuses (:func:`rheo_shaping.config.check_params_file`, checked before
+core refuses (:func:`rheo_shaping.params.config.check_params_file`, checked before
 ``rclpy.init``: the same rule and message as ``rheo-shaping simulate``) or that
 rcl refuses: no traceback for a user's file.
 """
@@ -17,8 +17,8 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from ..config import ConfigError, check_params_file
-from ..schema import ParameterError
+from ..params.config import ConfigError, check_params_file
+from ..params.schema import ParameterError
 from .ros_params import set_command_line
 
 
@@ -66,7 +66,7 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
     set_command_line(args)            # -p NAME:=VALUE beats the params file (ros_params)
     # the compiled sheet step, loaded (or compiled on a user's first run) while a signal
     # still ends the process at once (nodes/entry.py): nothing of ROS exists yet
-    from ..sheet import warm_up
+    from ..planning.movement import warm_up
     warm_up()
     try:
         # from here on rclpy's handlers (installed by init, chaining to these) stop the node

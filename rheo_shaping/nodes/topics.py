@@ -51,6 +51,8 @@ def writer_qos(qos: QoSProfile) -> QoSProfile:
     out = copy.copy(qos)
     out.depth = max(qos.depth, WRITER_DEPTH)
     return out
+
+
 #: /tool/command: reliable with room for a whole batch of set-points.
 COMMAND_QOS = _qos(1000)
 #: The plan, the abort and the planner's state: late joiners get the last one.

@@ -42,7 +42,8 @@ def _colcon_cmd() -> list[str]:
     script = Path(sys.executable).with_name("colcon")
     if script.exists():
         return [sys.executable, str(script)]
-    return [sys.executable, "-c", "import sys; from colcon_core.command import main; sys.exit(main())"]
+    return [sys.executable, "-c", "import sys; from colcon_core.command import main; "
+                                  "sys.exit(main())"]
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +133,8 @@ def test_cli_help_from_lib(install, prefix):
 def test_sourced_workspace_imports_the_installed_package(install, prefix):
     """After sourcing, Python imports rheo_shaping from the install, not the source tree."""
     code = "import rheo_shaping; print(rheo_shaping.__file__)"
-    proc = subprocess.run(_sourced(install, f"{shlex.quote(sys.executable)} -c {shlex.quote(code)}"),
+    proc = subprocess.run(_sourced(install, f"{shlex.quote(sys.executable)} -c "
+                                            f"{shlex.quote(code)}"),
                           env=_clean_env(), stdout=subprocess.PIPE, text=True, timeout=60,
                           cwd=install)
     assert proc.returncode == 0
@@ -144,7 +146,7 @@ def node_domain(claim_ros_domain) -> int:
     """A ROS_DOMAIN_ID of its own for the start/stop tests.
 
     Earlier ROS tests of the session SIGKILL node processes named ``planner`` and
-    ``simulator`` (test/ros/test_faults.py). DDS keeps such a participant in the
+    ``simulator`` (test/nodes/test_faults.py). DDS keeps such a participant in the
     graph until its lease runs out (20 s with Fast DDS), and a ghost ``planner``
     would let the test signal the new process before it has even started rclpy.
     A fresh domain holds only the nodes started here.
@@ -181,12 +183,14 @@ def _wait_for_node(observer, name: str, proc: subprocess.Popen, timeout: float) 
 
 
 @pytest.mark.parametrize("node_name", NODES)
-def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain, node_name, tmp_path):
+def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain, node_name,
+                                         tmp_path):
     exe = prefix / "lib" / PACKAGE / node_name
     log = tmp_path / f"{node_name}.log"
     with open(log, "w") as out:
         proc = subprocess.Popen(
-            _sourced(install, shlex.quote(str(exe))), env=_clean_env(ROS_DOMAIN_ID=str(node_domain)),
+            _sourced(install,
+                     shlex.quote(str(exe))), env=_clean_env(ROS_DOMAIN_ID=str(node_domain)),
             stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
             start_new_session=True,  # a Ctrl-C on the test run does not hit it
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
@@ -201,7 +205,8 @@ def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain,
             except subprocess.TimeoutExpired:
                 pytest.fail(f"{node_name} did not exit within {STOP_TIMEOUT_S} s of SIGINT; "
                             f"its output:\n{log.read_text()}")
-            assert rc == 0, f"{node_name} exited with {rc} on SIGINT; its output:\n{log.read_text()}"
+            assert rc == 0, (f"{node_name} exited with {rc} on SIGINT; its output:\n"
+                             f"{log.read_text()}")
         finally:
             if proc.poll() is None:
                 os.killpg(proc.pid, signal.SIGKILL)
@@ -212,17 +217,20 @@ def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain,
 # -- colcon test ------------------------------------------------------------------------
 #: A small, fast subset of the ROS-free tests for colcon test (a bare `colcon test`
 #: runs setup.cfg's testpaths, all of test/core).
-COLCON_TEST_SUBSET = ("test/core/test_params_file_rule.py", "test/package/test_package_manifest.py",
+COLCON_TEST_SUBSET = ("test/params/test_params_file_rule.py",
+                      "test/package/test_package_manifest.py",
                       "test/package/test_launch_files.py")
 
 
-def _colcon_test(workspace: Path, results: str, pytest_args: list[str]) -> subprocess.CompletedProcess:
+def _colcon_test(workspace: Path, results: str,
+                 pytest_args: list[str]) -> subprocess.CompletedProcess:
     cmd = [*_colcon_cmd(), "--log-base", str(workspace / "log"), "test",
            "--base-paths", str(REPO), "--build-base", str(workspace / "build"),
            "--install-base", str(workspace / "install"),
            "--test-result-base", str(workspace / results), "--return-code-on-test-failure",
            "--event-handlers", "console_direct-", "--pytest-args", *pytest_args]
-    return subprocess.run(cmd, cwd=workspace, env=_clean_env(COLCON_HOME=str(workspace / "colcon_home")),
+    return subprocess.run(cmd, cwd=workspace,
+                          env=_clean_env(COLCON_HOME=str(workspace / "colcon_home")),
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                           timeout=BUILD_TIMEOUT_S)
 
@@ -240,7 +248,8 @@ def test_colcon_test_runs_the_package_pytest_tests(workspace):
     proc = _colcon_test(workspace, "results", list(COLCON_TEST_SUBSET))
     assert proc.returncode == 0, proc.stdout
     rc, text = _test_result(workspace, "results")
-    summary = re.search(r"Summary: (\d+) tests?, (\d+) errors?, (\d+) failures?, (\d+) skipped", text)
+    summary = re.search(
+        r"Summary: (\d+) tests?, (\d+) errors?, (\d+) failures?, (\d+) skipped", text)
     assert summary, text
     tests, errors, failures, _skipped = map(int, summary.groups())
     print(f"colcon test: {tests} tests, {errors} errors, {failures} failures")

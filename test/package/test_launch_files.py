@@ -47,7 +47,8 @@ def test_launch_file_compiles(tmp_path):
 def test_launch_file_starts_only_installed_executables():
     scripts = {spec.split("=", 1)[0].strip() for spec in
                ast.literal_eval(_setup_kwargs()["entry_points"])["console_scripts"]}
-    declared = {e.text.strip() for e in ET.parse(REPO / "package.xml").getroot().iter("exec_depend")}
+    declared = {e.text.strip() for e in ET.parse(
+        REPO / "package.xml").getroot().iter("exec_depend")}
     tree = _tree()
     package = next(n.value.value for n in ast.walk(tree) if isinstance(n, ast.Assign)
                    and getattr(n.targets[0], "id", "") == "PACKAGE")

@@ -1,0 +1,12 @@
+"""Tool motions: jerk-limited plans (ruckig), the paper's four movements,
+stopping from any state, clearance of a plan; and the one way to run a
+movement of a cell.  Imports :mod:`rheo_shaping.params` and
+:mod:`rheo_shaping.sheet`.
+"""
+from .._lazy import lazy_api
+
+__all__, __getattr__, __dir__ = lazy_api(__name__, {
+    'planning': ['MotionLimits', 'Plan', 'Waypoint', 'plan_waypoints'],
+    'scenarios': ['movement_scenario', 'scenario_plan'],
+    'stopping': ['TrajectoryStreamer', 'stopping_time'],
+})

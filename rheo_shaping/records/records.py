@@ -1,0 +1,188 @@
+"""Recorded runs on disk: rosbag2 (MCAP) directories with ``scenario.yaml`` (docs/interfaces.md).
+
+Read and written with the ``rosbags`` library (pure Python, no ROS install):
+
+=========================  ===============================  ========
+topic                      type                             required
+=========================  ===============================  ========
+``/tool/pose``             geometry_msgs/msg/PoseStamped    yes
+``/sheet/measured_profile``  geometry_msgs/msg/PoseArray    yes
+``/tool/wrench``           geometry_msgs/msg/WrenchStamped  no
+=========================  ===============================  ========
+
+A message's time is its header stamp; t = 0 is the earliest ``/tool/pose``
+stamp.  ``scenario.yaml`` is the nominal cell in the project's params schema.
+Synthetic stand-ins also hold ``truth.yaml`` (the cell with the effects that
+made them): for benchmarks only, the diagnosis never reads it.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..params.config import ConfigError, dump_cell, load_cell
+from ..params.params import CellParams
+from .record import Record
+from ..units import NS
+
+POSE, PROFILE, WRENCH = "/tool/pose", "/sheet/measured_profile", "/tool/wrench"
+TYPES = {POSE: "geometry_msgs/msg/PoseStamped", PROFILE: "geometry_msgs/msg/PoseArray",
+         WRENCH: "geometry_msgs/msg/WrenchStamped"}
+
+
+class RecordError(ValueError):
+    """A record that cannot be used; the message names the directory and what is wrong."""
+
+
+def _typestore():
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _header(ts, stamp_s: float):
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    ns = int(round(stamp_s * NS))
+    return Header(stamp=Time(sec=ns // NS, nanosec=ns % NS), frame_id="cake")
+
+
+def _pose(ts, x: float, z: float):
+    P, Pt, Q = (ts.types[f"geometry_msgs/msg/{n}"] for n in ("Pose", "Point", "Quaternion"))
+    return P(position=Pt(x=float(x), y=0.0, z=float(z)), orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0))
+
+
+def write_record(record: Record, out_dir: str | Path, truth: CellParams | None = None,
+                 start_stamp: float | None = None, force: bool = False) -> Path:
+    """Write ``record`` as a rosbag2 MCAP directory ``out_dir`` with scenario.yaml (and
+    truth.yaml).
+
+    ``start_stamp`` [s] is the stamp of t = 0; None or 0: the wall-clock time now (whole
+    seconds), as a real cell's record has (a zero stamp is a fault to the monitor).
+    """
+    import shutil
+    import time
+
+    if not start_stamp:
+        start_stamp = float(int(time.time()))
+
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    out = Path(out_dir)
+    if out.exists():
+        if not force:
+            raise RecordError(f"{out} exists: not overwritten (use --force to replace it)")
+        if not (out / "metadata.yaml").exists() or not (out / "scenario.yaml").exists():
+            raise RecordError(f"{out} exists and is not a record directory: not replaced")
+        shutil.rmtree(out)
+    if not out.parent.exists():
+        raise RecordError(f"{out}: folder {out.parent} does not exist")
+    ts = _typestore()
+    PoseStamped, PoseArray = ts.types[TYPES[POSE]], ts.types[TYPES[PROFILE]]
+    WrenchStamped, Wrench, Vector3 = (ts.types[f"geometry_msgs/msg/{n}"]
+                                      for n in ("WrenchStamped", "Wrench", "Vector3"))
+    messages = []   # (stamp_ns, connection key, message)
+    for t, (x, z) in zip(record.pose_t, record.pose_xz):
+        messages.append((t, POSE, PoseStamped(header=_header(
+            ts, start_stamp + t), pose=_pose(ts, x, z))))
+    for t, pts in zip(record.profile_t, record.profiles):
+        messages.append((t, PROFILE, PoseArray(header=_header(ts, start_stamp + t),
+                                               poses=[_pose(ts, x, z) for x, z in pts])))
+    if record.has_wrench:
+        for t, (fx, fz) in zip(record.wrench_t, record.wrench_xz):
+            w = Wrench(force=Vector3(x=float(fx), y=0.0, z=float(fz)),
+                       torque=Vector3(x=0.0, y=0.0, z=0.0))
+            messages.append((t, WRENCH, WrenchStamped(
+                header=_header(ts, start_stamp + t), wrench=w)))
+    messages.sort(key=lambda m: m[0])
+    with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conns = {topic: writer.add_connection(topic, TYPES[topic], typestore=ts)
+                 for topic in TYPES if topic != WRENCH or record.has_wrench}
+        for t, topic, msg in messages:
+            stamp = int(round((start_stamp + t) * NS))
+            writer.write(conns[topic], stamp, ts.serialize_cdr(msg, TYPES[topic]))
+    (out / "scenario.yaml").write_text(
+        "# The nominal cell of this run (rheo_shaping params "
+        "schema).\n" + dump_cell(record.scenario))
+    if truth is not None:
+        (out / "truth.yaml").write_text(
+            "# For benchmarks only: the cell with the effects that made this synthetic run.\n"
+            "# The diagnosis never reads this file.\n" + dump_cell(truth))
+    return out
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec / NS
+
+
+def read_record(path: str | Path) -> Record:
+    """Read a record directory; :class:`RecordError` names the directory and the fault."""
+    from rosbags.rosbag2 import Reader
+
+    p = Path(path)
+    if not p.is_dir():
+        raise RecordError(f"record {p}: not a directory")
+    if not (p / "metadata.yaml").exists():
+        raise RecordError(f"record {p}: no metadata.yaml (not a rosbag2 directory)")
+    if not (p / "scenario.yaml").exists():
+        raise RecordError(f"record {p}: no scenario.yaml (the nominal cell of the run)")
+    try:
+        scenario = load_cell(p / "scenario.yaml")
+    except ConfigError as exc:
+        raise RecordError(f"record {p}: {exc}") from None
+    ts = _typestore()
+    data: dict[str, list] = {POSE: [], PROFILE: [], WRENCH: []}
+    try:
+        with Reader(p) as reader:
+            conns = [c for c in reader.connections if c.topic in TYPES]
+            for c in conns:
+                if c.msgtype != TYPES[c.topic]:
+                    raise RecordError(f"record {p}: topic {c.topic} has type {c.msgtype}, "
+                                      f"expected {TYPES[c.topic]}")
+            for conn, _, raw in reader.messages(connections=conns):
+                msg = ts.deserialize_cdr(raw, conn.msgtype)
+                if conn.topic == POSE:
+                    data[POSE].append((_stamp(msg), msg.pose.position.x, msg.pose.position.z))
+                elif conn.topic == PROFILE:
+                    pts = np.array([[q.position.x, q.position.z]
+                                   for q in msg.poses], float).reshape(-1, 2)
+                    data[PROFILE].append((_stamp(msg), pts))
+                else:
+                    f = msg.wrench.force
+                    data[WRENCH].append((_stamp(msg), f.x, f.z))
+    except RecordError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds for a broken bag
+        raise RecordError(
+            f"record {p}: cannot be read as a rosbag2 bag ({type(exc).__name__}: {exc})") from None
+    for topic in (POSE, PROFILE):
+        if len(data[topic]) < 2:
+            raise RecordError(f"record {p}: topic {topic} ({TYPES[topic]}) is required and has "
+                              f"{len(data[topic])} message(s); expected at least 2")
+    return _assemble(scenario, data, p.name, p)
+
+
+def _assemble(scenario: CellParams, data: dict, name: str, where) -> Record:
+    pose = np.array(sorted(data[POSE]), float)
+    t0 = pose[0, 0]
+    frames = sorted(data[PROFILE], key=lambda f: f[0])
+    for values, what in ((pose[:, 1:], "/tool/pose"),
+                         (np.vstack([f[1] for f in frames] or [np.zeros((0, 2))]), PROFILE)):
+        if not np.all(np.isfinite(values)):
+            raise RecordError(f"record {where}: {what} holds non-finite positions")
+    wrench_t = wrench = None
+    if data[WRENCH]:
+        w = np.array(sorted(data[WRENCH]), float)
+        if not np.all(np.isfinite(w)):
+            raise RecordError(f"record {where}: /tool/wrench holds non-finite forces")
+        wrench_t, wrench = w[:, 0] - t0, w[:, 1:]
+    return Record(scenario=scenario, pose_t=pose[:, 0] - t0, pose_xz=pose[:, 1:],
+                  profile_t=np.array([f[0] for f in frames]) - t0,
+                  profiles=tuple(f[1] for f in frames), wrench_t=wrench_t, wrench_xz=wrench,
+                  name=name, path=Path(where) if not isinstance(where, Path) else where)
+
+
+def read_truth(path: str | Path) -> CellParams | None:
+    """The true cell of a synthetic record (``truth.yaml``), or None. Benchmarks only."""
+    p = Path(path) / "truth.yaml"
+    return load_cell(p) if p.exists() else None

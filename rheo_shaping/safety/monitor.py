@@ -1,0 +1,250 @@
+"""The monitor's decisions without ROS: when the shaping must stop (docs/safety.md).
+
+:class:`TensionMonitor` is the safety state machine of the ``monitor`` node
+(:mod:`rheo_shaping.nodes.monitor` only feeds it messages and clock readings and
+publishes what it decides):
+
+* states ``waiting`` -> ``ready`` -> ``aborted``; ``aborted`` latches until
+  :meth:`TensionMonitor.reset` (safety principle 3);
+* abort when a tension reaches the threshold ``ratio x F_break``, or (``trend_abort``)
+  when the linear trend of the largest tension predicts it within ``horizon``;
+* a non-finite tension, a zero or future header stamp, stale data (no sample for
+  ``max_data_age`` on the steady clock, a missed deadline, stamps older than
+  ``max_stamp_age``), no data within ``startup_timeout``: abort (principles 1, 2).
+
+Times are integer nanoseconds: ``steady`` on a steady clock, ``clock`` on the node's
+clock (simulated time when ``sim_time``; 0 while there is no clock yet).
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..params.node_params import MonitorNodeParams
+from ..units import NS
+
+
+class TensionMonitor:
+    """The monitor's safety state machine; ``on_abort(reason)`` is called once per abort."""
+
+    def __init__(self, settings: MonitorNodeParams, F_break: float, ratio: float,
+                 horizon: float, steady: int, tension_topics: Sequence[str],
+                 stamped_topics: Sequence[str],
+                 on_abort: Callable[[str], None] = lambda reason: None):
+        self.tension_topics = tuple(tension_topics)   # (link tensions, contact tension)
+        self.stamped_topics = tuple(stamped_topics)
+        self.on_abort = on_abort
+        self.configure(settings, F_break, ratio, horizon)
+        self.reset(steady)
+
+    def configure(self, settings: MonitorNodeParams, F_break: float, ratio: float,
+                  horizon: float) -> None:
+        """New settings, F_break [N], abort ratio and trend horizon [s]."""
+        self.settings, self.F_break, self.ratio, self.horizon = settings, F_break, ratio, horizon
+
+    @property
+    def threshold(self) -> float:
+        """F_abort [N]."""
+        return self.ratio * self.F_break
+
+    @property
+    def ready(self) -> bool:
+        return self.state == "ready"
+
+    def reset(self, steady: int) -> None:
+        """Re-arm: back to ``waiting``, everything seen so far forgotten."""
+        self.state = "waiting"                 # waiting -> ready -> aborted
+        self.abort_reason = ""
+        self._start = steady
+        self._rx: dict[str, int | None] = {t: None for t in self.tension_topics
+                                           + self.stamped_topics}
+        self.stamp_age: dict[str, float] = {}
+        self._stamp_fault = ""
+        self._future: dict[str, tuple[int, int]] = {}   # topic -> (stamp, steady arrival) [ns]
+        self.tension = math.nan                # latest largest link tension [N]
+        self.link = 0
+        self.contact = math.nan                # latest contact tension [N]
+        self.F_seen = 0.0                      # largest tension since (re)start [N]
+        self.trend_rate = math.nan             # N/s
+        self._trend: deque[tuple[float, float]] = deque()
+
+    def abort(self, reason: str) -> bool:
+        """Abort (once: the first reason latches); True if this call aborted."""
+        if self.state == "aborted":
+            return False
+        self.state, self.abort_reason = "aborted", reason
+        self.on_abort(reason)
+        return True
+
+    def age(self, topic: str, steady: int) -> float:
+        """Wall time [s] since the newest sample on ``topic`` (inf: none yet)."""
+        rx = self._rx[topic]
+        return math.inf if rx is None else (steady - rx) / NS
+
+    # -- data -------------------------------------------------------------------------
+    def on_tensions(self, values: Sequence[float], steady: int, clock: int) -> None:
+        """The link tensions [N] of one sample."""
+        topic = self.tension_topics[0]
+        self._rx[topic] = steady
+        values = np.asarray(values, dtype=float)
+        if values.size == 0:
+            self.abort(f"empty {topic} message")
+            return
+        bad = ~np.isfinite(values)
+        if bad.any():
+            i = int(np.argmax(bad))
+            self.abort(f"non-finite tension ({values[i]}) in link {i + 1} on {topic}")
+            return
+        i = int(np.argmax(values))
+        self.tension, self.link = float(values[i]), i + 1
+        self.F_seen = max(self.F_seen, self.tension)
+        self._check(self.tension, f"link {self.link}")
+        self._check_trend(self.tension, clock)
+
+    def on_contact(self, value: float, steady: int) -> None:
+        """The tension [N] at the tool contact."""
+        topic = self.tension_topics[1]
+        self._rx[topic] = steady
+        value = float(value)
+        if not math.isfinite(value):
+            self.abort(f"non-finite contact tension ({value}) on {topic}")
+            return
+        self.contact = value
+        self._check(value, "contact tension")
+
+    def _check(self, value: float, where: str) -> None:
+        if self.state != "aborted" and value >= self.threshold:
+            self.abort(f"tension {value:.4f} N ({where}) reached the abort threshold "
+                       f"{self.threshold:.4f} N = {self.ratio:.3f} x F_break "
+                       f"{self.F_break:g} N")
+
+    def _check_trend(self, value: float, clock: int) -> None:
+        s = self.settings
+        now = clock / NS
+        if now <= 0.0:
+            return
+        tr = self._trend
+        if tr and now < tr[-1][0]:
+            tr.clear()                                  # the clock went back: start again
+        tr.append((now, value))
+        while tr and tr[0][0] < now - s.trend_window:
+            tr.popleft()
+        if len(tr) < s.trend_min_samples:
+            self.trend_rate = math.nan
+            return
+        t = np.array([p[0] for p in tr])
+        f = np.array([p[1] for p in tr])
+        span = t[-1] - t[0]
+        if span < 0.5 * s.trend_window:
+            self.trend_rate = math.nan
+            return
+        tc = t - t.mean()
+        self.trend_rate = float(np.dot(tc, f - f.mean()) / np.dot(tc, tc))
+        if (s.trend_abort and self.state != "aborted" and self.trend_rate > 0.0
+                and value + self.trend_rate * self.horizon >= self.threshold):
+            self.abort(f"tension trend {self.trend_rate:.4f} N/s from {value:.4f} N predicts "
+                       f"the abort threshold {self.threshold:.4f} N within {self.horizon:.3f} s "
+                       f"(detect_time + stop_time)")
+
+    def on_stamped(self, topic: str, stamp: int, steady: int, clock: int,
+                   sim_time: bool) -> None:
+        """A message on a stamped topic with header stamp ``stamp`` [ns]."""
+        self._rx[topic] = steady
+        if stamp == 0:
+            self.abort(f"zero header stamp on {topic}")
+            return
+        if clock <= 0:
+            return                                        # no clock yet (use_sim_time, no /clock)
+        age = (clock - stamp) / NS
+        self.stamp_age[topic] = age
+        if -age > self.settings.stamp_tolerance:
+            if sim_time:
+                # On simulated time the node's clock is the newest /clock message it has
+                # *processed*; a busy process can handle a data message before the /clock
+                # messages that arrived with it. The stamp is judged again on the watchdog
+                # (steady clock): still ahead after max_data_age -> abort.
+                self._future.setdefault(topic, (stamp, steady))
+            else:
+                self.abort(self._future_reason(topic, -age))
+        elif age > self.settings.max_stamp_age:
+            self._stamp_fault = (f"header stamp on {topic} is {age:.3f} s old "
+                                 f"(max_stamp_age {self.settings.max_stamp_age:g} s)")
+            if self.state == "ready":
+                self.abort(f"stale data: {self._stamp_fault}")
+        else:
+            self._stamp_fault = ""
+
+    def _future_reason(self, topic: str, ahead: float) -> str:
+        return (f"header stamp on {topic} lies {ahead:.3f} s in the future of the node "
+                f"clock (stamp_tolerance {self.settings.stamp_tolerance:g} s)")
+
+    def _check_future(self, steady: int, clock: int) -> None:
+        """Future stamps held back on simulated time: clear once the clock has caught up,
+        abort if one is still ahead after ``max_data_age`` of wall time."""
+        for topic, (stamp, arrived) in list(self._future.items()):
+            ahead = (stamp - clock) / NS
+            if ahead <= self.settings.stamp_tolerance:
+                del self._future[topic]
+            elif (steady - arrived) / NS > self.settings.max_data_age:
+                del self._future[topic]
+                self.abort(self._future_reason(topic, ahead)
+                           + f", {(steady - arrived) / NS:.3f} s after it arrived")
+
+    def on_deadline(self, topic: str) -> None:
+        """The QoS deadline of ``topic`` was missed."""
+        if self.state == "ready":
+            self.abort(f"stale data: QoS deadline of {self.settings.max_data_age:g} s "
+                       f"missed on {topic}")
+
+    # -- watchdog (steady clock) ------------------------------------------------------
+    def tick(self, steady: int, clock: int, stalled: bool = False) -> bool:
+        """The watchdog: judge staleness and readiness; returns :attr:`ready`.
+
+        ``stalled``: this process stood still for a while (a busy machine), so samples
+        may wait unread; a stale stream is then judged at the next tick, not now.
+        """
+        s = self.settings
+        if self._future and self.state != "aborted":
+            self._check_future(steady, clock)
+        ages = {t: self.age(t, steady) for t in self.tension_topics}
+        stale = [t for t, a in ages.items() if a > s.max_data_age]
+        if self.state == "ready" and stale and not stalled:
+            t = stale[0]
+            self.abort(f"stale data: no {t} for "
+                       + (f"{ages[t]:.3f} s" if math.isfinite(ages[t]) else "ever")
+                       + f" (max_data_age {s.max_data_age:g} s)")
+        elif self.state == "waiting":
+            if not stale and not self._stamp_fault and not self._future and clock > 0:
+                self.state = "ready"
+            elif (steady - self._start) / NS > s.startup_timeout:
+                why = ("no " + ", ".join(stale) if stale else self._stamp_fault or "no clock")
+                self.abort(f"not ready within startup_timeout {s.startup_timeout:g} s: {why}")
+        return self.ready
+
+    def diagnostics(self, steady: int) -> tuple[str, str, dict]:
+        """(level OK/WARN/ERROR/STALE, message, key values) of the present state."""
+        F = self.tension
+        if self.state == "aborted":
+            level, message = "ERROR", f"aborted: {self.abort_reason}"
+        elif self.state == "waiting":
+            level, message = "STALE", "waiting for fresh tension data"
+        elif math.isfinite(F) and F >= self.settings.warn_ratio * self.threshold:
+            level, message = "WARN", (f"tension {F:.4f} N near the abort threshold "
+                                      f"{self.threshold:.4f} N")
+        else:
+            level, message = "OK", "tension below the abort threshold"
+        values = {
+            "state": self.state, "tension_max": F, "tension_link": self.link,
+            "contact_tension": self.contact, "F_break": self.F_break,
+            "abort_threshold": self.threshold,
+            "safety_factor": self.F_break / F if math.isfinite(F) and F > 0 else math.inf,
+            "largest_tension_seen": self.F_seen, "trend_rate": self.trend_rate,
+            **{"data_age_" + t.rsplit("/", 1)[-1]: self.age(t, steady)
+               for t in self.tension_topics},
+            "stamp_age": max(self.stamp_age.values(), default=math.nan),
+            "abort_reason": self.abort_reason,
+        }
+        return level, message, values

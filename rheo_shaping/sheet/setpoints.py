@@ -1,0 +1,147 @@
+"""A run of the sheet under a stream of stamped tool set-points (the simulator node's core).
+
+:class:`SetpointRun` holds what the ``simulator`` node decides without ROS: the set-point
+buffer (newest wins for a time already commanded), the tool's position between stamps
+(linear, then hold), whether a step lacks its set-point (lockstep), the start of the
+process at the first set-point, the advance of the :class:`~.simulation.Simulation` to
+the process end and beyond, and the peak tension of the process.  Times on the node's
+(or simulated) clock are integer nanoseconds; process time is in seconds from the start.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..params.params import CellParams
+from ..units import NS
+from .metrics import PeakTension, RunSummary
+from .sheet import ConvergenceError
+from .simulation import Simulation
+
+#: at most this many (process time, largest tension) pairs are kept in ``history``
+HISTORY_LIMIT = 1_000_000
+
+
+class SetpointRun:
+    """The settled sheet at process time 0, stepped under buffered set-points."""
+
+    def __init__(self, cell: CellParams, tool_start):
+        self.cell = cell
+        self.sim = Simulation(cell, tool_start=tool_start)
+        self.cmds: list[tuple[int, float, float]] = []   # (stamp [ns], x [m], z [m])
+        self.offset_ns: int | None = None  # process time 0 on the node clock, once started
+        self.broken = ""                   # the solver's failure, if any
+        self.peak = PeakTension(-math.inf, 0, 0.0)
+        #: (process time [s], largest link tension [N]) of every step
+        self.history: list[tuple[float, float]] = []
+        self.summary: RunSummary | None = None
+
+    @property
+    def started(self) -> bool:
+        return self.offset_ns is not None
+
+    @property
+    def process_time(self) -> float:
+        """s since the process started."""
+        return float(self.sim.state.t)
+
+    # -- set-points -------------------------------------------------------------------
+    def command(self, t_ns: int, x: float, z: float) -> bool:
+        """Buffer the set-point (x, z) [m] for time ``t_ns``; True if it started the process.
+
+        A set-point for a time already commanded replaces what followed (newest wins).
+        Process time 0 is the first set-point's time: the settled sheet waited at t = 0
+        with the tool moved there, and the next step catches up through the buffer.
+        """
+        if self.cmds and t_ns <= self.cmds[-1][0]:
+            self.cmds = [c for c in self.cmds if c[0] < t_ns]
+        self.cmds.append((t_ns, x, z))
+        if self.started:
+            return False
+        self.offset_ns = t_ns
+        self.sim.tool_start = np.array([x, z])
+        self.sim.reset()                           # the process starts with the tool here
+        self.track(self.sim.state)                 # t = 0 counts, as offline
+        return True
+
+    def start_at(self, t_ns: int) -> None:
+        """Start the process at ``t_ns`` without a set-point (the tool stays at its start)."""
+        self.offset_ns = t_ns
+        self.track(self.sim.state)
+
+    def tool_at(self, t_ns: float) -> np.ndarray:
+        """Set-point at node time ``t_ns``: linear between stamps, then hold."""
+        cmds = self.cmds
+        if not cmds:
+            return self.sim.state.tool.copy()
+        if t_ns >= cmds[-1][0]:
+            return np.array(cmds[-1][1:])
+        if t_ns <= cmds[0][0]:
+            return np.array(cmds[0][1:])
+        ts = np.fromiter((c[0] for c in cmds), dtype=np.int64, count=len(cmds))
+        k = int(np.searchsorted(ts, t_ns, side="right"))
+        (t0, x0, z0), (t1, x1, z1) = cmds[k - 1], cmds[k]
+        s = (t_ns - t0) / (t1 - t0)
+        return np.array([x0 + s * (x1 - x0), z0 + s * (z1 - z0)])
+
+    def lacks_setpoint(self, target_ns: int) -> bool:
+        """The step to ``target_ns`` would outrun the newest set-point (lockstep waits)."""
+        return self.started and bool(self.cmds) and self.cmds[-1][0] < target_ns
+
+    def prune(self, keep_from_ns: int) -> None:
+        """Drop the set-points no step after ``keep_from_ns`` needs."""
+        ts = [c[0] for c in self.cmds]
+        k = max(int(np.searchsorted(ts, keep_from_ns, side="right")) - 1, 0)
+        if k > 0:
+            del self.cmds[:k]
+
+    # -- stepping ---------------------------------------------------------------------
+    def process_time_at(self, t_ns: int) -> float:
+        """Process time [s] of node time ``t_ns`` (the run must have started)."""
+        return (t_ns - self.offset_ns) / NS
+
+    def advance(self, target_ns: int) -> float | None:
+        """Step the sheet towards node time ``target_ns`` (once started, until it fails).
+
+        A step that would cross ``movement.process_time`` stops there: :attr:`summary` is
+        set and the process time is returned (the caller may publish that state, then
+        calls again to go on); otherwise None.  A solver failure sets :attr:`broken`.
+        """
+        if not self.started or self.broken:
+            return None
+        offset = self.offset_ns
+        tool_at = lambda p: self.tool_at(offset + p * NS)   # noqa: E731
+        p_end = self.process_time_at(target_ns)
+        pt = self.cell.movement.process_time
+        try:
+            if self.summary is None and self.sim.state.t < pt <= p_end + 1e-9:
+                self.sim.advance_to(pt, tool_at(pt), on_step=self.track, tool_at=tool_at)
+                self.summary = RunSummary.of(self.cell.material.F_break, self.peak,
+                                             self.sim.delta())
+                return pt
+            if p_end > self.sim.state.t:
+                self.sim.advance_to(p_end, tool_at(p_end), on_step=self.track, tool_at=tool_at)
+        except (ConvergenceError, FloatingPointError, ValueError) as exc:
+            self.broken = f"{type(exc).__name__}: {exc}"
+        return None
+
+    def track(self, state) -> None:
+        """Note a step's largest link tension; the peak counts up to the process end."""
+        i = int(np.argmax(state.tension))
+        value = float(state.tension[i])
+        if len(self.history) < HISTORY_LIMIT:
+            self.history.append((float(state.t), value))
+        if state.t <= self.cell.movement.process_time + 1e-9 and value > self.peak.value:
+            self.peak = PeakTension(value, i + 1, float(state.t))
+
+    def summary_so_far(self) -> RunSummary:
+        """:attr:`summary` once the process has ended, else the figures up to now."""
+        if self.summary is not None:
+            return self.summary
+        return RunSummary.of(self.cell.material.F_break, self.peak, self.sim.delta())
+
+    def tensions(self) -> np.ndarray:
+        """The link tensions [N] to publish: NaN once the solver has failed."""
+        st = self.sim.state
+        return np.full_like(st.tension, np.nan) if self.broken else st.tension

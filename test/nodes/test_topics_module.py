@@ -1,0 +1,70 @@
+"""rheo_shaping/nodes/topics.py is the one place of every topic's name, type and QoS:
+each node's endpoints are exactly topics of that module, with its type and QoS (the
+tension topics with the deadline of the node's settings), and they move with the
+namespace."""
+from __future__ import annotations
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
+
+from rheo_shaping.nodes import topics as T  # noqa: E402
+
+#: (node, direction) -> the topics it must have, by contract name
+EXPECTED = {
+    ("simulator", "pub"): {"/sheet/profile", "/sheet/measured_profile", "/sheet/tensions",
+                           "/sheet/contact_tension", "/tool/pose", "/tool/wrench",
+                           "/sheet/markers", "/diagnostics", "/clock"},
+    ("simulator", "sub"): {"/tool/command"},
+    ("planner", "pub"): {"/tool/command", "/tool/planned_trajectory", "/shaping/planner_state"},
+    ("planner", "sub"): {"/shaping/abort", "/shaping/ready", "/tool/pose"},
+    ("monitor", "pub"): {"/shaping/abort", "/shaping/ready", "/diagnostics"},
+    ("monitor", "sub"): {"/sheet/tensions", "/sheet/contact_tension", "/sheet/profile",
+                         "/tool/wrench"},
+}
+
+
+def _nodes(ros, namespace: str):
+    from rclpy.parameter import Parameter
+    from rheo_shaping.nodes.monitor import MonitorNode
+    from rheo_shaping.nodes.planner import PlannerNode
+    from rheo_shaping.nodes.simulator import SimulatorNode
+    kw = dict(context=ros.context, namespace=namespace)
+    fast = [Parameter("real_time_factor", value=10.0)]
+    return {"simulator": ros.add(SimulatorNode(parameter_overrides=fast, **kw)),
+            "planner": ros.add(PlannerNode(**kw)), "monitor": ros.add(MonitorNode(**kw))}
+
+
+@pytest.mark.parametrize("namespace", ["/", "/cell7"])
+def test_every_endpoint_is_a_topic_of_the_module(ros, namespace):
+    nodes = _nodes(ros, namespace)
+    for (name, direction), want in EXPECTED.items():
+        node = nodes[name]
+        endpoints = node.publishers if direction == "pub" else node.subscriptions
+        got = {}
+        for e in endpoints:
+            if e.topic_name.endswith(("/parameter_events", "/rosout")) or \
+                    e.topic_name == "/clock" and direction == "sub":
+                continue                                     # rclpy's own
+            got[e.topic_name] = e
+        want_names = {T.ALL[c].in_namespace(namespace) for c in want}
+        assert set(got) == want_names, (name, direction, sorted(got))
+        for contract in want:
+            topic = T.ALL[contract]
+            e = got[topic.in_namespace(namespace)]
+            assert e.msg_type is topic.type, (name, contract)
+            q = e.qos_profile
+            assert q.reliability == ReliabilityPolicy.RELIABLE, (name, contract)
+            assert q.durability == topic.qos.durability, (name, contract)
+            # publishers of state keep a deeper history for slow readers (topics.writer_qos)
+            writer = direction == "pub" and name == "simulator"
+            want_depth = T.writer_qos(topic.qos).depth if writer else topic.qos.depth
+            assert q.depth == want_depth, (name, contract)
+    assert (nodes["simulator"].pub_tensions.qos_profile.deadline.nanoseconds
+            == int(nodes["simulator"].settings.offered_deadline * 1e9))
+    sub = next(s for s in nodes["monitor"].subscriptions if s.topic_name.endswith("tensions"))
+    assert sub.qos_profile.deadline.nanoseconds == int(
+        nodes["monitor"].settings.max_data_age * 1e9)
+    assert T.ABORT.qos.durability == DurabilityPolicy.TRANSIENT_LOCAL

@@ -1,0 +1,141 @@
+"""The package's layering: the core imports no ROS, the subpackages form no cycle.
+
+Read from the source (ast), so it runs in either virtualenv and sees imports inside
+functions too.  docs/architecture.md draws the same graph.
+"""
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+PKG = Path(__file__).resolve().parents[2] / "rheo_shaping"
+
+#: Top-level module names that are ROS: rclpy, its launch tools and message packages.
+ROS_ROOTS = {"rclpy", "rosidl_runtime_py", "launch", "launch_ros", "ament_index_python",
+             "rosbag2_py", "std_msgs", "std_srvs", "geometry_msgs", "sensor_msgs",
+             "diagnostic_msgs", "rosgraph_msgs", "builtin_interfaces", "visualization_msgs",
+             "nav_msgs", "trajectory_msgs", "rcl_interfaces"}
+
+#: Subpackages (and top-level modules) that may import ROS.
+ROS_SIDE = {"nodes", "cli"}
+
+
+def _unit(module: str) -> str:
+    """The subpackage (or top-level module) a dotted name of the package belongs to."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _imports(path: Path) -> list[str]:
+    """Absolute names of everything ``path`` imports (module level and inside functions)."""
+    rel = path.relative_to(PKG.parent).with_suffix("")
+    package = list(rel.parts[:-1])
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[:len(package) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            out.append(mod)
+            out += [f"{mod}.{a.name}" for a in node.names]
+    return out
+
+
+def _graph() -> dict[str, dict[str, list[str]]]:
+    """unit -> {imported unit or ROS root -> files that import it}."""
+    graph: dict[str, dict[str, list[str]]] = {}
+    for path in sorted(PKG.rglob("*.py")):
+        src = _unit(".".join(path.relative_to(PKG.parent).with_suffix("").parts))
+        edges = graph.setdefault(src, {})
+        for name in _imports(path):
+            root = name.split(".")[0]
+            if root == "rheo_shaping":
+                dst = _unit(name)
+                known = (PKG / dst).is_dir() or (PKG / f"{dst}.py").is_file()
+                if dst != src and known:
+                    edges.setdefault(dst, []).append(path.name)
+            elif root in ROS_ROOTS:
+                edges.setdefault(root, []).append(path.name)
+    return graph
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle of ``graph`` as a path (first node repeated at the end), or None."""
+    done: set[str] = set()
+
+    def visit(node: str, path: list[str]) -> list[str] | None:
+        if node in path:
+            return path[path.index(node):] + [node]
+        if node in done:
+            return None
+        for nxt in sorted(graph.get(node, ())):
+            found = visit(nxt, path + [node])
+            if found:
+                return found
+        done.add(node)
+        return None
+
+    for node in sorted(graph):
+        found = visit(node, [])
+        if found:
+            return found
+    return None
+
+
+def test_core_imports_no_ros_and_no_nodes():
+    bad = []
+    for src, edges in _graph().items():
+        if src in ROS_SIDE:
+            continue
+        for dst, files in edges.items():
+            if dst in ROS_ROOTS or dst in ROS_SIDE:
+                bad.append(f"{src} imports {dst} ({', '.join(sorted(set(files)))})")
+    assert not bad, "the core must not import ROS or the nodes/cli: " + "; ".join(bad)
+
+
+def test_subpackage_graph_is_acyclic():
+    graph = {s: {d for d in e if d not in ROS_ROOTS and d != "__init__"}
+             for s, e in _graph().items() if s != "__init__"}
+    assert {"params", "sheet", "planning", "safety", "nodes"} <= set(graph)  # sees the tree
+    assert graph["planning"] >= {"params", "sheet"}
+    cycle = _cycle(graph)
+    assert cycle is None, "import cycle between subpackages: " + " -> ".join(cycle)
+
+
+def test_the_cycle_check_finds_a_cycle():
+    """The walk is not vacuous: a cycle is reported, a chain is not."""
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": set()}) is None
+
+
+def test_top_level_import_is_cheap():
+    code = ("import sys, rheo_shaping as rs; heavy = [m for m in ('numba', 'scipy', 'rclpy', "
+            "'matplotlib') if m in sys.modules]; assert not heavy, heavy; "
+            "assert callable(rs.run_movement) and callable(rs.load_cell); "
+            "assert callable(rs.identify_paper) and callable(rs.diagnose)")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_docs_architecture_lists_every_import_between_subpackages():
+    """docs/architecture.md's table ("may import") covers what the code imports."""
+    import re
+    doc = (PKG.parent / "docs" / "architecture.md").read_text()
+    allowed: dict[str, set[str]] = {}
+    for row in re.findall(r"^\| (`[^|]*`) \|[^|]*\| ([^|]*) \|$", doc, re.M):
+        units = re.findall(r"`([a-z_]+)(?:/|\.py)?`", row[0])
+        for unit in units:
+            allowed[unit] = set(re.findall(r"`([a-z_]+)`", row[1].split("(")[0]))
+    graph = _graph()
+    missing = []
+    for src in ("params", "material", "identification", "sheet", "planning", "records",
+                "study", "safety", "diagnosis", "parallel", "units"):
+        assert src in allowed, f"docs/architecture.md has no row for {src}"
+        used = {d for d in graph.get(src, {}) if d not in ROS_ROOTS and d not in ("_lazy",)}
+        missing += [f"{src} -> {d}" for d in sorted(used - allowed[src])]
+    assert not missing, "imports docs/architecture.md does not list: " + ", ".join(missing)

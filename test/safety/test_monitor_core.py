@@ -1,0 +1,272 @@
+"""The monitor's abort rules, without ROS (rheo_shaping.safety.monitor.TensionMonitor).
+
+Every rule the ``monitor`` node enforces is decided here; test/nodes/test_monitor_node.py
+checks that the node feeds it over DDS.  Times are integer nanoseconds.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import pytest
+
+from rheo_shaping.params.node_params import MonitorNodeParams
+from rheo_shaping.safety.monitor import TensionMonitor
+from rheo_shaping.units import NS
+
+TENSIONS, CONTACT = "/sheet/tensions", "/sheet/contact_tension"
+PROFILE, WRENCH = "/sheet/profile", "/tool/wrench"
+F_BREAK, RATIO, HORIZON = 1.04, 0.9, 0.3          # N, -, s
+THRESHOLD = RATIO * F_BREAK                       # 0.936 N
+T0 = 1_000 * NS                                   # steady clock at start
+C0 = 50 * NS                                      # node clock at start
+
+
+class Harness:
+    """A monitor and the two clocks, advanced together."""
+
+    def __init__(self, **settings):
+        self.s = replace(MonitorNodeParams(abort_ratio=RATIO), **settings)
+        self.aborts: list[str] = []
+        self.steady, self.clock = T0, C0
+        self.mon = TensionMonitor(self.s, F_BREAK, RATIO, HORIZON, self.steady,
+                                  (TENSIONS, CONTACT), (PROFILE, WRENCH),
+                                  on_abort=self.aborts.append)
+
+    def advance(self, dt: float) -> None:
+        self.steady += int(dt * NS)
+        self.clock += int(dt * NS)
+
+    def sample(self, tension: float = 0.1, contact: float = 0.05, dt: float = 0.01) -> None:
+        self.advance(dt)
+        self.mon.on_tensions([0.5 * tension, tension], self.steady, self.clock)
+        self.mon.on_contact(contact, self.steady)
+
+    def make_ready(self) -> None:
+        self.sample()
+        assert self.mon.tick(self.steady, self.clock)
+        assert self.mon.state == "ready" and not self.aborts
+
+
+def test_waits_then_becomes_ready_on_fresh_data():
+    h = Harness()
+    assert h.mon.state == "waiting" and not h.mon.tick(h.steady, h.clock)
+    h.sample()
+    assert h.mon.tick(h.steady, h.clock) and h.mon.ready
+    level, _, values = h.mon.diagnostics(h.steady)
+    assert level == "OK" and values["tension_max"] == pytest.approx(0.1)
+    assert values["tension_link"] == 2 and values["safety_factor"] == pytest.approx(10.4)
+    assert values["data_age_tensions"] == 0.0 and values["data_age_contact_tension"] == 0.0
+
+
+def test_no_clock_is_not_ready():
+    h = Harness()
+    h.sample()
+    assert not h.mon.tick(h.steady, 0) and h.mon.state == "waiting"
+
+
+@pytest.mark.parametrize("where", ["link", "contact"])
+def test_threshold_aborts_at_f_abort_and_not_below(where):
+    h = Harness()
+    h.make_ready()
+    below = math.nextafter(THRESHOLD, 0.0)
+    h.sample(tension=below) if where == "link" else h.sample(contact=below)
+    assert h.mon.ready and not h.aborts
+    h.sample(tension=THRESHOLD) if where == "link" else h.sample(contact=THRESHOLD)
+    assert h.mon.state == "aborted" and len(h.aborts) == 1
+    assert ("link 2" if where == "link" else "contact tension") in h.aborts[0]
+    assert "0.9360 N = 0.900 x F_break 1.04 N" in h.aborts[0]
+
+
+def test_warn_level_near_the_threshold():
+    h = Harness(warn_ratio=0.8)
+    h.make_ready()
+    h.sample(tension=0.8 * THRESHOLD + 1e-6)
+    assert h.mon.diagnostics(h.steady)[0] == "WARN"
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_tension_aborts(bad):
+    h = Harness()
+    h.make_ready()
+    h.mon.on_tensions([0.1, bad, 0.2], h.steady, h.clock)
+    assert h.aborts == [f"non-finite tension ({bad}) in link 2 on {TENSIONS}"]
+    h2 = Harness()
+    h2.mon.on_contact(bad, h2.steady)
+    assert h2.aborts == [f"non-finite contact tension ({bad}) on {CONTACT}"]
+
+
+def test_empty_tensions_abort():
+    h = Harness()
+    h.mon.on_tensions([], h.steady, h.clock)
+    assert h.aborts == [f"empty {TENSIONS} message"]
+
+
+def _ramp(h: Harness, start: float, rate: float, n: int, dt: float = 0.05) -> None:
+    for k in range(n):
+        h.sample(tension=start + rate * k * dt, dt=dt)
+
+
+def test_trend_predicts_the_threshold_only_when_enabled():
+    # 0.5 N/s from 0.60 N, a sample every 0.05 s; the fit needs a span of window / 2 =
+    # 0.5 s: at 0.85 N (< 0.936 N) it predicts 0.85 + 0.5 x 0.3 s = 1.0 N >= 0.936 N
+    for enabled in (False, True):
+        h = Harness(trend_abort=enabled, trend_window=1.0, trend_min_samples=4)
+        h.make_ready()
+        h.advance(2.0)                    # the ready sample leaves the window
+        _ramp(h, 0.60, 0.5, 10)           # span 0.45 s: no trend yet
+        assert math.isnan(h.mon.trend_rate) and not h.aborts
+        h.sample(tension=0.85, dt=0.05)   # span 0.5 s
+        assert h.mon.trend_rate == pytest.approx(0.5, rel=1e-6)
+        if enabled:
+            assert len(h.aborts) == 1 and "tension trend 0.5000 N/s from 0.8500 N" in h.aborts[0]
+            assert "within 0.300 s (detect_time + stop_time)" in h.aborts[0]
+        else:
+            assert not h.aborts and h.mon.ready
+
+
+def test_trend_restarts_when_the_clock_goes_back():
+    h = Harness(trend_abort=True)
+    h.make_ready()
+    h.advance(2.0)
+    _ramp(h, 0.60, 0.5, 8)
+    h.clock -= 10 * NS                        # e.g. a simulation restarted
+    h.sample(tension=0.85)
+    assert math.isnan(h.mon.trend_rate) and not h.aborts
+
+
+def test_falling_trend_does_not_abort():
+    h = Harness(trend_abort=True)
+    h.make_ready()
+    h.advance(2.0)
+    _ramp(h, 0.9, -0.5, 20)
+    assert not h.aborts and h.mon.trend_rate == pytest.approx(-0.5, rel=1e-6)
+
+
+def test_zero_stamp_aborts():
+    h = Harness()
+    h.mon.on_stamped(PROFILE, 0, h.steady, h.clock, sim_time=False)
+    assert h.aborts == [f"zero header stamp on {PROFILE}"]
+
+
+def test_future_stamp_aborts_at_once_on_wall_time():
+    h = Harness(stamp_tolerance=0.05)
+    h.make_ready()
+    h.mon.on_stamped(WRENCH, h.clock + int(0.04 * NS), h.steady, h.clock, sim_time=False)
+    assert not h.aborts
+    h.mon.on_stamped(WRENCH, h.clock + int(0.2 * NS), h.steady, h.clock, sim_time=False)
+    assert len(h.aborts) == 1 and "lies 0.200 s in the future" in h.aborts[0]
+
+
+def test_future_stamp_on_sim_time_waits_for_the_clock():
+    h = Harness(stamp_tolerance=0.05, max_data_age=0.5)
+    h.make_ready()
+    stamp = h.clock + int(0.3 * NS)
+    h.mon.on_stamped(PROFILE, stamp, h.steady, h.clock, sim_time=True)
+    assert not h.aborts
+    h.sample(dt=0.1)                          # the clock catches up by 0.1 s, not enough
+    h.mon.tick(h.steady, h.clock)
+    assert not h.aborts
+    h.clock = stamp                           # /clock handled: caught up -> cleared
+    h.mon.tick(h.steady, h.clock)
+    assert not h.aborts and h.mon.ready
+    # a stamp that stays ahead for more than max_data_age of steady time: abort
+    h.mon.on_stamped(PROFILE, h.clock + int(5 * NS), h.steady, h.clock, sim_time=True)
+    for _ in range(5):
+        h.sample(dt=0.09)
+        h.steady += int(0.01 * NS)
+        h.mon.tick(h.steady, h.clock)
+    assert not h.aborts                       # 0.5 s after arrival, not more
+    h.sample(dt=0.02)
+    h.mon.tick(h.steady, h.clock)
+    assert len(h.aborts) == 1 and "in the future" in h.aborts[0]
+    assert "after it arrived" in h.aborts[0]
+
+
+def test_old_stamp_blocks_ready_and_aborts_when_ready():
+    h = Harness(max_stamp_age=2.0, startup_timeout=1.0)
+    h.sample()
+    h.mon.on_stamped(PROFILE, h.clock - 3 * NS, h.steady, h.clock, sim_time=False)
+    assert not h.mon.tick(h.steady, h.clock) and not h.aborts      # fault: not ready
+    h.mon.on_stamped(PROFILE, h.clock, h.steady, h.clock, sim_time=False)
+    assert h.mon.tick(h.steady, h.clock)                            # fresh stamp: ready
+    h.mon.on_stamped(PROFILE, h.clock - 3 * NS, h.steady, h.clock, sim_time=False)
+    assert h.aborts == [f"stale data: header stamp on {PROFILE} is 3.000 s old "
+                        f"(max_stamp_age 2 s)"]
+
+
+def test_stale_tensions_abort_one_period_after_max_data_age():
+    h = Harness(max_data_age=0.5)
+    h.make_ready()
+    h.advance(0.5)
+    assert h.mon.tick(h.steady, h.clock) and not h.aborts           # exactly 0.5 s: fresh
+    h.advance(0.01)
+    assert not h.mon.tick(h.steady, h.clock)
+    assert h.aborts == [f"stale data: no {TENSIONS} for 0.510 s (max_data_age 0.5 s)"]
+
+
+def test_a_stalled_process_judges_staleness_at_the_next_tick():
+    h = Harness(max_data_age=0.5)
+    h.make_ready()
+    h.advance(0.8)
+    assert h.mon.tick(h.steady, h.clock, stalled=True) and not h.aborts
+    h.sample()                                # the samples that waited are read now
+    h.mon.tick(h.steady, h.clock)
+    assert h.mon.ready and not h.aborts
+    h.advance(0.8)
+    h.mon.tick(h.steady, h.clock, stalled=True)
+    h.mon.tick(h.steady, h.clock)             # still nothing: a stream that stopped
+    assert len(h.aborts) == 1 and "stale data" in h.aborts[0]
+
+
+def test_missed_deadline_aborts_only_when_ready():
+    h = Harness(max_data_age=0.5)
+    h.mon.on_deadline(TENSIONS)
+    assert not h.aborts and h.mon.state == "waiting"
+    h.make_ready()
+    h.mon.on_deadline(CONTACT)
+    assert h.aborts == [f"stale data: QoS deadline of 0.5 s missed on {CONTACT}"]
+
+
+def test_startup_timeout():
+    h = Harness(startup_timeout=2.0)
+    h.advance(2.0)
+    h.mon.tick(h.steady, h.clock)
+    assert not h.aborts
+    h.advance(0.01)
+    h.mon.tick(h.steady, h.clock)
+    assert h.aborts == [f"not ready within startup_timeout 2 s: no {TENSIONS}, {CONTACT}"]
+    h2 = Harness(startup_timeout=1.0)
+    h2.sample()
+    h2.advance(1.0)
+    h2.mon.on_contact(0.1, h2.steady)
+    h2.mon.on_tensions([0.1], h2.steady, h2.clock)
+    h2.mon.tick(h2.steady, 0)                 # fresh data but no clock
+    h2.advance(0.01)
+    h2.mon.tick(h2.steady, 0)
+    assert h2.aborts == ["not ready within startup_timeout 1 s: no clock"]
+
+
+def test_abort_latches_until_reset():
+    h = Harness()
+    h.make_ready()
+    h.sample(tension=2.0)
+    h.sample(tension=math.nan)                # a second fault: no second abort, same reason
+    h.mon.on_deadline(TENSIONS)
+    h.sample(tension=0.1)
+    assert len(h.aborts) == 1 and h.mon.state == "aborted" and "2.0000 N" in h.aborts[0]
+    assert not h.mon.tick(h.steady, h.clock) and h.mon.diagnostics(h.steady)[0] == "ERROR"
+    assert h.mon.F_seen == 2.0
+    h.mon.reset(h.steady)
+    assert h.mon.state == "waiting" and h.mon.abort_reason == "" and h.mon.F_seen == 0.0
+    h.aborts.clear()
+    h.make_ready()
+
+
+def test_configure_moves_the_threshold():
+    h = Harness()
+    h.make_ready()
+    h.mon.configure(h.s, F_BREAK, 0.5, HORIZON)
+    assert h.mon.threshold == pytest.approx(0.52)
+    h.sample(tension=0.52)
+    assert h.aborts and "0.5200 N = 0.500 x F_break" in h.aborts[0]

@@ -1,0 +1,85 @@
+"""The simulator node's core without ROS: rheo_shaping.sheet.setpoints.SetpointRun."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from rheo_shaping.params.params import CellParams
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.sheet.metrics import safety_factor
+from rheo_shaping.sheet.setpoints import SetpointRun
+from rheo_shaping.units import NS
+
+T0 = 7 * NS                     # node time of the first set-point [ns]
+
+
+@pytest.fixture(scope="module")
+def cell() -> CellParams:
+    c = CellParams()
+    return replace(c, sheet=replace(c.sheet, n_masses=15),
+                   movement=replace(c.movement, process_time=3.0))
+
+
+def test_buffer_interpolates_between_stamps_then_holds(cell):
+    run = SetpointRun(cell, (0.05, 0.10))
+    assert not run.started
+    assert np.array_equal(run.tool_at(T0), run.sim.state.tool)          # nothing yet
+    assert run.command(T0, 0.05, 0.10)                                   # starts the process
+    assert run.started and run.offset_ns == T0
+    assert np.array_equal(run.sim.state.tool, [0.05, 0.10])
+    assert not run.command(T0 + NS, 0.07, 0.06)
+    assert run.tool_at(T0 + NS // 4) == pytest.approx([0.055, 0.09], abs=1e-15)
+    assert run.tool_at(T0 - NS) == pytest.approx([0.05, 0.10])           # before: the first
+    assert run.tool_at(T0 + 5 * NS) == pytest.approx([0.07, 0.06])       # after: hold
+    assert run.lacks_setpoint(T0 + NS + 1) and not run.lacks_setpoint(T0 + NS)
+
+
+def test_newest_set_point_for_a_time_replaces_what_followed(cell):
+    run = SetpointRun(cell, (0.05, 0.10))
+    for k, z in enumerate((0.10, 0.09, 0.08, 0.07)):
+        run.command(T0 + k * NS, 0.05, z)
+    run.command(T0 + NS, 0.06, 0.095)                                     # re-planned
+    assert [c[0] for c in run.cmds] == [T0, T0 + NS]
+    assert run.tool_at(T0 + NS) == pytest.approx([0.06, 0.095])
+    run.prune(T0 + NS + 1)                                                # keeps the one before
+    assert [c[0] for c in run.cmds] == [T0 + NS]
+
+
+def test_start_without_a_set_point(cell):
+    run = SetpointRun(cell, (0.05, 0.10))
+    run.start_at(T0)
+    assert run.started and run.history == [(0.0, pytest.approx(float(np.max(
+        run.sim.state.tension))))]
+
+
+def test_process_end_summary_and_peak_stop_at_process_time(cell):
+    plan = movement_plan(cell, 1)
+    run = SetpointRun(cell, plan.position(0.0))
+    for t in np.arange(0.0, 6.0, 0.05):
+        x, z = plan.position(t)
+        run.command(T0 + int(round(t * NS)), float(x), float(z))
+    assert run.advance(T0 + 2 * NS) is None and run.summary is None
+    assert run.process_time == pytest.approx(2.0)
+    so_far = run.summary_so_far()
+    assert so_far.F_max == run.peak.value and so_far.delta == run.sim.delta()
+    pt = run.advance(T0 + 5 * NS)                       # crosses process_time 3 s: stops there
+    assert pt == 3.0 and run.process_time == pytest.approx(3.0)
+    s = run.summary
+    in_process = [f for t, f in run.history if t <= 3.0 + 1e-9]
+    assert s.F_max == max(in_process) and s.F_max_time <= 3.0
+    assert s.SF == safety_factor(cell.material.F_break, s.F_max)
+    assert s.delta == run.sim.delta()
+    assert run.advance(T0 + 5 * NS) is None             # goes on; the summary stays
+    assert run.process_time == pytest.approx(5.0) and run.summary is s
+    assert run.peak.value == s.F_max                     # later steps do not count
+    assert run.history[-1][0] == pytest.approx(5.0)
+
+
+def test_a_failed_solver_publishes_nan(cell):
+    run = SetpointRun(cell, (0.05, 0.10))
+    run.broken = "ConvergenceError: test"
+    assert np.isnan(run.tensions()).all()
+    run.command(T0, 0.05, 0.10)
+    assert run.advance(T0 + NS) is None and run.process_time == 0.0
