@@ -6,8 +6,10 @@ end the process at once (:func:`_early_exit`); this covers the imports (numpy, s
 numba) and the loading or first compilation of the sheet kernel
 (:func:`rheo_shaping.planning.movement.warm_up`), which therefore happen here, before ROS.  From
 ``rclpy.init`` on, rclpy's own handler shuts the context down and
-:func:`rheo_shaping.nodes.spin.run_node` ends the node cleanly.  This module imports
-nothing heavy, so its handlers are in place within milliseconds of the start.
+:func:`rheo_shaping.nodes.spin.run_node` ends the node cleanly; once it returns, the process
+ends at once with its code (no interpreter finalisation, during which a signal would kill
+it).  This module imports nothing heavy, so its handlers are in place within milliseconds
+of the start.
 """
 from __future__ import annotations
 
@@ -26,7 +28,17 @@ def _run(module: str) -> int:
         signal.signal(sig, _early_exit)
     import importlib
     node = importlib.import_module(f"rheo_shaping.nodes.{module}")
-    return node.main()
+    code = node.main()
+    # The node is done (stopped, or it refused its parameters).  The interpreter's own
+    # finalisation (numba, llvmlite, scipy) takes seconds on a busy machine and restores the
+    # default signal handlers first, so a Ctrl-C then would end the process by the signal
+    # (exit -2): end here, with the node's own exit code.
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code if isinstance(code, int) else 0)
 
 
 def simulator() -> int:

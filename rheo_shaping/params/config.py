@@ -229,7 +229,10 @@ def cell_from_flat(flat: dict[str, Any], where: str = "") -> CellParams:
     try:
         return from_flat(CellParams, cell, where=where)
     except ParameterError as exc:
-        raise ConfigError(str(exc)) from None
+        msg = str(exc)
+        if where and where not in msg:   # a check across parameters names no file itself
+            msg = f"{msg} (in {where})"
+        raise ConfigError(msg) from None
 
 
 def load_cell(path: str | Path | None = None, node: str | None = "simulator") -> CellParams:
