@@ -185,3 +185,49 @@ def test_diagnose_command_and_write_scenario(tmp_path, capsys):
     assert "missing: not a directory" in err and "Traceback" not in err
     assert main(["diagnose", str(a), "--effects", "friction,bending"]) == 2
     assert "unknown effect 'friction'" in capsys.readouterr().err
+
+
+def test_numerics_allowance_is_the_refined_error_and_never_a_large_part_of_the_gap():
+    """The allowance is NUMERICS_FACTOR x the candidate's refined-run misfit beyond the
+    baseline's, capped at GAP_SHARE of the baseline's excess (docs/diagnosis.md)."""
+    from rheo_shaping.diagnosis.candidates import Explanation
+    from rheo_shaping.diagnosis.check import GAP_SHARE, NUMERICS_FACTOR, ORDER, adequate
+    assert NUMERICS_FACTOR == pytest.approx((1.0 / (1.0 - 2.0 ** -ORDER)) ** 2)
+    base = Explanation((), {}, 2.0, J_num=0.05, J_num_holdout=0.05)    # excess 1.0
+    J_bh = 2.0
+
+    def cand(J, J_num):
+        return Explanation(("kelvin_c1",), {"kelvin_c1": (800.0,)}, J, J_holdout=J,
+                           checked=True, J_num=J_num, J_num_holdout=J_num)
+    q = stats.null_quantile()
+    # within the null: adequate without any numerics
+    assert adequate(cand(1.0 + 0.5 * q, 0.05), J_bh, True, base)
+    # leaves 0.2: refused on its own numerics (the baseline's), adequate with 0.02 more
+    assert not adequate(cand(1.2, 0.05), J_bh, True, base)
+    need = (0.2 - q) / NUMERICS_FACTOR
+    assert not adequate(cand(1.2, 0.05 + 0.9 * need), J_bh, True, base)
+    assert adequate(cand(1.2, 0.05 + 1.1 * need), J_bh, True, base)
+    # whatever its numerics, a candidate never leaves more than GAP_SHARE of the gap
+    assert not adequate(cand(1.0 + q + GAP_SHARE + 0.01, 10.0), J_bh, True, base)
+    assert adequate(cand(1.0 + q + GAP_SHARE - 0.01, 10.0), J_bh, True, base)
+    # the holdout records must improve on the baseline
+    assert not adequate(cand(1.2, 10.0), 1.1, True, base)
+
+
+def test_a_strong_kelvin_creep_is_named_through_its_own_jacobian_and_numerics():
+    """c1 = 785 N s/m (true chain 63 masses, diagnosis 31): what the right effect leaves
+    exceeds the effect-free null; its refined run shows the leftover is the model's own
+    discretisation error at the effect, and the value lies within its interval."""
+    case = _case("single", 34, 1)
+    (name, (true,)), = case["truth"]
+    assert name == "kelvin_c1"
+    rec = case["records"]
+    d = diagnose(rec[:2], rec[2:], library=("kelvin_c1", "power_law", "mass_error"), jobs=2)
+    assert d.verdict == "kelvin_c1"
+    vf = d.verdict_fit
+    assert vf.J - 1.0 > stats.null_quantile()             # the null alone would refuse it
+    assert vf.J_num > d.numerics_base.J_num                # the effect raises the numerics
+    assert vf.J - 1.0 <= 0.25 * (d.J_base - 1.0)
+    (value,), ((lo, hi),) = vf.values[name], vf.interval[name]
+    assert value == pytest.approx(true, rel=0.1)
+    assert lo <= true <= hi
