@@ -242,7 +242,8 @@ class MonitorNode(Node):
         # wait unread behind this timer, so they are judged at the next tick, not now
         stalled = self._watchdog_guard.check(now)
         was = self.state
-        ready = self.core.tick(now, self.get_clock().now().nanoseconds, stalled)
+        ready = self.core.tick(now, self.get_clock().now().nanoseconds, stalled,
+                               previous=self._watchdog_guard.previous)
         if ready and was == "waiting":
             self.get_logger().info("ready: fresh tension data")
         self.pub_ready.publish(Bool(data=ready))

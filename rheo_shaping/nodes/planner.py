@@ -316,7 +316,8 @@ class PlannerNode(Node):
                 self._set_state("waiting_for_clock")
             else:
                 self._start(now)
-        elif self.streamer.state == "running" and not ok and not stalled:
+        elif (self.streamer.state == "running" and not ok
+              and not guard.excuses(stalled, self._ready_rx, self.settings.monitor_timeout)):
             self._abort(f"planner: monitor lost ({why})")
         self._update_state()
 

@@ -62,7 +62,8 @@ class TensionMonitor:
         self._rx: dict[str, int | None] = {t: None for t in self.tension_topics
                                            + self.stamped_topics}
         self.stamp_age: dict[str, float] = {}
-        self._stamp_fault = ""
+        self._old: dict[str, str] = {}        # topic -> why its newest stamp is too old
+        self._old_prev: set[str] = set()      # the same at the previous tick
         self._future: dict[str, tuple[int, int]] = {}   # topic -> (stamp, steady arrival) [ns]
         self.tension = math.nan                # latest largest link tension [N]
         self.link = 0
@@ -170,12 +171,12 @@ class TensionMonitor:
             else:
                 self.abort(self._future_reason(topic, -age))
         elif age > self.settings.max_stamp_age:
-            self._stamp_fault = (f"header stamp on {topic} is {age:.3f} s old "
-                                 f"(max_stamp_age {self.settings.max_stamp_age:g} s)")
-            if self.state == "ready":
-                self.abort(f"stale data: {self._stamp_fault}")
+            # judged at the next tick: a backlog this process read late is followed by fresh
+            # stamps that clear it; a stream whose newest stamp stays old aborts
+            self._old[topic] = (f"header stamp on {topic} is {age:.3f} s old "
+                                f"(max_stamp_age {self.settings.max_stamp_age:g} s)")
         else:
-            self._stamp_fault = ""
+            self._old.pop(topic, None)
 
     def _future_reason(self, topic: str, ahead: float) -> str:
         return (f"header stamp on {topic} lies {ahead:.3f} s in the future of the node "
@@ -200,27 +201,39 @@ class TensionMonitor:
                        f"missed on {topic}")
 
     # -- watchdog (steady clock) ------------------------------------------------------
-    def tick(self, steady: int, clock: int, stalled: bool = False) -> bool:
+    def tick(self, steady: int, clock: int, stalled: bool = False,
+             previous: int | None = None) -> bool:
         """The watchdog: judge staleness and readiness; returns :attr:`ready`.
 
         ``stalled``: this process stood still for a while (a busy machine), so samples
-        may wait unread; a stale stream is then judged at the next tick, not now.
+        may wait unread; a stream that was still fresh at the ``previous`` tick [ns,
+        steady] is then judged at the next tick, not now (:class:`StallGuard.excuses`).
         """
         s = self.settings
         if self._future and self.state != "aborted":
             self._check_future(steady, clock)
         ages = {t: self.age(t, steady) for t in self.tension_topics}
         stale = [t for t, a in ages.items() if a > s.max_data_age]
-        if self.state == "ready" and stale and not stalled:
+        if stalled and stale:
+            # excused only where the stream was fresh at the previous tick
+            stale = [t for t in stale if previous is not None and (
+                self._rx[t] is None or (previous - self._rx[t]) / NS > s.max_data_age)]
+        persist = [t for t in self._old if t in self._old_prev]   # old at two ticks running
+        self._old_prev = set(self._old)
+        if self.state == "ready" and self._old and (not stalled or persist):
+            topic = persist[0] if persist else next(iter(self._old))
+            self.abort(f"stale data: {self._old[topic]}")
+        elif self.state == "ready" and stale:
             t = stale[0]
             self.abort(f"stale data: no {t} for "
                        + (f"{ages[t]:.3f} s" if math.isfinite(ages[t]) else "ever")
                        + f" (max_data_age {s.max_data_age:g} s)")
         elif self.state == "waiting":
-            if not stale and not self._stamp_fault and not self._future and clock > 0:
+            if not stale and not self._old and not self._future and clock > 0:
                 self.state = "ready"
             elif (steady - self._start) / NS > s.startup_timeout:
-                why = ("no " + ", ".join(stale) if stale else self._stamp_fault or "no clock")
+                why = ("no " + ", ".join(stale) if stale
+                       else next(iter(self._old.values()), "") or "no clock")
                 self.abort(f"not ready within startup_timeout {s.startup_timeout:g} s: {why}")
         return self.ready
 

@@ -8,9 +8,10 @@ behind this very timer.  Declaring the stream dead then would be a verdict on
 the node's own stall, not on the stream.  :class:`Freshness` therefore judges
 a stream stale only when the previous check was recent (the node had the
 chance to read what arrived): after a stall of its own the node gets one more
-check, i.e. one more timer period, before it may call the stream stale.  A
-stream that really stopped is still found stale, one timer period later at
-most.
+check, i.e. one more timer period, before it may call the stream stale, and
+only when the stream was still fresh at the previous check.  A stream that
+really stopped is still found stale one check later at most, also on a node
+that stalls at every check.
 """
 from __future__ import annotations
 
@@ -25,13 +26,23 @@ class StallGuard:
 
     limit: float
     _last: int | None = field(default=None, init=False)
+    previous: int | None = field(default=None, init=False)   # the check before the last [ns]
 
     def check(self, now_ns: int) -> bool:
         """Record a check at ``now_ns``; True when the previous one was over ``limit`` ago."""
         now_ns = int(now_ns)
         stalled = self._last is not None and (now_ns - self._last) / 1e9 > self.limit
-        self._last = now_ns
+        self.previous, self._last = self._last, now_ns
         return stalled
+
+    def excuses(self, stalled: bool, last_rx_ns: int | None, timeout: float) -> bool:
+        """Whether a stall excuses a stream's age at this check: only when the stream was
+        still fresh at the previous check (a sample that arrived before it has been read by
+        now).  A node that stalls at every check therefore still finds a dead stream, one
+        check after it went silent, instead of excusing it forever."""
+        if not stalled or last_rx_ns is None or self.previous is None:
+            return False
+        return (self.previous - int(last_rx_ns)) / 1e9 <= timeout
 
 
 @dataclass
@@ -71,4 +82,5 @@ class Freshness:
         stalled = self._guard.check(now_ns)
         if self._last_rx is None:
             return True
-        return self.age(now_ns) > self.timeout and not stalled
+        return (self.age(now_ns) > self.timeout
+                and not self._guard.excuses(stalled, self._last_rx, self.timeout))

@@ -191,8 +191,42 @@ def test_old_stamp_blocks_ready_and_aborts_when_ready():
     h.mon.on_stamped(PROFILE, h.clock, h.steady, h.clock, sim_time=False)
     assert h.mon.tick(h.steady, h.clock)                            # fresh stamp: ready
     h.mon.on_stamped(PROFILE, h.clock - 3 * NS, h.steady, h.clock, sim_time=False)
+    assert not h.aborts                        # judged at the watchdog's next tick
+    h.mon.tick(h.steady, h.clock)
     assert h.aborts == [f"stale data: header stamp on {PROFILE} is 3.000 s old "
                         f"(max_stamp_age 2 s)"]
+
+
+def test_an_old_stamp_read_late_from_a_backlog_is_cleared_by_the_fresh_ones_behind_it():
+    h = Harness(max_stamp_age=2.0)
+    h.make_ready()
+    h.mon.on_stamped(WRENCH, h.clock - 3 * NS, h.steady, h.clock, sim_time=False)
+    h.mon.on_stamped(WRENCH, h.clock, h.steady, h.clock, sim_time=False)
+    h.sample()
+    assert h.mon.tick(h.steady, h.clock) and not h.aborts
+    # an old newest stamp is excused at a tick after a stall of this process, not twice
+    h.mon.on_stamped(WRENCH, h.clock - 3 * NS, h.steady, h.clock, sim_time=False)
+    h.sample()
+    assert h.mon.tick(h.steady, h.clock, stalled=True) and not h.aborts
+    h.sample()
+    h.mon.tick(h.steady, h.clock, stalled=True)
+    assert h.aborts and "header stamp on" in h.aborts[0]
+
+
+def test_a_process_stalled_at_every_tick_still_finds_a_dead_stream():
+    """The stall excuses a stream only when it was fresh at the previous tick."""
+    h = Harness(max_data_age=0.5)
+    h.make_ready()
+    previous = h.steady
+    h.advance(0.4)                                   # stalled tick, data 0.4 s old: fine
+    assert h.mon.tick(h.steady, h.clock, stalled=True, previous=previous)
+    previous = h.steady
+    h.advance(0.4)                                   # 0.8 s old, fresh at the previous tick
+    assert h.mon.tick(h.steady, h.clock, stalled=True, previous=previous) and not h.aborts
+    previous = h.steady
+    h.advance(0.4)                                   # 1.2 s old, 0.8 s at the previous tick
+    h.mon.tick(h.steady, h.clock, stalled=True, previous=previous)
+    assert h.aborts and h.aborts[0].startswith("stale data: no ")
 
 
 def test_stale_tensions_abort_one_period_after_max_data_age():

@@ -39,6 +39,17 @@ def test_a_stream_that_stopped_during_the_stall_is_stale_one_check_later():
     assert f.stale(840 * MS)                             # nothing arrived: lost
 
 
+def test_a_checker_stalled_at_every_check_still_finds_a_stopped_stream():
+    """The stall excuses the stream only when it was fresh at the previous check: a node
+    descheduled for 0.4 s before every check (timeout 0.3 s) finds a dead stream one
+    check after it went silent, instead of excusing it forever."""
+    f = Freshness(timeout=0.3)
+    f.received(0)
+    assert not f.stale(20 * MS)                          # a regular check
+    assert not f.stale(420 * MS)                         # stalled; fresh at 20 ms: excused
+    assert f.stale(820 * MS)                             # stalled; 0.42 s old at 420 ms: lost
+
+
 @pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
 def test_bad_timeouts_are_refused(bad):
     with pytest.raises(ValueError, match="timeout"):
