@@ -87,7 +87,7 @@ def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A, responses) ->
             continue                         # no allowance where no refined run runs
         dz = G.z(o[:nf]) - c.z_raw
         c.J_num = G.J(dz)
-        E = _columns(c, responses)
+        E, slots = _columns(c, responses)
         M = np.hstack((A, E)) if E is not None else A
         Q = np.linalg.qr(M, mode="reduced")[0]
         perp = dz - Q @ (Q.T @ dz)
@@ -95,30 +95,37 @@ def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A, responses) ->
         if H is not None and c.zh_raw is not None:
             c.J_num_holdout = H.J(H.z(o[nf:]) - c.zh_raw)
         if E is not None and len(c.names) == 1:
-            _widen(c, dz, A, E)
+            _widen(c, dz, A, E, slots)
+
+
+def effect_columns(name: str, responses, value) -> list[tuple[int, np.ndarray]] | None:
+    """The linearised response of effect ``name`` at ``value``: (parameter index, column)
+    pairs from its probes (a linear effect: one per probe; a curve: the slope of the
+    piecewise-linear response where ``value`` lies); None with fewer than two curve probes."""
+    kind, _vals, _top = PROBES[name]
+    resp = [(v, d) for v, d in responses[name] if d is not None]
+    if kind == "linear":
+        return [(int(np.argmax(np.abs(v))), d / v[int(np.argmax(np.abs(v)))]) for v, d in resp]
+    mags = [(magnitude(name, v[0]), d) for v, d in resp]
+    if len(mags) < 2:
+        return None
+    (m1, d1), (m2, d2) = mags
+    a = magnitude(name, value[0])
+    return [(0, d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1))]
 
 
 def _columns(c, responses):
-    """The response columns of ``c``'s effects at its values (None for the baseline)."""
+    """(columns, parameter indices) of ``c``'s effects at its values (None for the
+    baseline)."""
     out = []
     for name in c.names:
-        kind, _vals, _top = PROBES[name]
-        resp = [(v, d) for v, d in responses[name] if d is not None]
-        if kind == "linear":
-            out += [(int(np.argmax(np.abs(v))), d / v[int(np.argmax(np.abs(v)))])
-                    for v, d in resp]
-        else:
-            mags = [(magnitude(name, v[0]), d) for v, d in resp]
-            if len(mags) < 2:
-                continue
-            (m1, d1), (m2, d2) = mags
-            a = magnitude(name, c.values[name][0])
-            out.append((0, d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1)))
-    c._slots = [k for k, _ in out]
-    return np.column_stack([col for _, col in out]) if out else None
+        out += effect_columns(name, responses, c.values[name]) or []
+    if not out:
+        return None, []
+    return np.column_stack([col for _, col in out]), [k for k, _ in out]
 
 
-def _widen(c, dz: np.ndarray, A: np.ndarray, E: np.ndarray) -> None:
+def _widen(c, dz: np.ndarray, A: np.ndarray, E: np.ndarray, slots: list[int]) -> None:
     """Widen ``c``'s interval by the value error the refinement ``dz`` implies
     (``ERROR_PER_CHANGE`` times the shift)."""
     name = c.names[0]
@@ -126,7 +133,7 @@ def _widen(c, dz: np.ndarray, A: np.ndarray, E: np.ndarray) -> None:
     E_perp = E - Q @ (Q.T @ E)
     shift, *_ = np.linalg.lstsq(E_perp, dz - Q @ (Q.T @ dz), rcond=None)
     ivs = list(c.interval.get(name, [(v, v) for v in c.values[name]]))
-    for k, s in zip(c._slots, shift):
+    for k, s in zip(slots, shift):
         lo, hi = ivs[k]
         w = ERROR_PER_CHANGE * abs(float(s))
         b_lo, b_hi = EFFECTS[name].bounds[k]           # never beyond the effect's range
@@ -250,23 +257,20 @@ def chord(c, A_sheet, G, responses, n_s):
     cols, lo_e, hi_e, slots = [], [], [], []
     for name in c.names:
         kind, vals, top = PROBES[name]
-        resp = [(v, d) for v, d in responses[name] if d is not None]
         e = EFFECTS[name]
         cur = c.values[name]
+        columns = effect_columns(name, responses, cur)
+        if columns is None:
+            return None
         if kind == "linear":
-            for v, d in resp:
-                k = int(np.argmax(np.abs(v)))
-                cols.append(d / v[k])
+            for k, col in columns:
+                cols.append(col)
                 lo_e.append(e.bounds[k][0] - cur[k])
                 hi_e.append(e.bounds[k][1] - cur[k])
                 slots.append((name, k, False))
         else:
-            mags = [(magnitude(name, v[0]), d) for v, d in resp]
-            if len(mags) < 2:
-                return None
-            (m1, d1), (m2, d2) = mags
             a = magnitude(name, cur[0])
-            col = d1 / m1 if a < m1 else (d2 - d1) / (m2 - m1)
+            col = columns[0][1]
             if c.prev is not None and len(c.names) == 1:
                 # secant: the response between the last two simulated points, the baseline's
                 # linear part removed
