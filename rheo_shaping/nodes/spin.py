@@ -35,8 +35,30 @@ def params_files(argv: Iterable[str]) -> list[str]:
     return out
 
 
-def _sigterm_as_interrupt(signum, frame) -> None:  # noqa: ARG001
-    raise KeyboardInterrupt
+class _StopSignal:
+    """SIGINT and SIGTERM as KeyboardInterrupt, remembering that one arrived.
+
+    rclpy's C handler (installed by ``rclpy.init``) chains to this one, which Python runs
+    at the next bytecode of the main thread.  When that bytecode belongs to Python code
+    called from inside rclpy's C++ (a message's constructor while ``take_message`` builds
+    it), pybind11 turns the KeyboardInterrupt into a ``RuntimeError`` ("Unable to convert
+    call argument '0' to Python object"), possibly before rclpy's own thread has shut the
+    context down (seen in CI: the simulator ended with exit 1 on the test's SIGINT).
+    ``received`` tells :func:`run_node` that such an error is the stop that was asked for.
+    """
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+
+    def __call__(self, signum, frame) -> None:  # noqa: ARG002 - a signal handler's signature
+        first = self.received is None
+        self.received = signum
+        if first:                     # a second signal finds the stop under way: the node
+            raise KeyboardInterrupt   # is tearing down and must not be cut short there
+
+    def install(self) -> None:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self)
 
 
 def _fatal(name: str, message: str) -> int:
@@ -68,10 +90,10 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
     # still ends the process at once (nodes/entry.py): nothing of ROS exists yet
     from ..planning.movement import warm_up
     warm_up()
+    stop = _StopSignal()
     try:
         # from here on rclpy's handlers (installed by init, chaining to these) stop the node
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
+        stop.install()
         rclpy.init(args=args)
     except KeyboardInterrupt:
         return 0
@@ -92,7 +114,7 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
     except Exception:                 # noqa: BLE001
         # rclpy's handler shut the context down while the node was being built: rcl then
         # refuses the next timer or publisher ("the given context is not valid")
-        if rclpy.ok():
+        if rclpy.ok() and stop.received is None:
             raise
         rclpy.logging.get_logger(name).info("interrupted while starting")
         return 0
@@ -100,11 +122,13 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RuntimeError:
+    except Exception:                 # noqa: BLE001
         # rclpy's SIGINT handler shuts the context down asynchronously; when that lands
         # while the executor builds its wait set, rcl reports an invalid context
-        # (ros2/rclpy#398, ros2/ros2cli#854).  That is the shutdown we asked for.
-        if rclpy.ok():
+        # (ros2/rclpy#398, ros2/ros2cli#854), and a KeyboardInterrupt raised inside
+        # rclpy's C++ comes out as a RuntimeError (_StopSignal).  After a stop signal,
+        # either is the shutdown we asked for; without one, it is a real failure.
+        if rclpy.ok() and stop.received is None:
             raise
     finally:
         node.destroy_node()

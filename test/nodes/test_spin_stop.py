@@ -1,0 +1,61 @@
+"""run_node: an error that a stop signal caused is the requested shutdown (exit 0); the
+same error without a signal is a failure that must surface.
+
+rclpy's C++ turns a KeyboardInterrupt raised in Python code it calls (a message's
+constructor inside ``take_message``) into ``RuntimeError("Unable to convert call argument
+'0' to Python object")``, possibly before its own thread has shut the context down (seen
+once in CI: the simulator exited 1 on a test's SIGINT).  The node below mimics that at
+will: its timer sends itself SIGINT and turns the KeyboardInterrupt into that RuntimeError.
+Each case runs in a process of its own (run_node installs signal handlers and inits rclpy).
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+NODE = textwrap.dedent("""
+    import os, signal, sys
+    from rclpy.node import Node
+    from rheo_shaping.nodes.spin import run_node
+
+    SIGNAL = sys.argv[1] == "signal"
+
+    class Converts(Node):
+        def __init__(self):
+            super().__init__("converts")
+            self.create_timer(0.05, self.tick)
+
+        def tick(self):
+            try:
+                if SIGNAL:
+                    os.kill(os.getpid(), signal.SIGINT)
+                    for _ in range(10_000_000):   # the handler raises at a bytecode here
+                        pass
+                raise RuntimeError("no signal arrived")
+            except KeyboardInterrupt:
+                raise RuntimeError("Unable to convert call argument '0' to Python object")
+
+    sys.exit(run_node(Converts, "converts", args=["converts"]))
+""")
+
+
+def _run(mode: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", NODE, mode], capture_output=True,
+                          text=True, timeout=120)
+
+
+def test_error_caused_by_a_stop_signal_is_a_clean_stop():
+    proc = _run("signal")
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr, proc.stderr
+
+
+def test_the_same_error_without_a_signal_surfaces():
+    proc = _run("none")
+    assert proc.returncode == 1, proc.stderr
+    assert "RuntimeError: no signal arrived" in proc.stderr
