@@ -16,8 +16,6 @@ from ..sheet.simulation import RunResult
 from ..sheet.tools import tool_shape
 
 #: Colours of the phases shaded in time plots.
-
-
 PHASE_COLOURS = {"approach": "#e8f0ff", "forced": "#ffe8e8", "dwell": "#fff6d8",
                  "release": "#e8ffe8", "settle": "#f2f2f2"}
 
@@ -27,6 +25,14 @@ def _pyplot():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
+
+
+def _save(plt, fig, path: str | Path, dpi: int = 120) -> Path:
+    """Lay out, write and close ``fig``; the path written."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return Path(path)
 
 
 def draw_cell(ax, result: RunResult, k: int, colour: str = "C0", label: str | None = None,
@@ -60,10 +66,7 @@ def plot_profiles(result: RunResult, times: Sequence[float], path: str | Path,
     ax.set_ylabel("z [mm]")
     ax.legend(fontsize=8, loc="upper right")
     ax.set_title(title or "sheet profile")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return _save(plt, fig, path)
 
 
 def plot_history(result: RunResult, path: str | Path, link: int | None = None,
@@ -91,10 +94,7 @@ def plot_history(result: RunResult, path: str | Path, link: int | None = None,
     ax2.set_xlabel("t [s]")
     ax2.legend(fontsize=8)
     ax1.set_title(title or "tension and deformation")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return _save(plt, fig, path)
 
 
 # ------------------------------------------------------------ the paper's study
@@ -145,10 +145,7 @@ def plot_movement_history(run, path: str | Path, title: str = "") -> Path:
     ax2.legend(fontsize=7, loc="upper left")
     ax1.set_title(title or f"movement {run.label}: F_max = {res.F_max:.3f} N, "
                   f"SF = {res.SF:.2f}, Delta = {res.delta * 1e3:.2f} mm")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return _save(plt, fig, path)
 
 
 def _cell_limits(result: RunResult) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -198,10 +195,7 @@ def plot_phase_profiles(run, path: str | Path, title: str = "") -> Path:
         ax.axis("off")
     fig.suptitle(
         title or f"movement {run.label}: profiles (red: spheres touching the tool)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(plt, fig, path, dpi=110)
 
 
 def plot_sweep(sweep, path: str | Path, d_paper: float | None = None, F_break: float | None = None,
@@ -223,10 +217,7 @@ def plot_sweep(sweep, path: str | Path, d_paper: float | None = None, F_break: f
     ax.set_ylabel("tension [N]")
     ax.legend(fontsize=7)
     ax.set_title(title or "movement 4: maximum tension against d (Fig. 18)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return _save(plt, fig, path)
 
 
 def plot_speed_comparison(full, half, path: str | Path, delta_limit: float | None = None) -> Path:
@@ -273,10 +264,7 @@ def plot_speed_comparison(full, half, path: str | Path, delta_limit: float | Non
     ax2.set_ylabel("z [mm]")
     ax2.legend(fontsize=7)
     ax2.set_title(f"sheet at t = {full.result.t[-1]:.0f} s near the cake's foot", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return _save(plt, fig, path)
 
 
 def plot_sag(sag, params, path: str | Path) -> Path:
@@ -300,7 +288,4 @@ def plot_sag(sag, params, path: str | Path) -> Path:
     ax.legend(fontsize=8)
     ax.set_title(f"test case 1: largest displacement {sag.max_displacement * 1e3:.2f} mm "
                  f"({sag.relative_displacement * 100:.1f} % of the sheet length)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return _save(plt, fig, path)
