@@ -46,8 +46,15 @@ def say(msg: str) -> None:
 
 
 def run_checked(cmd: list) -> None:
+    """Run ``cmd``, exit if it fails; drop pip's warnings about this machine's local index
+    folders that lack a package (one line per package, noise)."""
     say("$ " + " ".join(shlex.quote(str(c)) for c in cmd))
-    rc = subprocess.run([str(c) for c in cmd]).returncode
+    proc = subprocess.Popen([str(c) for c in cmd], stderr=subprocess.PIPE, text=True,
+                            errors="replace", bufsize=1)
+    for line in proc.stderr:
+        if not (line.startswith("WARNING: Location '") and "is ignored" in line):
+            sys.stderr.write(line)
+    rc = proc.wait()
     if rc != 0:
         raise SystemExit(f"[dev] command failed with exit code {rc}: {cmd[0]} ...")
 
