@@ -35,6 +35,7 @@ from ..records.records import write_record
 from ..params.schema import iter_fields
 from . import messages as m
 from . import topics as T
+from .services import query
 from ..units import NS
 
 #: How close [m] the last tool pose before the start must be to the first set-point for
@@ -196,13 +197,12 @@ def scenario_from_simulator(node: Node, executor, simulator: str, timeout: float
             raise RecordCellError(f"no {simulator}/get_parameters service within {timeout:g} s: "
                                   f"is the simulator running (or give --params FILE)?")
         executor.spin_once(timeout_sec=0.05)
-    future = client.call_async(GetParameters.Request(names=names))
-    while not future.done():
-        if time.monotonic() > end:
-            raise RecordCellError(f"{simulator}/get_parameters did not answer")
-        executor.spin_once(timeout_sec=0.05)
+    reply = query(client, GetParameters.Request(names=names),
+                  lambda s: executor.spin_once(timeout_sec=s), end - time.monotonic())
+    if reply is None:
+        raise RecordCellError(f"{simulator}/get_parameters did not answer")
     flat = {}
-    for n, v in zip(names, future.result().values):
+    for n, v in zip(names, reply.values):
         value = parameter_value_to_python(v)
         flat[n] = (tuple(float(x) for x in value)
                    if not isinstance(value, (str, bytes)) and hasattr(value, "__len__")

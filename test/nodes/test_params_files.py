@@ -121,12 +121,16 @@ def test_every_node_refuses_a_bad_file_with_the_core_message_and_no_traceback(tm
 def _get_parameters(ros, node_fqn: str, names: list[str], timeout: float = 60.0) -> dict:
     from rcl_interfaces.srv import GetParameters
     from rclpy.parameter import parameter_value_to_python
+
+    from rheo_shaping.nodes.services import query
     client_node = ros.node("params_reader_" + node_fqn.strip("/").replace("/", "_"))
     client = client_node.create_client(GetParameters, f"{node_fqn}/get_parameters")
     ros.spin_until(client.service_is_ready, timeout, f"{node_fqn}/get_parameters")
-    future = client.call_async(GetParameters.Request(names=names))
-    ros.spin_until(future.done, timeout, f"the reply of {node_fqn}/get_parameters")
-    return {n: parameter_value_to_python(v) for n, v in zip(names, future.result().values)}
+    # a query: sent again while no reply came (a reply can be lost to discovery, services.py)
+    reply = query(client, GetParameters.Request(names=names),
+                  lambda s: ros.executor.spin_once(timeout_sec=s), timeout)
+    assert reply is not None, f"no reply of {node_fqn}/get_parameters within {timeout:g} s"
+    return {n: parameter_value_to_python(v) for n, v in zip(names, reply.values)}
 
 
 #: node -> (setting its /**/<node> section of config/cell.yaml sets, that value,
