@@ -73,11 +73,26 @@ def base_python() -> str:
     return found
 
 
+def included(name: str, seen: tuple[str, ...] = ()) -> list[str]:
+    """``name`` and the requirement files it includes (``-r FILE``), recursively, as paths
+    relative to the checkout."""
+    if name in seen:
+        return []
+    out, path = [name], ROOT / name
+    for line in path.read_text().splitlines() if path.exists() else []:
+        words = line.split("#", 1)[0].split()
+        if len(words) == 2 and words[0] in ("-r", "--requirement"):
+            ref = (path.parent / words[1]).resolve().relative_to(ROOT).as_posix()
+            out += included(ref, (*seen, name))
+    return out
+
+
 class Venv:
     """One of the project's virtualenvs, stamped with the hash of what it was built from."""
 
-    def __init__(self, name: str, requirements: list[str]):
-        self.path, self.inputs = ROOT / name, requirements + ["setup.py", "setup.cfg"]
+    def __init__(self, name: str, requirements: str):
+        self.path, self.requirements = ROOT / name, requirements
+        self.inputs = included(requirements) + ["setup.py", "setup.cfg"]
         self.python = self.path / "bin" / "python"
         self.stamp = self.path / ".rheo_shaping-stamp"
 
@@ -102,15 +117,14 @@ class Venv:
         pip = [self.python, "-m", "pip", "install", "--progress-bar", "off",
                "--disable-pip-version-check", *([] if verbose else ["--quiet"])]
         say(f"{self.path.name}: pip install (this can take a few minutes)")
-        run_checked([*pip, "-r", ROOT / self.inputs[0]])
+        run_checked([*pip, "-r", ROOT / self.requirements])
         run_checked([*pip, "-e", ROOT])
         self.stamp.write_text(self.wanted() + "\n")
         say(f"{self.path.name}: ready in {time.monotonic() - t0:.0f} s")
 
 
-# requirements-ros.txt includes requirements-core.txt (-r)
-FULL = Venv(".venv", ["requirements-ros.txt", "requirements-core.txt"])
-CORE = Venv(".venv-core", ["requirements-core.txt"])
+FULL = Venv(".venv", "requirements-ros.txt")
+CORE = Venv(".venv-core", "requirements-core.txt")
 
 
 def ensure_venvs(venvs: list[Venv], verbose: bool) -> None:

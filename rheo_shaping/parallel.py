@@ -26,6 +26,9 @@ from typing import Any, Callable, Iterator, Sequence, TypeVar
 T = TypeVar("T")
 R = TypeVar("R")
 
+#: How long [s] a ``dask://`` executor waits for its scheduler to answer.
+CONNECT_TIMEOUT_S = 10.0
+
 SPEC_HELP = ("'local' (a process pool, one worker per core), 'local:N' (N workers), "
              "'serial' (no pool) or 'dask://HOST:PORT' (an existing Dask scheduler)")
 
@@ -91,7 +94,7 @@ def executor_from_spec(spec: str | None = None, jobs: int | None = None) -> Iter
             raise ValueError(f"--executor {spec!r} needs dask.distributed: "
                              "pip install 'dask[distributed]'") from None
         try:
-            client = Client(f"tcp://{address}", timeout=10, set_as_default=False)
+            client = Client(f"tcp://{address}", timeout=CONNECT_TIMEOUT_S, set_as_default=False)
         except OSError as exc:
             raise ValueError(f"--executor {spec!r}: no Dask scheduler answers at "
                              f"{address} ({exc})") from None

@@ -114,6 +114,13 @@ class Recorder:
         return [msg for msg, info in zip(self.msgs[topic], self.infos[topic])
                 if info["source_timestamp"] > wall_ns]
 
+    def lost(self, topic) -> int:
+        """Messages on ``topic`` its publisher sent that this recorder never got: the gaps in
+        the publication sequence numbers (one publisher on the topic), counted from the first
+        message received to the last."""
+        seq = [info["publication_sequence_number"] for info in self.infos[topic]]
+        return sum(b - a - 1 for a, b in zip(seq, seq[1:]) if b > a + 1)
+
     def __getitem__(self, topic):
         return self.msgs[topic]
 

@@ -150,6 +150,7 @@ def test_diagnose_a_recorded_cell_finds_no_effect(recorded):
 def test_replay_publishes_the_record_on_its_own_stamps(recorded, ros):
     from rosbags.rosbag2 import Reader
     from rheo_shaping.nodes import messages as m
+    from rheo_shaping.nodes.recorder import get_message
     out, _ = recorded
     with Reader(out) as reader:
         conns = {c.id: c.topic for c in reader.connections}
@@ -160,11 +161,12 @@ def test_replay_publishes_the_record_on_its_own_stamps(recorded, ros):
             msg = ts.deserialize_cdr(raw, c.msgtype)
             s = msg.header.stamp
             bag.setdefault(conns[c.id], []).append(s.sec * 1_000_000_000 + s.nanosec)
+        types = {c.topic: c.msgtype for c in reader.connections}
     node = ros.node("replay_listener")
     ns = "/rp"
-    rec = Recorder(node, {T.TOOL_POSE.in_namespace(ns): T.TOOL_POSE.type,
-                          T.MEASURED_PROFILE.in_namespace(ns): T.MEASURED_PROFILE.type,
-                          T.CLOCK.in_namespace(ns): T.CLOCK.type})
+    # a reader on every topic of the record: the replay's --wait ends when each is matched
+    rec = Recorder(node, {ns + topic: get_message(msgtype) for topic, msgtype in types.items()}
+                   | {T.CLOCK.in_namespace(ns): T.CLOCK.type})
     proc = _cli("replay", str(out), "--namespace", ns, "--rate", "40", "--wait", "30",
                 "--json")
     try:

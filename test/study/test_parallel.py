@@ -53,8 +53,10 @@ def test_bad_specs_are_refused_by_name(spec, says):
     assert repr(spec) in str(err.value)
 
 
-def test_no_scheduler_at_the_address_is_a_clear_error():
+def test_no_scheduler_at_the_address_is_a_clear_error(monkeypatch):
     import socket
+    import rheo_shaping.parallel
+    monkeypatch.setattr(rheo_shaping.parallel, "CONNECT_TIMEOUT_S", 2.0)   # the same refusal
     with socket.socket() as s:                     # a port with nothing listening
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
