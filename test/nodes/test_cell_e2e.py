@@ -58,8 +58,8 @@ def test_two_step_shaping_matches_the_offline_core(ros, procs, tmp_path):
     cell = base_cell()
     cell = replace(cell, movement=replace(cell.movement, number=4))
     offline = run_movement(cell)
-    # 10x real time, 0.2 s steps: the observer takes ~150 messages/s (the tensions and
-    # profiles in full, the set-points as a sample: the check below needs no more)
+    # 10x real time, 0.2 s steps: the observer takes the tensions and profiles in full (100
+    # messages/s) and the set-points as a sample (the check below needs no more)
     params = write_params(tmp_path / "cell.yaml", cell,
                           simulator={"real_time_factor": 10.0, "step_period": 0.02},
                           planner={"autostart": False})
