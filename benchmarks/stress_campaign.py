@@ -192,19 +192,28 @@ def run_condition(condition: str, seed: int, args) -> dict:
     rng = random.Random(seed)
     cells = [campaign.sample_cell(CellParams(), rng) for _ in range(args.runs)]
     t0 = time.monotonic()
+    done = [0]
+
+    def progress(k: int) -> None:
+        """Runs finished so far, with the elapsed time and an ETA, on stderr."""
+        done[0] += k
+        elapsed = time.monotonic() - t0
+        eta = elapsed * (len(cells) - done[0]) / done[0]
+        print(f"  {condition} seed {seed}: {done[0]}/{len(cells)} runs, {elapsed / 60:.1f} min, "
+              f"ETA {eta / 60:.1f} min", file=sys.stderr, flush=True)
     if condition in ("idle", "cpu"):
         from rheo_shaping.parallel import executor_from_spec, run_tasks
         shared = {"domain": args.domain, "trend": False}
         hog = cpu_hog(os.cpu_count() or 2) if condition == "cpu" else contextlib.nullcontext()
         with hog, executor_from_spec(None, jobs=args.jobs) as ex:
             rows = run_tasks(ex, campaign._campaign_task, shared, list(enumerate(cells)),
-                             chunks_per_worker=8)
+                             progress=progress, chunks_per_worker=8)
     else:
         rows = []
         with lossy_namespace(args.loss) as prefix:
             for i, cell in enumerate(cells):
                 rows.append(run_case_processes(i, cell, prefix, args.domain, args.timeout))
-                print(f"  loss case {i + 1}/{len(cells)}", file=sys.stderr, flush=True)
+                progress(1)
     summary = campaign.summarise(rows, time.monotonic() - t0)
     summary.update(condition=condition, seed=seed)
     if condition == "loss":
