@@ -20,12 +20,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "test"))
+from _support.domains import claim_domain_id  # noqa: E402  (stdlib only)
 
 PUBLISHER = r"""
 import sys, time, rclpy
@@ -64,7 +67,6 @@ rclpy.shutdown()
 
 
 def measure(rate: float, seconds: float) -> dict:
-    sys.path.insert(0, str(HERE.parent / "test"))
     from geometry_msgs.msg import PoseArray, PoseStamped
 
     from _support.ros import Recorder, Ros
@@ -99,6 +101,9 @@ def main(argv=None) -> int:
         ap.error(f"--rates: {a.rates!r} is not a comma-separated list of numbers")
     if any(r <= 0 for r in rates) or a.seconds <= 0:
         ap.error("--rates and --seconds must be positive")
+    # this process and its publisher only: a domain of their own, traffic on this machine
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.setdefault("ROS_DOMAIN_ID", str(claim_domain_id()))
     with open("/proc/loadavg") as f:
         load = f.read().split()[:3]
     if not a.json:

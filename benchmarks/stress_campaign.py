@@ -192,14 +192,15 @@ def run_condition(condition: str, seed: int, args) -> dict:
     rng = random.Random(seed)
     cells = [campaign.sample_cell(CellParams(), rng) for _ in range(args.runs)]
     t0 = time.monotonic()
-    done = [0]
+    done = 0
 
     def progress(k: int) -> None:
         """Runs finished so far, with the elapsed time and an ETA, on stderr."""
-        done[0] += k
+        nonlocal done
+        done += k
         elapsed = time.monotonic() - t0
-        eta = elapsed * (len(cells) - done[0]) / done[0]
-        print(f"  {condition} seed {seed}: {done[0]}/{len(cells)} runs, {elapsed / 60:.1f} min, "
+        eta = elapsed * (len(cells) - done) / done
+        print(f"  {condition} seed {seed}: {done}/{len(cells)} runs, {elapsed / 60:.1f} min, "
               f"ETA {eta / 60:.1f} min", file=sys.stderr, flush=True)
     if condition in ("idle", "cpu"):
         from rheo_shaping.parallel import executor_from_spec, run_tasks
