@@ -299,7 +299,8 @@ def chord(c, A_sheet, G, responses, n_s):
     return u_new, {n: tuple(float(x) for x in v) for n, v in vals.items()}
 
 
-def adequate(c, J_base_h: float, has_holdout: bool, base=None) -> bool:
+def adequate(c, J_base_h: float, has_holdout: bool, base=None,
+             replay: tuple = (None, None)) -> bool:
     """What ``c`` leaves looks like the effect-free baseline: its excess misfit within the
     null's 95 % quantile plus an allowance for the model's discretisation error at the
     effect, on the fit and the holdout records; the holdout records must also improve on
@@ -307,7 +308,9 @@ def adequate(c, J_base_h: float, has_holdout: bool, base=None) -> bool:
     carries beyond the baseline's own (``base``; the null already holds that), and never
     more than ``GAP_SHARE`` of the baseline's excess: a model whose discretisation error
     were comparable to the effect itself would contradict its convergence study, so a
-    candidate that leaves a large part of the gap is refused whatever its numerics."""
+    candidate that leaves a large part of the gap is refused whatever its numerics.
+    ``replay`` (fit, holdout): draws of the model's own replay misfit on those records,
+    added to the null (:mod:`replay`; None unless the written cell has a Kelvin dashpot)."""
     def allow(j: float, j0: float, J_b: float) -> float:
         if not (math.isfinite(j) and math.isfinite(j0) and math.isfinite(J_b)):
             return 0.0
@@ -315,16 +318,18 @@ def adequate(c, J_base_h: float, has_holdout: bool, base=None) -> bool:
     b_fit = base.J_num if base is not None else math.nan
     b_hold = base.J_num_holdout if base is not None else math.nan
     J_b = base.J if base is not None else math.nan
-    ok = c.J - 1.0 <= stats.null_quantile() + allow(c.J_num, b_fit, J_b)
+    ok = c.J - 1.0 <= stats.null_quantile(shift=replay[0]) + allow(c.J_num, b_fit, J_b)
     if ok and has_holdout and math.isfinite(J_base_h):
         ok = (c.J_holdout < J_base_h and c.J_holdout - 1.0
-              <= stats.null_quantile(True) + allow(c.J_num_holdout, b_hold, J_base_h))
+              <= stats.null_quantile(True, shift=replay[1])
+              + allow(c.J_num_holdout, b_hold, J_base_h))
     return bool(ok)
 
 
-def needs_numerics(c, J_base_h: float, has_holdout: bool) -> bool:
+def needs_numerics(c, J_base_h: float, has_holdout: bool,
+                   replay: tuple = (None, None)) -> bool:
     """``c`` is significant, improves the holdout records, and is refused without the
     numerics allowance: only then is the refined run worth its cost."""
     return (c.checked and math.isfinite(c.J) and c.p <= stats.ALPHA
-            and not adequate(c, J_base_h, has_holdout)
+            and not adequate(c, J_base_h, has_holdout, replay=replay)
             and (not has_holdout or not math.isfinite(J_base_h) or c.J_holdout < J_base_h))

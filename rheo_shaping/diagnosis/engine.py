@@ -16,7 +16,9 @@
    chain value beyond its tolerance with p <= ALPHA puts (part of) the gap on
    the measurement side, reported before any effect of the sheet.
 4. Gap test.  The baseline's excess misfit against its calibrated
-   effect-free distribution (p_gap).  p_gap > ALPHA: ``none``.
+   effect-free distribution (p_gap).  p_gap > ALPHA: ``none``.  For a written
+   cell with a Kelvin dashpot that distribution is the stored one plus the
+   model's own replay misfit, measured here (:mod:`replay`).
 5. Which effect.  Each library effect is probed at the baseline by two
    simulations per fit record (one per axis for tool_offset, one for
    mass_error, both linear) and fitted jointly with the baseline's knobs on
@@ -48,7 +50,7 @@ from ..sheet.effects import EFFECT_NAMES
 from ..params.params import CellParams
 from ..records.record import Record
 from ..params.schema import ParameterError
-from . import stats
+from . import replay, stats
 from .baseline import CHAIN, SHEET, with_sheet
 from .candidates import (CHECKED, PAIRED, PROBES, REFINE_STEPS, Explanation, fit_pair,
                          fit_single, rank_key)
@@ -179,8 +181,12 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         parts_B = G.stack.J_parts(zB)
         n_eff = _n_eff(G, zB, fit_d)
 
-        # 3. gap test
-        p_gap = stats.gap_p_value(J_base - 1.0)
+        # 3. gap test; for a Kelvin cell the null plus the model's own replay misfit
+        rp = (None, None)
+        if any(replay.kelvin(d.record.scenario) for d in data):
+            rp = tuple(replay.replay_misfit(dd, [base_params(d, u_s) for d in dd], run, sp, sf)
+                       if dd else None for dd in (fit_d, hold_d))
+        p_gap = stats.gap_p_value(J_base - 1.0, shift=rp[0])
         gap_left = p_gap <= stats.ALPHA
 
         # 4. which side: the chain beyond its tolerance (no simulation: linear), checked
@@ -228,13 +234,13 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                   (A_sheet, responses, REFINE_STEPS))
             base_c = Explanation((), {}, J_base, checked=True, baseline_u=np.r_[u_s, u_c],
                                  z_raw=zB_raw, zh_raw=H.z(base_outs[nf:]) if H else None)
-            need = [c for c in effects[:CHECKED] if needs_numerics(c, J_base_h, bool(hold_d))]
+            need = [c for c in effects[:CHECKED] if needs_numerics(c, J_base_h, bool(hold_d), rp)]
             if need:
                 # a strong effect changes how the knobs act: refit from its own Jacobian
                 relinearise(need, run, fit_d, G, base_params, n_s)
                 refine_points(need, run, fit_d, hold_d, G, H, n_s, base_params, chain_fit,
                               parts_B, n_eff, m, chain_free, A_sheet, responses, REFINE_STEPS)
-                need = [c for c in need if needs_numerics(c, J_base_h, bool(hold_d))]
+                need = [c for c in need if needs_numerics(c, J_base_h, bool(hold_d), rp)]
             if need:
                 numerics(need + [base_c], run, fit_d, hold_d, G, H, base_params, n_s, A,
                          responses)
@@ -246,10 +252,10 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         if not gap_left or not library:
             chain_c.p = min(1.0, stats.chi2_sf(chain_c.LR, chain_c.k))
         outside = [k.name for k, v in zip(CHAIN, chain_c.baseline_u[n_s:]) if abs(v) > 1.0 + 1e-6]
-        chain_c.adequate = chain_c.checked and adequate(chain_c, J_base_h, bool(hold_d))
+        chain_c.adequate = chain_c.checked and adequate(chain_c, J_base_h, bool(hold_d), replay=rp)
         chain_ok = gap_left and chain_c.checked and chain_c.p <= stats.ALPHA and chain_c.adequate
         for c in effects:
-            c.adequate = c.checked and adequate(c, J_base_h, bool(hold_d), base_c)
+            c.adequate = c.checked and adequate(c, J_base_h, bool(hold_d), base_c, rp)
         ranked = sorted(effects, key=rank_key)
         if gap_left and ranked:
             lead = ranked[0]
@@ -273,12 +279,12 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                     check(pairs[:1], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
                           parts_B, n_eff, J_base_h, m, chain_free,
                           (A_sheet, responses, REFINE_STEPS))
-                    if needs_numerics(pairs[0], J_base_h, bool(hold_d)):
+                    if needs_numerics(pairs[0], J_base_h, bool(hold_d), rp):
                         # the baseline again, refined the same way as the pair
                         numerics([pairs[0], base_c], run, fit_d, hold_d, G, H, base_params,
                                  n_s, A, responses)
                     bp = pairs[0]
-                    bp.adequate = bp.checked and adequate(bp, J_base_h, bool(hold_d), base_c)
+                    bp.adequate = bp.checked and adequate(bp, J_base_h, bool(hold_d), base_c, rp)
                     # a pair must beat each of its parts significantly
                     if bp.checked and bp.p <= stats.ALPHA and bp.adequate:
                         verdict_fit = bp
@@ -327,7 +333,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                      {"profile_m": sp, "force_N": sf}, J0, J0h, J_base, J_base_h, baseline_tab,
                      side, p_gap, n_eff, [d.record.name for d in fit_d],
                      [d.record.name for d in hold_d], runs, corrected=corrected,
-                     numerics_base=base_c)
+                     numerics_base=base_c, J_replay=rp)
     diag.where = where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf)
     diag.gap_before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
     before = diag.gap_before

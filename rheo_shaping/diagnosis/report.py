@@ -109,6 +109,15 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
     lines.append(f"Gap test: the baseline's excess J - 1 = {diag.J_base - 1:.4f} against "
                  f"effect-free records (95 % of them stay below "
                  f"{stats.null_quantile():.4f}): p_gap = {diag.p_gap:.3g}.")
+    if diag.J_replay[0] is not None:
+        y = np.asarray(diag.J_replay[0])
+        lines.append(f"The written cell has a Kelvin dashpot (c1 > 0), whose force follows the "
+                     f"tool's speed. Records of the baseline itself, at these records' stamps "
+                     f"and pose noise, misfit their replay by J_replay = {np.median(y):.4f} "
+                     f"(median of {y.size} draws of the pose noise, {y.min():.4f}-{y.max():.4f})."
+                     f" The stored null holds no such cell, so the gap test and the adequacy "
+                     f"checks compare with the null plus these draws (95 % below "
+                     f"{stats.null_quantile(shift=y):.4f}).")
     vf = diag.verdict_fit
     if vf:
         pv = f"{vf.p:.3g}" if vf.p > 0 else "< 1e-300"

@@ -44,6 +44,7 @@ class Diagnosis:
     corrected: CellParams | None = None
     residual_maps: list = field(default_factory=list)
     numerics_base: Explanation | None = None   # the baseline's run against its refined run
+    J_replay: tuple = (None, None)   # draws of the model's own replay misfit (fit, holdout)
 
     def explained(self, fr: Explanation, holdout: bool = False) -> float:
         """Fraction of the baseline's excess misfit the candidate removes."""
@@ -83,6 +84,8 @@ class Diagnosis:
                 "baseline_took": num(self.baseline_took),
                 "J_nominal": {"fit": self.J0, "holdout": num(self.J0_holdout)},
                 "J_baseline": {"fit": self.J_base, "holdout": num(self.J_base_holdout)},
+                "J_replay": {k: (None if v is None else [float(x) for x in v])
+                             for k, v in zip(("fit", "holdout"), self.J_replay)},
                 "n_eff": self.n_eff, "effects": [eff(f, i + 1) for i, f in enumerate(ranked)],
                 "signature": self.signature, "where": self.where,
                 "gap_before": self.gap_before, "gap_baseline": self.gap_baseline,

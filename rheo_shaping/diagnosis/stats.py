@@ -53,21 +53,34 @@ def _null_sample() -> dict:
             "holdout": np.sort(np.asarray(data["holdout"], float))}
 
 
-def null_quantile(holdout: bool = False, level: float = 1.0 - ALPHA) -> float:
+def _null(holdout: bool, shift: np.ndarray | None) -> np.ndarray:
+    """The stored null sample (sorted), or every sum of a stored value and a ``shift`` draw
+    (the model's own replay misfit, :mod:`replay`), sorted."""
+    x = _null_sample()["holdout" if holdout else "fit"]
+    if shift is None or np.size(shift) == 0:
+        return x
+    return np.sort((x[:, None] + np.asarray(shift, float)[None, :]).ravel())
+
+
+def null_quantile(holdout: bool = False, level: float = 1.0 - ALPHA,
+                  shift: np.ndarray | None = None) -> float:
     """Excess J - 1 below which a new effect-free record's p-value exceeds ``1 - level``.
 
     The smallest x with (1 + #{null >= x}) / (n + 1) <= 1 - level is just above the
     k-th largest null value, k = floor((1 - level) (n + 1)) (conformal bound).
+    ``shift``: draws of the model's own replay misfit added to the null (:func:`_null`).
     """
-    x = _null_sample()["holdout" if holdout else "fit"]
+    x = _null(holdout, shift)
     k = int(math.floor((1.0 - level) * (x.size + 1)))
     return float(x[-k]) if k >= 1 else math.inf
 
 
-def gap_p_value(excess: float, holdout: bool = False) -> float:
+def gap_p_value(excess: float, holdout: bool = False,
+                shift: np.ndarray | None = None) -> float:
     """Conformal p-value (1 + #{null >= excess}) / (n + 1): for an effect-free record
-    exchangeable with the calibration records, P(p <= a) <= a for every a."""
-    x = _null_sample()["holdout" if holdout else "fit"]
+    exchangeable with the calibration records, P(p <= a) <= a for every a.  ``shift``:
+    draws of the model's own replay misfit added to the null (:func:`_null`)."""
+    x = _null(holdout, shift)
     return float((1 + np.count_nonzero(x >= excess)) / (x.size + 1))
 
 

@@ -231,3 +231,52 @@ def test_a_strong_kelvin_creep_is_named_through_its_own_jacobian_and_numerics():
     (value,), ((lo, hi),) = vf.values[name], vf.interval[name]
     assert value == pytest.approx(true, rel=0.1)
     assert lo <= true <= hi
+
+
+def test_replay_null_is_the_stored_null_plus_each_draw():
+    """The gap test's null for a Kelvin cell: every sum of a stored value and a draw of the
+    model's own replay misfit (exact counts)."""
+    x = stats._null_sample()["fit"]
+    c = 0.3
+    assert stats.null_quantile(shift=np.array([c])) == pytest.approx(stats.null_quantile() + c)
+    for e in (x[10], x[100], x[-3]):
+        assert stats.gap_p_value(e + c, shift=[c]) == stats.gap_p_value(e)
+    # two draws, 0 and c: the null is the stored one twice, once shifted by c
+    e = x[-1] + 1e-9                          # above every stored value, below every shifted one
+    assert stats.gap_p_value(e, shift=[0.0, c]) == pytest.approx(
+        (1 + x.size) / (2 * x.size + 1))
+    assert stats.gap_p_value(e) == pytest.approx(1 / (x.size + 1))
+
+
+def test_pose_noise_estimate_recovers_the_reported_pose_noise():
+    from rheo_shaping.diagnosis.replay import pose_noise
+    for sigma in (0.0, 2e-5, 1e-4):
+        ms = MeasurementParams(pose_noise=sigma)
+        rec, _ = synthesize_record(cell(4, PROCESS_TIME, N_MASSES), ms, seed=3)
+        assert pose_noise(rec) == pytest.approx(sigma, rel=0.05, abs=1e-7)
+
+
+def test_a_kelvin_cell_round_trips_to_none_and_still_sees_a_real_gap():
+    """Records made from a written cell with a strong Kelvin creep (c1 = 441 N s/m, the
+    diagnosis's own chain and steps, default sensors): the stored null alone refuses them
+    (the replay of a noisy pose through the dashpot), the null plus the model's own replay
+    misfit gives `none`; a tool offset of 1.5 mm on the same cell is still a gap."""
+    written = cell(1, PROCESS_TIME, N_MASSES, kelvin_c1=(441.0,))
+
+    def records(truth):
+        out = []
+        for m in (4, 2, 1):
+            t = replace(truth, movement=replace(truth.movement, number=m))
+            w = replace(written, movement=replace(written.movement, number=m))
+            rec = synthesize_record(t, seed=500 + m, name=f"m{m}")[0]
+            out.append(replace(rec, scenario=w))
+        return out
+    rec = records(written)
+    d = diagnose(rec[:2], rec[2:], jobs=2)
+    assert stats.gap_p_value(d.J_base - 1.0) <= stats.ALPHA        # the stored null refuses
+    assert d.J_replay[0] is not None and d.J_replay[0].size == 8
+    assert d.verdict == "none" and d.p_gap > stats.ALPHA
+    off = EFFECTS["tool_offset"].apply(written, (1.5e-3, 0.0))
+    rec = records(off)
+    d = diagnose(rec[:2], rec[2:], library=("tool_offset", "mass_error"), jobs=2)
+    assert d.p_gap <= stats.ALPHA and d.verdict == "tool_offset"

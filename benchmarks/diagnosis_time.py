@@ -1,0 +1,83 @@
+"""What one diagnosis of three records costs: wall time and simulations, per kind of case.
+
+Cases (records without the inverse crime, ``rheo_shaping.diagnosis.benchmark.make_case``, two
+fitted and one held out):
+
+* ``free``: effect-free records (seed 11, case 5);
+* ``offset``: a tool offset (seed 4, case 4), a plain gap case;
+* ``kelvin``: a strong Kelvin creep (c1 = 785 N s/m, seed 1, case 34), which needs the
+  relinearisation and the refined runs;
+* ``kelvin-file``: records made from a written cell with c1 = 441 N s/m, diagnosed against it
+  (the ``--write-scenario`` round trip: the model's own replay misfit is measured).
+
+``--n-masses`` and ``--process-time`` set the diagnosis's cell (default: the benchmark's, 31 and
+70 s; the default cell is 63 and 120 s).  Prints one line per case and repetition, then the
+median per case, with the machine's core count and load average.
+
+    python benchmarks/diagnosis_time.py [--cases free,offset,kelvin,kelvin-file] [--repeat 1]
+        [--jobs 2] [--n-masses 31] [--process-time 70]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+from dataclasses import replace
+
+CASES = {"free": ("none", 5, 11), "offset": ("single", 4, 4), "kelvin": ("single", 34, 1)}
+
+
+def records_of(name: str, base):
+    """The three records of case ``name`` on the diagnosis cell ``base``."""
+    from rheo_shaping.diagnosis.benchmark import make_case
+    from rheo_shaping.records.measurement import synthesize_record
+    from rheo_shaping.sheet.effects import EFFECTS
+    if name in CASES:
+        return make_case(CASES[name][1], CASES[name][0], CASES[name][2], base)["records"]
+    written = EFFECTS["kelvin_c1"].apply(base, (441.0,))
+    out = []
+    for m in (4, 2, 1):
+        w = replace(written, movement=replace(written.movement, number=m))
+        out.append(replace(synthesize_record(w, seed=500 + m, name=f"m{m}")[0], scenario=w))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cases", default="free,offset,kelvin,kelvin-file")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--n-masses", type=int, default=31)
+    ap.add_argument("--process-time", type=float, default=70.0, help="record length [s]")
+    args = ap.parse_args(argv)
+    names = [c for c in args.cases.split(",") if c]
+    bad = [c for c in names if c not in (*CASES, "kelvin-file")]
+    if bad or args.repeat < 1:
+        ap.error(f"--cases from {', '.join((*CASES, 'kelvin-file'))} (got {bad}); "
+                 "--repeat >= 1")
+    from rheo_shaping.diagnosis.benchmark import base_cell
+    from rheo_shaping.diagnosis.engine import diagnose
+    from rheo_shaping.diagnosis.evaluate import default_executor
+    base = base_cell(args.n_masses, args.process_time)
+    print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start; "
+          f"N = {args.n_masses}, {args.process_time:g} s records, {args.jobs} workers")
+    times: dict[str, list[float]] = {}
+    with default_executor(args.jobs) as ex:
+        diagnose(records_of("free", base)[:1], executor=ex)          # warm the workers
+        for name in names:
+            rec = records_of(name, base)
+            for _ in range(args.repeat):
+                t0 = time.perf_counter()
+                d = diagnose(rec[:2], rec[2:], executor=ex)
+                wall = time.perf_counter() - t0
+                times.setdefault(name, []).append(wall)
+                print(f"{name:12s} {d.verdict:18s} {wall:6.1f} s  {d.runs:4d} simulations  "
+                      f"load {os.getloadavg()[0]:.1f}", flush=True)
+    for name, ts in times.items():
+        print(f"median {name:12s} {statistics.median(ts):6.1f} s over {len(ts)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
