@@ -9,7 +9,9 @@ numba) and the loading or first compilation of the sheet kernel
 :func:`rheo_shaping.nodes.spin.run_node` ends the node cleanly; once it returns, the process
 ends at once with its code (no interpreter finalisation, during which a signal would kill
 it).  This module imports nothing heavy, so its handlers are in place within milliseconds
-of the start.
+of the start.  Before that, the interpreter's own start-up: the executable (setup.py's
+``LAUNCHER``) starts Python with SIGINT and SIGTERM blocked, and :func:`_run` unblocks them
+once its handlers are in place, so a signal that came in between is handled then.
 """
 from __future__ import annotations
 
@@ -26,6 +28,9 @@ def _early_exit(signum, frame) -> None:  # noqa: ARG001 - a signal handler's sig
 def _run(module: str) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _early_exit)
+    # the executable (setup.py's LAUNCHER) starts Python with both blocked: a signal that came
+    # during the interpreter's own start-up is pending, and is delivered to the handler now
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     import importlib
     node = importlib.import_module(f"rheo_shaping.nodes.{module}")
     code = node.main()

@@ -31,12 +31,9 @@ PIP_ONLY = {"ruckig": "pip install ruckig",
 JAZZY_KEYS = set(MODULE_KEYS.values()) | {"rviz2", "python3-pytest"}
 EXEC_DEPENDS = set(MODULE_KEYS.values()) | {"rviz2"}
 TEST_DEPENDS = {"python3-pytest"}
-CONSOLE_SCRIPTS = {
-    "simulator": "rheo_shaping.nodes.entry:simulator",
-    "planner": "rheo_shaping.nodes.entry:planner",
-    "monitor": "rheo_shaping.nodes.entry:monitor",
-    "rheo-shaping": "rheo_shaping.cli:main",
-}
+CONSOLE_SCRIPTS = {"rheo-shaping": "rheo_shaping.cli:main"}
+#: The nodes' executables: setup.py's LAUNCHER (``scripts``), not console_scripts wrappers.
+NODES = ("simulator", "planner", "monitor")
 
 
 def _manifest() -> ET.Element:
@@ -128,6 +125,24 @@ def test_setup_py_console_scripts():
         name, target = (part.strip() for part in spec.split("=", 1))
         scripts[name] = target
     assert scripts == CONSOLE_SCRIPTS
+
+
+def test_each_node_executable_is_the_launcher_shell_and_python_at_once():
+    """setup.py installs its LAUNCHER per node (``scripts``): a shell script that starts Python
+    on itself with SIGINT and SIGTERM blocked, and a Python script that runs the node
+    (docs/safety.md; test/nodes/test_early_signals.py runs the installed ones)."""
+    tree = ast.parse((REPO / "setup.py").read_text())
+    consts = {t.id: n.value for n in tree.body if isinstance(n, ast.Assign)
+              for t in n.targets if isinstance(t, ast.Name)}
+    assert ast.literal_eval(consts["NODES"]) == NODES
+    assert ast.unparse(_setup_kwargs()["scripts"]) == "node_launchers()"
+    template = ast.literal_eval(consts["LAUNCHER"])
+    for node in NODES:
+        text = template.replace("@NODE@", node).replace("@PYTHON@", "/usr/bin/python3")
+        assert text.startswith("#!/bin/sh\n")
+        assert 'exec env --block-signal=INT --block-signal=TERM "$py" "$0" "$@"' in text
+        assert f"from rheo_shaping.nodes.entry import {node}\n" in text
+        compile(text, node, "exec")
 
 
 def test_setup_cfg_installs_scripts_where_ros2_run_looks():
