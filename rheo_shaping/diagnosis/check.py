@@ -252,6 +252,16 @@ def simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, pa
         c.checked = True
 
 
+def _solver(A_sheet: np.ndarray, G) -> Solver:
+    """The fixed factor of [A_sheet, chain] for group ``G``, its QR computed once per
+    Jacobian (the baseline's, or a candidate's own) and kept on ``G``."""
+    cache = G.__dict__.setdefault("_solvers", {})
+    hit = cache.get(id(A_sheet))
+    if hit is None or hit[0] is not A_sheet:
+        hit = cache[id(A_sheet)] = (A_sheet, Solver(np.hstack((A_sheet, G.chain))))
+    return hit[1]
+
+
 def chord(c, A_sheet, G, responses, n_s):
     """The next point (sheet u, values) of candidate ``c``: one linearised step from its run."""
     cols, lo_e, hi_e, slots = [], [], [], []
@@ -283,14 +293,14 @@ def chord(c, A_sheet, G, responses, n_s):
             hi_e.append(magnitude(name, top) - a)
             slots.append((name, 0, True))
     u_cur = c.baseline_u[:n_s]
-    A = np.hstack((A_sheet, G.chain))
+    solver = _solver(A_sheet, G)
     lim = np.ones(G.chain.shape[1])
-    du, _ = Solver(A).solve(c.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
-                            np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
+    du, _ = solver.solve(c.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
+                         np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
     du = du * c.damp
     u_new = np.clip(u_cur + du[:n_s], -1, 1)
     vals = {n: list(v) for n, v in c.values.items()}
-    for (name, k, is_curve), x in zip(slots, du[A.shape[1]:]):
+    for (name, k, is_curve), x in zip(slots, du[solver.A.shape[1]:]):
         if is_curve:
             a = magnitude(name, vals[name][0]) + x
             vals[name][0] = (1.0 - a) if name == "power_law" else a

@@ -144,10 +144,11 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         def base_params(d: RecordData, u_s: np.ndarray) -> CellParams:
             return with_sheet(d.record.scenario, {k.name: float(v) for k, v in zip(SHEET, u_s)})
 
+        chain_solver = Solver(G.chain)
+
         def chain_fit(z: np.ndarray, chain_lo=-chain_lim, chain_hi=chain_lim):
             """Chain values for residual ``z`` (sheet held): (u_chain, J, corrected z)."""
-            s = Solver(G.chain)
-            u, J = s.solve(z, chain_lo, chain_hi)
+            u, J = chain_solver.solve(z, chain_lo, chain_hi)
             return u, J, z + G.chain @ u
 
         u_lin, _ = solver.solve(z0, lo, hi)
@@ -216,7 +217,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 o = pouts[i * nf:(i + 1) * nf]
                 responses.setdefault(name, []).append(
                     (vv, G.z(o) - zB_raw if all_ok(o) else None))
-            base_solver = Solver(A)
+            base_solver = solver                      # the same A: its QR once
             blo = np.r_[-1 - u_s, -chain_lim]
             bhi = np.r_[1 - u_s, chain_lim]
             for name in library:
@@ -268,7 +269,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 top = sorted(effects, key=lambda c: (c.p, c.J))[:PAIRED]
                 for i, a in enumerate(top):
                     for b in top[i + 1:]:
-                        pc = fit_pair(a, b, responses, zB_raw, Solver(A),
+                        pc = fit_pair(a, b, responses, zB_raw, solver,
                                       np.r_[-1 - u_s, -chain_lim],
                                       np.r_[1 - u_s, chain_lim], G, n_eff, parts_B)
                         if pc is not None:
