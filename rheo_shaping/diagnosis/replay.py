@@ -84,7 +84,10 @@ def replay_misfit(data: Sequence[RecordData], params: Sequence[CellParams],
     pose noise, against their replay; one value per draw of the pose noise (the misfit
     depends on it: 0.43-0.58 over five draws at c1 = 441 N s/m).  None where a run fails.
     Costs one run per record and one per record and draw."""
-    plans = [movement_plan(p) for p in params]
+    try:
+        plans = [movement_plan(p) for p in params]
+    except (ValueError, RuntimeError):      # no plan for the baseline: no allowance either
+        return None
     gen = run([Task(replace(d, path=path), p, keep_run=True)
                for d, p, path in zip(data, params, plans)])
     if not all_ok(gen):
