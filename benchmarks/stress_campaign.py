@@ -235,7 +235,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=120.0, help="wall time per loss run [s]")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--save", metavar="FILE",
-                    help="write every run to FILE (JSON); never overwritten")
+                    help="write every run to FILE (JSON), after each condition and seed; "
+                         "an existing FILE is never overwritten")
     args = ap.parse_args(argv)
     conditions = [c for c in args.conditions.split(",") if c]
     bad = [c for c in conditions if c not in ("idle", "cpu", "loss")]
@@ -251,9 +252,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"stress_campaign: error: {args.save} exists: not overwritten", file=sys.stderr)
         return 2
     seeds = [int(s) for s in args.seeds.split(",") if s]
-    results = [run_condition(c, s, args) for c in conditions for s in seeds]
-    if args.save:
-        Path(args.save).write_text(json.dumps(results, indent=1))
+    results = []
+    for c in conditions:
+        for s in seeds:
+            results.append(run_condition(c, s, args))
+            if args.save:          # after every condition and seed: an interrupt loses one
+                Path(args.save).write_text(json.dumps(results, indent=1))
     keys = ("condition", "seed", "runs", "failed", "would_tear", "tears", "aborts", "false_aborts",
             "missed", "cross_to_rest_p99_s", "max_tension_after_abort_N", "wall_time_s")
     table = [{k: r["summary"].get(k) for k in keys} | (
