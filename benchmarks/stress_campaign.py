@@ -133,23 +133,25 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
                                         start_new_session=True)
         t0 = time.monotonic()
         done = False
-        while time.monotonic() - t0 < timeout:
-            sim_log = logs["simulator"].read_text(errors="replace")
-            if "process time" in sim_log and "reached: F_max" in sim_log:
-                done = True
-                break
-            if any(p.poll() is not None for p in procs.values()):
-                break
-            time.sleep(0.2)                      # polling the logs of processes we wait for
-        for p in procs.values():
-            if p.poll() is None:
-                p.send_signal(signal.SIGINT)
-        for p in procs.values():
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait()
+        try:
+            while time.monotonic() - t0 < timeout:
+                sim_log = logs["simulator"].read_text(errors="replace")
+                if "process time" in sim_log and "reached: F_max" in sim_log:
+                    done = True
+                    break
+                if any(p.poll() is not None for p in procs.values()):
+                    break
+                time.sleep(0.2)                  # polling the logs of processes we wait for
+        finally:                                 # the nodes end with the case, also on a signal
+            for p in procs.values():
+                if p.poll() is None:
+                    p.send_signal(signal.SIGINT)
+            for p in procs.values():
+                try:
+                    p.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    os.killpg(p.pid, signal.SIGKILL)
+                    p.wait()
         text = {n: log.read_text(errors="replace") for n, log in logs.items()}
     if not done:
         return {**row, "failed": "closed loop: no process end within the timeout",
@@ -224,6 +226,10 @@ def run_condition(condition: str, seed: int, args) -> dict:
     return {"summary": summary, "runs": rows}
 
 
+def _terminate(signum, frame) -> None:  # noqa: ARG001 - a signal handler's signature
+    raise SystemExit(128 + signum)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=300, help="runs per condition and seed")
@@ -238,6 +244,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="write every run to FILE (JSON), after each condition and seed; "
                          "an existing FILE is never overwritten")
     args = ap.parse_args(argv)
+    # SIGINT and SIGTERM end the campaign through its clean-up (the hog, the namespace, the
+    # nodes), also when it was started in the background, where the shell ignores SIGINT
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _terminate)
     conditions = [c for c in args.conditions.split(",") if c]
     bad = [c for c in conditions if c not in ("idle", "cpu", "loss")]
     if bad or args.runs < 1 or not (0 <= args.loss <= 100):
@@ -272,4 +282,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    try:
+        raise SystemExit(main())
+    except KeyboardInterrupt:          # cleaned up on the way out: the hog, namespace, nodes
+        print("stress_campaign: interrupted; nothing saved for the unfinished condition",
+              file=sys.stderr)
+        raise SystemExit(130)
