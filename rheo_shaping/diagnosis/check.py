@@ -28,7 +28,6 @@ from ..sheet.effects import EFFECTS
 from . import stats
 from .candidates import PROBES, magnitude
 from .evaluate import Task, all_ok, apply
-from .linear import Solver
 
 #: One refinement of the diagnosis's discretisation: factors on the solver's steps (the chain
 #: goes from N to 2 N + 1 masses).
@@ -252,16 +251,6 @@ def simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, pa
         c.checked = True
 
 
-def _solver(A_sheet: np.ndarray, G) -> Solver:
-    """The fixed factor of [A_sheet, chain] for group ``G``, its QR computed once per
-    Jacobian (the baseline's, or a candidate's own) and kept on ``G``."""
-    cache = G.__dict__.setdefault("_solvers", {})
-    hit = cache.get(id(A_sheet))
-    if hit is None or hit[0] is not A_sheet:
-        hit = cache[id(A_sheet)] = (A_sheet, Solver(np.hstack((A_sheet, G.chain))))
-    return hit[1]
-
-
 def chord(c, A_sheet, G, responses, n_s):
     """The next point (sheet u, values) of candidate ``c``: one linearised step from its run."""
     cols, lo_e, hi_e, slots = [], [], [], []
@@ -293,7 +282,7 @@ def chord(c, A_sheet, G, responses, n_s):
             hi_e.append(magnitude(name, top) - a)
             slots.append((name, 0, True))
     u_cur = c.baseline_u[:n_s]
-    solver = _solver(A_sheet, G)
+    solver = G.solver(A_sheet)
     lim = np.ones(G.chain.shape[1])
     du, _ = solver.solve(c.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
                          np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))

@@ -71,9 +71,19 @@ class _Group:
                            sp, sf)
         self.stack.set_force_count(nominal)
         self.chain = self.stack.chain_columns(nominal) if data else np.zeros((0, len(CHAIN)))
+        self._solvers: dict = {}
 
     def z(self, outs: list[Outcome]) -> np.ndarray:
         return self.stack.vec(outs)
+
+    def solver(self, A_sheet: np.ndarray) -> Solver:
+        """The bounded fit on [A_sheet, chain columns]: its QR once per Jacobian (the
+        baseline's, or a candidate's own, :func:`check.relinearise`)."""
+        hit = self._solvers.get(id(A_sheet))
+        if hit is None or hit[0] is not A_sheet:       # the array kept: its id stays its own
+            hit = self._solvers[id(A_sheet)] = (A_sheet,
+                                                Solver(np.hstack((A_sheet, self.chain))))
+        return hit[1]
 
     def J(self, z: np.ndarray) -> float:
         return float(z @ z)
@@ -133,8 +143,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             o = outs[j * nf:(j + 1) * nf]
             cols.append((G.z(o) - z0) / steps[j] if all_ok(o) else np.zeros_like(z0))
         A_sheet = np.column_stack(cols)
-        A = np.hstack((A_sheet, G.chain))
-        solver = Solver(A)
+        solver = G.solver(A_sheet)
+        A = solver.A
         n_s = len(SHEET)
         chain_lim = np.ones(len(CHAIN))                      # the baseline: within tolerance
         chain_free = np.array([k.limit for k in CHAIN])      # the chain hypothesis: beyond it
@@ -217,11 +227,10 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 o = pouts[i * nf:(i + 1) * nf]
                 responses.setdefault(name, []).append(
                     (vv, G.z(o) - zB_raw if all_ok(o) else None))
-            base_solver = solver                      # the same A: its QR once
             blo = np.r_[-1 - u_s, -chain_lim]
             bhi = np.r_[1 - u_s, chain_lim]
             for name in library:
-                c = fit_single(name, responses[name], zB_raw, base_solver, blo, bhi, G, n_eff,
+                c = fit_single(name, responses[name], zB_raw, solver, blo, bhi, G, n_eff,
                                parts_B)
                 if c is not None:
                     effects.append(c)

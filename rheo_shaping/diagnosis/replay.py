@@ -93,8 +93,9 @@ def replay_misfit(data: Sequence[RecordData], params: Sequence[CellParams],
     if not all_ok(gen):
         return None
     rng = np.random.default_rng(SEED)
-    own = [[RecordData.of(own_record(d.record, o.run, path, pose_noise(d.record), rng))
-            for d, o, path in zip(data, gen, plans)] for _ in range(draws)]
+    sigma = [pose_noise(d.record) for d in data]
+    own = [[RecordData.of(own_record(d.record, o.run, path, s, rng))
+            for d, o, path, s in zip(data, gen, plans, sigma)] for _ in range(draws)]
     outs = run([Task(d, p) for group in own for d, p in zip(group, params)])
     if not all_ok(outs):
         return None
