@@ -49,7 +49,11 @@ def node_launchers():
     for node in NODES:
         path = os.path.join(out, node)
         text = LAUNCHER.replace('@NODE@', node).replace('@PYTHON@', shlex.quote(sys.executable))
-        if not os.path.exists(path) or open(path).read() != text:
+        old = None
+        if os.path.exists(path):
+            with open(path) as f:
+                old = f.read()
+        if old != text:
             with open(path, 'w') as f:
                 f.write(text)
         os.chmod(path, 0o755)
