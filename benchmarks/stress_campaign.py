@@ -12,7 +12,8 @@ Conditions (``--conditions``, any of):
   otherwise uses shared memory between processes on one host), and a random drop of
   ``--loss`` percent of the incoming UDP packets on the namespace's loopback (nftables,
   input hook, ``numgen random mod 100 < loss drop``). The namespace is made and removed
-  here; its traffic never leaves it. Needs root, iproute2 and nftables.
+  here; its traffic never leaves it. Needs root, iproute2 and nftables. ``--jobs`` cases
+  run at once, each cell in a ROS domain of its own.
 
 In the process mode the figures come from the nodes' own logs (the simulator's F_max
 over the whole process, which includes everything after an abort; the planner's stop
@@ -30,16 +31,19 @@ namespace are removed on exit, also on Ctrl-C.
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import contextlib
 import json
 import math
 import os
+import queue
 import re
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -49,6 +53,8 @@ import abort_campaign as campaign  # noqa: E402
 
 BIN = Path(sys.executable).parent
 NUM = r"([-+0-9.eE]+|inf|nan)"
+#: set on Ctrl-C or SIGTERM: the running loss cases end their nodes at once
+STOP = threading.Event()
 
 
 # -- the CPU hog ----------------------------------------------------------------------------
@@ -134,7 +140,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
         t0 = time.monotonic()
         done = False
         try:
-            while time.monotonic() - t0 < timeout:
+            while time.monotonic() - t0 < timeout and not STOP.is_set():
                 sim_log = logs["simulator"].read_text(errors="replace")
                 if "process time" in sim_log and "reached: F_max" in sim_log:
                     done = True
@@ -212,11 +218,28 @@ def run_condition(condition: str, seed: int, args) -> dict:
             rows = run_tasks(ex, campaign._campaign_task, shared, list(enumerate(cells)),
                              progress=progress, chunks_per_worker=8)
     else:
-        rows = []
-        with lossy_namespace(args.loss) as prefix:
-            for i, cell in enumerate(cells):
-                rows.append(run_case_processes(i, cell, prefix, args.domain, args.timeout))
-                progress(1)
+        rows = [None] * len(cells)
+        domains = queue.Queue()                   # one ROS domain per case running at once
+        for k in range(max(args.jobs, 1)):
+            domains.put(args.domain + k)
+
+        def one(i: int) -> None:
+            domain = domains.get()
+            try:
+                rows[i] = run_case_processes(i, cells[i], prefix, domain, args.timeout)
+            finally:
+                domains.put(domain)
+            progress(1)
+        with lossy_namespace(args.loss) as prefix, \
+                concurrent.futures.ThreadPoolExecutor(max(args.jobs, 1)) as pool:
+            futures = [pool.submit(one, i) for i in range(len(cells))]
+            try:
+                for future in futures:
+                    future.result()
+            except BaseException:                 # Ctrl-C, SIGTERM: end the running cases
+                STOP.set()
+                pool.shutdown(wait=True, cancel_futures=True)
+                raise
     summary = campaign.summarise(rows, time.monotonic() - t0)
     summary.update(condition=condition, seed=seed)
     if condition == "loss":

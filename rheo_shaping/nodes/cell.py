@@ -92,8 +92,11 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
     try:
         sim = SimulatorNode(context=context, parameter_overrides=sim_params)
         nodes.append(sim)
-        monitor = MonitorNode(context=context,
-                              parameter_overrides=[*sim_time, *common, *extra.get("monitor", ())])
+        # no /shaping/checked: the EventsExecutor passes no message info, and nothing can
+        # stall between nodes that share this process
+        monitor = MonitorNode(context=context, parameter_overrides=[
+            *sim_time, Parameter("acknowledge", value=False), *common,
+            *extra.get("monitor", ())])
         nodes.append(monitor)
         planner = PlannerNode(context=context,
                               parameter_overrides=[*sim_time, *common, *extra.get("planner", ())])

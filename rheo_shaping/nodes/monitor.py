@@ -23,7 +23,11 @@ The abort latches (safety principle 3) until ``~/reset`` (std_srvs/Trigger), whi
 clears the transient-local abort (the publisher is re-created).  The monitor
 publishes a heartbeat ``/shaping/ready`` (std_msgs/Bool) every ``period``:
 true while it has fresh, valid data and has not aborted; the planner moves only
-then (the interlock, safety principle 6).  ``/diagnostics``: OK / WARN / ERROR (STALE
+then (the interlock, safety principle 6).  ``/shaping/checked`` (std_msgs/UInt64)
+acknowledges each judged ``/sheet/tensions`` sample by its DDS sequence number (and
+again every ``period``): on simulated time the simulator runs at most its
+``monitor_lead`` samples ahead, so a stalled link stalls the simulation, not the
+monitor's view of it.  ``/diagnostics``: OK / WARN / ERROR (STALE
 while waiting for data) with tension, safety factor and data age.
 """
 from __future__ import annotations
@@ -33,7 +37,7 @@ import sys
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
-from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String, UInt64
 from std_srvs.srv import Trigger
 
 from ..params.node_params import MonitorNodeParams
@@ -65,6 +69,8 @@ class MonitorNode(Node):
         s = self.settings
         self.pub_abort = self._publisher(T.ABORT)
         self.pub_ready = self._publisher(T.READY)
+        self.pub_checked = self._publisher(T.CHECKED)
+        self._checked = 0                  # DDS sequence number of the newest judged sample
         self.pub_diag = self._publisher(T.DIAGNOSTICS)
         self._subs = []
         self._subscribe(s.max_data_age)
@@ -128,7 +134,7 @@ class MonitorNode(Node):
             f"3 x {s.noise_sigma:g} = {F_abort:.4f} N, ratio {self.ratio:.3f}")
 
     def _on_parameters(self, names: set[str]) -> None:
-        if "max_data_age" in names:
+        if names & {"max_data_age", "acknowledge"}:
             self._watchdog_guard = StallGuard(0.5 * self.settings.max_data_age)
             for sub in self._subs:
                 self.destroy_subscription(sub)
@@ -164,7 +170,9 @@ class MonitorNode(Node):
         qos = T.tension_qos(max_age)
         self._subs = [
             self.create_subscription(
-                T.TENSIONS.type, T.TENSIONS.name, self._on_tensions, qos,
+                T.TENSIONS.type, T.TENSIONS.name,
+                ((lambda msg, info: self._on_tensions(msg, info))
+                 if self.settings.acknowledge else self._on_tensions), qos,
                 event_callbacks=SubscriptionEventCallbacks(
                     deadline=lambda e: self._on_deadline(T.TENSIONS.contract, e))),
             self.create_subscription(
@@ -219,9 +227,13 @@ class MonitorNode(Node):
         return response
 
     # -- data -------------------------------------------------------------------------
-    def _on_tensions(self, msg: Float64MultiArray) -> None:
+    def _on_tensions(self, msg: Float64MultiArray, info=None) -> None:
         self.core.on_tensions(msg.data, self._steady.now().nanoseconds,
                               self.get_clock().now().nanoseconds)
+        seq = (info or {}).get("publication_sequence_number", 0)
+        if seq > self._checked:       # judged: the simulator may run on (monitor_lead)
+            self._checked = seq
+            self.pub_checked.publish(UInt64(data=seq))
 
     def _on_contact(self, msg: Float64) -> None:
         self.core.on_contact(msg.data, self._steady.now().nanoseconds)
@@ -247,6 +259,8 @@ class MonitorNode(Node):
         if ready and was == "waiting":
             self.get_logger().info("ready: fresh tension data")
         self.pub_ready.publish(Bool(data=ready))
+        if self._checked and self.settings.acknowledge:
+            self.pub_checked.publish(UInt64(data=self._checked))     # a lost one is replaced
 
     def _publish_diagnostics(self) -> None:
         level, message, values = self.core.diagnostics(self._steady.now().nanoseconds)

@@ -12,13 +12,15 @@ starts only while the monitor's ``/shaping/ready`` heartbeat says ready and is
 younger than ``monitor_timeout`` (steady clock); a heartbeat that stops or
 turns false while the tool moves is treated as an abort.
 
-Streaming.  From the start time t0 (the node clock: simulated time with
-``use_sim_time``) a :class:`~rheo_shaping.planning.stopping.TrajectoryStreamer` gives
-the set-point at t0 + k / ``control_rate``; they are published on
-``/tool/command``, each stamped with its time (on simulated time, when /clock
-jumps by more than one period, every set-point in between is published, plus
-one at the clock's time).  The whole plan is published once on
-``/tool/planned_trajectory`` (transient local; header stamp = t0).
+Streaming.  The plan starts only once ``/tool/command`` has a matched subscriber
+(state ``waiting_for_subscriber`` until then): set-points sent to nobody would make a
+simulator or robot that matches later join mid-plan.  From the start time t0 (the
+node clock: simulated time with ``use_sim_time``) a
+:class:`~rheo_shaping.planning.stopping.TrajectoryStreamer` gives the set-point at
+t0 + k / ``control_rate``; they are published on ``/tool/command``, each stamped
+with its time (on simulated time, when /clock jumps by more than one period, every
+set-point in between is published, plus one at the clock's time).  The whole plan
+is published once on ``/tool/planned_trajectory`` (transient local; header stamp = t0).
 
 Abort (safety principles 3 and 5).  ``/shaping/abort`` (transient local) makes the
 streamer stop at once from the exact current state with ruckig (target: rest,
@@ -314,6 +316,10 @@ class PlannerNode(Node):
                 self._set_state("waiting_for_monitor")
             elif now <= 0:
                 self._set_state("waiting_for_clock")
+            elif self.pub_command.get_subscription_count() == 0:
+                # nobody would get the first set-points (discovery not done yet, e.g. over a
+                # lossy link): a simulator or robot that matched later would start mid-plan
+                self._set_state("waiting_for_subscriber")
             else:
                 self._start(now)
         elif (self.streamer.state == "running" and not ok

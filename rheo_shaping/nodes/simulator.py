@@ -13,7 +13,12 @@ the clock of the cell: it publishes ``/clock`` and the other nodes run with
 physics, so the planner streams the set-points of a step before the step is
 computed; with ``lockstep`` the simulator waits (at most ``command_timeout``)
 for the set-point of the step's end instead of guessing the motion, so the
-streamed motion is simulated exactly.  A step that computes slowly slows the
+streamed motion is simulated exactly.  It also waits while more than
+``monitor_lead`` published tension samples are unacknowledged by the monitor
+(``/shaping/checked``), so a stalled link stalls the simulation rather than
+the monitor's view of it; and before the first set-point ``/clock`` holds
+(lockstep, ``start_on_command``), so a plan whose first set-points arrive late
+starts where the simulation is.  A step that computes slowly slows the
 run down (it never skips physics); the achieved factor is logged and on
 ``/diagnostics``.  On wall time (factor 1, no /clock) each step advances to
 the node clock's now, holding the newest set-point for the last few ms.
@@ -77,18 +82,25 @@ class SimulatorNode(Node):
         self.pub_clock = None
         self.create_subscription(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name, self._on_command,
                                  T.TOOL_COMMAND.qos)
+        self.create_subscription(T.CHECKED.type, T.CHECKED.name, self._on_checked, T.CHECKED.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
         # time of the latest computed state (node or simulated clock)
         self._t_ns = 0
         self._pending = False          # a step is due (lockstep may hold it back)
         self._waits = 0                # lockstep waits so far
+        self._tension_seq = 0          # /sheet/tensions samples published (= DDS sequence no.)
+        self._checked = 0              # the newest of them the monitor has acknowledged
+        self._checked_fresh: Freshness | None = None   # acknowledgements still arriving
+        self._monitor_waits = 0        # steps held back for the monitor so far
+        self._clock_holds = 0          # steps held at the start for the first set-point
         self._late_steps = 0           # steps taken without their set-point (stream lost/late)
         self._last_pub_ns = None
         self._force_publish = False
         self._last_marker = None
         self._last_diag = None
         self._last_camera = None        # the next camera frame is due at this time [ns]
+        self._last_hold_camera = None   # steady time of the last frame while /clock held [ns]
         seed = self.settings.camera_seed
         self._camera_rng = np.random.default_rng(seed if seed else None)
         self._rate_ref = None          # (steady ns, sim ns) to measure the achieved factor
@@ -193,6 +205,11 @@ class SimulatorNode(Node):
     def lockstep_waits(self) -> int:
         return self._waits
 
+    @property
+    def monitor_waits(self) -> int:
+        """Steps held back so far because the monitor had not judged the samples before."""
+        return self._monitor_waits
+
     def _on_reset(self, request, response):
         self._new_run()
         response.success = True
@@ -226,17 +243,54 @@ class SimulatorNode(Node):
         fairly after a stall of this node's own process (:class:`Freshness`)."""
         return not self._commands_fresh.stale(self._steady.now().nanoseconds)
 
+    def _on_checked(self, msg) -> None:
+        if msg.data > self._checked:
+            self._checked = msg.data
+        if self._checked_fresh is None:
+            self._checked_fresh = Freshness(self.settings.command_timeout)
+        self._checked_fresh.received(self._steady.now().nanoseconds)
+        if self._pending:
+            self._try_step()
+
+    def _monitor_behind(self) -> bool:
+        """Whether a step must wait for the monitor: ``monitor_lead`` published tension
+        samples are unacknowledged while acknowledgements still arrive (within
+        ``command_timeout``, wall)."""
+        lead = self.settings.monitor_lead
+        fresh = self._checked_fresh
+        return (lead > 0 and fresh is not None and self._tension_seq - self._checked >= lead
+                and not fresh.stale(self._steady.now().nanoseconds))
+
     # -- stepping ---------------------------------------------------------------------
     def _on_timer(self) -> None:
         self._pending = True
         self._try_step()
+
+    def _holds_for_start(self) -> bool:
+        """On simulated time with lockstep, before the first set-point: /clock stays where it
+        is (after the first step), so the planner's plan starts where the simulation is, however
+        late its first set-points arrive (a lossy link, slow discovery)."""
+        s = self.settings
+        return (s.lockstep and s.start_on_command and not self.run.started
+                and self._t_ns > 0)
 
     def _try_step(self) -> None:
         if not self._pending:
             return
         s = self.settings
         if self._sim_clock:
+            if self._holds_for_start():
+                self._pending = False
+                self._clock_holds += 1
+                self.pub_clock.publish(m.clock_msg(self._t_ns + self._dt_ns))
+                self._publish_state(self._t_ns)    # the same state, fresh for the monitor
+                self._hold_camera()
+                self._publish_steady(self._t_ns)
+                return
             target = self._t_ns + self._dt_ns
+            if self._monitor_behind():
+                self._monitor_waits += 1
+                return                              # re-tried on the next acknowledgement
             if self.run.lacks_setpoint(target):
                 if s.lockstep and self._stream_live():
                     self._waits += 1
@@ -295,6 +349,11 @@ class SimulatorNode(Node):
             period = int(round(NS / s.camera_rate))
             self._last_camera = (t_ns // period + 1) * period
             self._publish_camera(t_ns)
+        self._publish_steady(t_ns)
+
+    def _publish_steady(self, t_ns: int) -> None:
+        """What goes out on the steady clock: markers, /diagnostics, progress lines."""
+        s = self.settings
         now = self._steady.now().nanoseconds
         if s.publish_markers and (self._last_marker is None
                                   or now - self._last_marker >= s.marker_period * NS):
@@ -312,12 +371,27 @@ class SimulatorNode(Node):
     def _publish_state(self, t_ns: int) -> None:
         self._last_pub_ns = t_ns
         st = self.sim.state
-        contact = math.nan if self.run.broken else self.sim.contact_tension()
         self.pub_profile.publish(m.profile_msg(st.x, t_ns))
-        self.pub_tensions.publish(m.tensions_msg(self.run.tensions()))
-        self.pub_contact.publish(m.float_msg(contact))
+        self._publish_tensions()
         self.pub_pose.publish(m.pose_msg(st.tool, t_ns))
         self.pub_wrench.publish(m.wrench_msg(self.sim.tool_force(), t_ns))
+
+    def _publish_tensions(self) -> None:
+        contact = math.nan if self.run.broken else self.sim.contact_tension()
+        self.pub_tensions.publish(m.tensions_msg(self.run.tensions()))
+        self._tension_seq += 1
+        self.pub_contact.publish(m.float_msg(contact))
+
+    def _hold_camera(self) -> None:
+        """While /clock holds: camera frames of the waiting sheet at the rate they come at when
+        running (camera_rate x real_time_factor per wall second), for late joiners."""
+        s = self.settings
+        now = self._steady.now().nanoseconds
+        period = NS / (s.camera_rate * s.real_time_factor)
+        if s.camera and (self._last_hold_camera is None
+                         or now - self._last_hold_camera >= period):
+            self._last_hold_camera = now
+            self._publish_camera(self._t_ns)
 
     def _publish_camera(self, t_ns: int) -> None:
         """A frame of the simulated camera (rheo_shaping.records.measurement.profile_frame)."""
@@ -370,6 +444,7 @@ class SimulatorNode(Node):
                   "F_max": float(self.peak.value) if self.started else 0.0,
                   "real_time_factor": self.settings.real_time_factor,
                   "achieved_factor": float(self.achieved_factor), "lockstep_waits": self._waits,
+                  "monitor_waits": self._monitor_waits, "clock_holds": self._clock_holds,
                   "late_steps": self._late_steps}
         if self.summary is not None:
             values.update({"final_F_max": self.summary.F_max, "final_SF": self.summary.SF,

@@ -26,7 +26,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped, WrenchStamped
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String, UInt64
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
@@ -103,12 +103,15 @@ PLANNED_TRAJECTORY = Topic("tool/planned_trajectory", JointTrajectory, LATCHED_Q
 ABORT = Topic("shaping/abort", String, LATCHED_QOS)
 READY = Topic("shaping/ready", Bool, HEARTBEAT_QOS)
 PLANNER_STATE = Topic("shaping/planner_state", String, LATCHED_QOS)
+#: The monitor's acknowledgement: the DDS sequence number of the newest /sheet/tensions
+#: sample it has judged (the simulator runs at most ``monitor_lead`` samples ahead of it).
+CHECKED = Topic("shaping/checked", UInt64, HEARTBEAT_QOS)
 DIAGNOSTICS = Topic("diagnostics", DiagnosticArray, STATE_QOS)
 
 #: Every topic of the cell, by its contract name.
 ALL: dict[str, Topic] = {t.contract: t for t in (
     PROFILE, MEASURED_PROFILE, TENSIONS, CONTACT_TENSION, TOOL_POSE, TOOL_WRENCH, MARKERS, CLOCK,
-    TOOL_COMMAND, PLANNED_TRAJECTORY, ABORT, READY, PLANNER_STATE, DIAGNOSTICS)}
+    TOOL_COMMAND, PLANNED_TRAJECTORY, ABORT, READY, PLANNER_STATE, CHECKED, DIAGNOSTICS)}
 
 #: The remap that makes a namespaced planner or monitor follow its own simulator's clock.
 CLOCK_REMAP = ("-r", "/clock:=clock")

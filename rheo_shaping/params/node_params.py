@@ -50,10 +50,16 @@ class SimulatorNodeParams:
         0.2, "wall-clock time after the newest /tool/command after which the stream counts as "
         "lost: the tool holds its last set-point and lockstep stops waiting (keep it below "
         "the monitor's max_data_age)", "s", 0.0, 10.0, lo_open=True)
+    monitor_lead: int = param(
+        3, "on simulated time: tension samples the simulator may publish beyond the newest one "
+        "the monitor has acknowledged on /shaping/checked, so that a stalled link stalls the "
+        "simulation, not the monitor's view of it (0: do not wait; without acknowledgements for "
+        "command_timeout it does not wait either)", "", 0, 1000)
     start_on_command: bool = param(
         True, "hold the settled sheet at process time 0 until the first /tool/command; the "
-        "process (and the tool, placed at that set-point) starts then, as in the offline run; "
-        "false: the process starts with the node")
+        "process (and the tool, placed at that set-point) starts then, as in the offline run "
+        "(with lockstep on simulated time, /clock holds too, so the plan starts where the "
+        "simulation is); false: the process starts with the node")
     offered_deadline: float = param(
         0.1, "QoS deadline offered on /sheet/tensions and /sheet/contact_tension; a subscriber "
         "requesting a shorter one (the monitor requests max_data_age) gets no data", "s",
@@ -185,6 +191,11 @@ class MonitorNodeParams:
     startup_timeout: float = param(
         60.0, "wall-clock time after start within which tension data must arrive; none by "
         "then: abort", "s", 0.0, 3600.0, lo_open=True)
+    acknowledge: bool = param(
+        True, "publish /shaping/checked, the DDS sequence number of each /sheet/tensions sample "
+        "judged, which holds a simulator on simulated time to the monitor (monitor_lead); needs "
+        "an executor that passes message info (not rclpy's experimental EventsExecutor, which "
+        "the one-process cell uses: its nodes share a process, no link can stall between them)")
 
 
 NODE_PARAMS = {"simulator": SimulatorNodeParams, "planner": PlannerNodeParams,

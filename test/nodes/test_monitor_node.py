@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("rclpy")
 
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
-from std_msgs.msg import String  # noqa: E402
+from std_msgs.msg import String, UInt64  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
@@ -178,3 +178,27 @@ def test_old_stamps_abort_once_ready(ros, cell):
     cell.publish(stamp_ns=cell.t_ns - 5 * NS)
     ros.spin_until(lambda: monitor.state == "aborted", 5.0, "abort")
     assert "old" in monitor.abort_reason and "max_stamp_age" in monitor.abort_reason
+
+
+def test_acknowledges_each_judged_sample_by_its_sequence_number(ros, cell):
+    """/shaping/checked carries the DDS sequence number of the newest /sheet/tensions sample
+    judged (the writer's n-th sample is n), on each sample and again every period."""
+    monitor = make_monitor(ros)
+    node = ros.node("ack_listener")
+    rec = Recorder(node, {"/shaping/checked": UInt64})
+    sent = [0]
+    publish = cell.publish
+
+    def counted(**kw):
+        publish(**kw)
+        sent[0] += 1
+    cell.publish = counted
+    get_ready(ros, monitor, cell)
+    for _ in range(7):
+        cell.publish()
+    ros.spin_until(lambda: rec["/shaping/checked"] and rec.last("/shaping/checked").data
+                   == sent[0], 10.0, f"the acknowledgement of sample {sent[0]}")
+    n = len(rec["/shaping/checked"])
+    ros.spin_until(lambda: len(rec["/shaping/checked"]) >= n + 3, 10.0, "repeated every period")
+    assert {a.data for a in rec["/shaping/checked"][n:]} == {sent[0]}
+    assert monitor.state == "ready"

@@ -202,3 +202,32 @@ def test_optimise_d_picks_the_cores_best_d_before_moving(ros):
     assert node.cell_used.movement.d == pytest.approx(want.d)
     cell = node.cell_used
     assert node.plan.start == pytest.approx(movement_plan(cell).plan.start)
+
+
+def test_starts_only_once_its_set_points_have_a_subscriber(ros):
+    """Set-points sent to nobody would make a simulator that matches later join mid-plan:
+    with the interlock open and the clock running, the planner waits for a subscriber, and
+    the first set-point it gets is the plan's start."""
+    node = ros.node("planner_bench_nosub")
+    clock = node.create_publisher(Clock, "/clock", 1)
+    ready = node.create_publisher(Bool, "/shaping/ready", 1)
+    planner = ros.add(PlannerNode(context=ros.context,
+                                  parameter_overrides=[Parameter("use_sim_time", value=True)]))
+    wait_for_subscribers(ros, clock)
+    wait_for_subscribers(ros, ready)
+    t = [5 * NS]
+
+    def tick():
+        t[0] += int(0.02 * NS)
+        clock.publish(m.clock_msg(t[0]))
+        ready.publish(Bool(data=True))
+    ros.spin_until(lambda: planner.state == "waiting_for_subscriber", 20.0,
+                   "waiting_for_subscriber", every=tick)
+    t_wait = t[0]
+    ros.spin_until(lambda: t[0] >= t_wait + 2 * NS, 20.0, "2 s of clock", every=tick)
+    assert planner.state == "waiting_for_subscriber" and planner.streamer is None
+    rec = Recorder(node, {"/tool/command": PoseStamped})
+    ros.spin_until(lambda: rec["/tool/command"], 20.0, "the first set-point", every=tick)
+    first = rec["/tool/command"][0]
+    assert m.stamp_ns(first.header.stamp) == planner._t0_ns
+    assert m.pose_xz(first) == pytest.approx(planner.plan.sample(0.0)[0], abs=1e-9)

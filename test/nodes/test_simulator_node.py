@@ -1,5 +1,6 @@
 """The simulator node in-process: topics and their contract (docs/interfaces.md), /clock,
-following the set-points, lockstep, reset."""
+following the set-points, lockstep, reset, the hold before the first set-point and the
+wait for the monitor's acknowledgements."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,7 +13,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped, WrenchStamped  # noqa: E40
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
+from std_msgs.msg import Float64, Float64MultiArray, UInt64  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
@@ -67,9 +68,10 @@ def test_topics_follow_the_contract_on_simulated_time(ros):
     ref = Simulation(cell, tool_start=start)
     assert np.allclose(m.profile_points(profile), ref.state.x, atol=1e-12)
     assert np.allclose(tensions.data, ref.state.tension, atol=1e-12)
-    # /clock leads the published state by one step; stamps are simulated time, never zero.
+    # /clock leads the published state by one step; stamps are simulated time, never zero,
+    # and held (one step's) until the first set-point.
     stamps = [m.stamp_ns(p.header.stamp) for p in rec["/sheet/profile"]]
-    assert stamps[0] > 0 and np.all(np.diff(stamps) > 0)
+    assert set(stamps) == {sim._dt_ns}
     lead = m.stamp_ns(rec["/clock"][0].clock) - sim._dt_ns
     ros.spin_until(lambda: lead in [m.stamp_ns(p.header.stamp) for p in rec["/sheet/profile"]],
                    5.0, "the state one step behind /clock")
@@ -110,6 +112,8 @@ def test_follows_set_points_in_lockstep_and_resets(ros):
                    every=stream)
     assert sim.sim.state.tool == pytest.approx(path(sim.process_time), abs=1e-12)
     poses = [(m.stamp_ns(p.header.stamp), m.pose_xz(p)) for p in rec["/tool/pose"]]
+    after = [t for t, _ in poses if t >= t0]
+    assert len(after) > 10 and np.all(np.diff(after) > 0)     # one state per step once started
     for t, xz in poses:
         if t >= t0:
             assert np.allclose(xz, path((t - t0) / NS), atol=1e-12)
@@ -137,3 +141,50 @@ def test_process_figures_at_process_time(ros):
         ref.advance_to(t, ref.state.tool, on_step=lambda s: ticks.append(float(np.max(s.tension))))
     assert sim.summary.delta == pytest.approx(ref.delta(), abs=1e-6)
     assert sim.summary.F_max == pytest.approx(max(ticks + [peak]), rel=0.02)
+
+
+def test_clock_holds_until_the_first_set_point(ros):
+    """Lockstep on simulated time: after its first step /clock stands still until the first
+    /tool/command, so a plan whose first set-points arrive late (a lossy link) starts where
+    the simulation is; the clock and the unchanged state keep coming meanwhile (the monitor's
+    data)."""
+    sim = make_sim(ros, real_time_factor=10.0, step_period=0.01)
+    node, rec = listen(ros, clock=True)
+    ros.spin_until(lambda: sim._clock_holds >= 20, 20.0, "20 held steps")
+    n = len(rec["/sheet/tensions"])
+    ros.spin_until(lambda: len(rec["/sheet/tensions"]) >= n + 10, 10.0, "tensions while held")
+    assert not sim.started and sim._t_ns == sim._dt_ns           # one step, then the hold
+    clock = {m.stamp_ns(c.clock) for c in rec["/clock"]}
+    assert clock == {2 * sim._dt_ns}                               # one step ahead, held
+    assert {m.stamp_ns(p.header.stamp) for p in rec["/sheet/profile"]} == {sim._dt_ns}
+    cmd = node.create_publisher(PoseStamped, "/tool/command", 100)
+    wait_for_subscribers(ros, cmd)
+    start = np.array(movement_scenario(sim.cell).start)
+    t0 = 2 * sim._dt_ns
+    cmd.publish(m.pose_msg(start, t0))
+    ros.spin_until(lambda: sim._t_ns >= t0 + 5 * sim._dt_ns, 20.0, "steps after the start")
+    assert sim.process_offset_ns == t0                 # process time 0 = the plan's start
+
+
+def test_waits_for_the_monitors_acknowledgements(ros):
+    """On simulated time the simulator publishes at most monitor_lead tension samples beyond
+    the newest the monitor acknowledged (/shaping/checked); without acknowledgements for
+    command_timeout it runs on."""
+    sim = make_sim(ros, real_time_factor=10.0, step_period=0.01, start_on_command=False,
+                   publish_period=0.0, monitor_lead=3, command_timeout=0.2)
+    node = ros.node("fake_monitor")
+    ack = node.create_publisher(UInt64, "/shaping/checked", 1)
+    wait_for_subscribers(ros, ack)
+    ros.spin_until(lambda: sim._tension_seq > 3, 20.0, "tension samples")
+    nothing = lambda: ack.publish(UInt64(data=0))              # noqa: E731  fresh, none judged
+    ros.spin_until(lambda: sim.monitor_waits >= 5, 10.0, "held for the monitor", every=nothing)
+    held = sim._tension_seq
+    w = sim.monitor_waits
+    ros.spin_until(lambda: sim.monitor_waits >= w + 20, 10.0, "still held", every=nothing)
+    assert sim._tension_seq == held
+    judged = lambda: ack.publish(UInt64(data=held))            # noqa: E731
+    ros.spin_until(lambda: sim._tension_seq == held + 3, 10.0, "3 more samples", every=judged)
+    w = sim.monitor_waits
+    ros.spin_until(lambda: sim.monitor_waits >= w + 20, 10.0, "held again", every=judged)
+    assert sim._tension_seq == held + 3
+    ros.spin_until(lambda: sim._tension_seq > held + 20, 10.0, "running on without a monitor")

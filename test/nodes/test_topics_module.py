@@ -17,10 +17,10 @@ EXPECTED = {
     ("simulator", "pub"): {"/sheet/profile", "/sheet/measured_profile", "/sheet/tensions",
                            "/sheet/contact_tension", "/tool/pose", "/tool/wrench",
                            "/sheet/markers", "/diagnostics", "/clock"},
-    ("simulator", "sub"): {"/tool/command"},
+    ("simulator", "sub"): {"/tool/command", "/shaping/checked"},
     ("planner", "pub"): {"/tool/command", "/tool/planned_trajectory", "/shaping/planner_state"},
     ("planner", "sub"): {"/shaping/abort", "/shaping/ready", "/tool/pose"},
-    ("monitor", "pub"): {"/shaping/abort", "/shaping/ready", "/diagnostics"},
+    ("monitor", "pub"): {"/shaping/abort", "/shaping/ready", "/shaping/checked", "/diagnostics"},
     ("monitor", "sub"): {"/sheet/tensions", "/sheet/contact_tension", "/sheet/profile",
                          "/tool/wrench"},
 }
