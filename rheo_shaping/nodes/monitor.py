@@ -27,7 +27,10 @@ then (the interlock, safety principle 6).  ``/shaping/checked`` (std_msgs/UInt64
 acknowledges each judged ``/sheet/tensions`` sample by its DDS sequence number (and
 again every ``period``): on simulated time the simulator runs at most its
 ``monitor_lead`` samples ahead, so a stalled link stalls the simulation, not the
-monitor's view of it.  ``/diagnostics``: OK / WARN / ERROR (STALE
+monitor's view of it.  After an abort the acknowledgements wait (at most
+``abort_hold``) until ``/shaping/planner_state`` shows the planner off its plan
+(:mod:`rheo_shaping.safety.acknowledge`), so simulated time does not run on while
+the abort travels.  ``/diagnostics``: OK / WARN / ERROR (STALE
 while waiting for data) with tension, safety factor and data age.
 """
 from __future__ import annotations
@@ -44,12 +47,14 @@ from ..params.node_params import MonitorNodeParams
 from ..params.params import CellParams
 from ..safety.abort_budget import abort_horizon, configured_speed_threshold
 from ..params.schema import ParameterError
+from ..safety.acknowledge import Acknowledgements
 from ..safety.monitor import TensionMonitor
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
 from .ros_params import SchemaParameters
 from .spin import run_node
+from ..units import NS
 
 TENSION_TOPICS = (T.TENSIONS.contract, T.CONTACT_TENSION.contract)
 STAMPED_TOPICS = (T.PROFILE.contract, T.TOOL_WRENCH.contract)
@@ -70,10 +75,12 @@ class MonitorNode(Node):
         self.pub_abort = self._publisher(T.ABORT)
         self.pub_ready = self._publisher(T.READY)
         self.pub_checked = self._publisher(T.CHECKED)
-        self._checked = 0                  # DDS sequence number of the newest judged sample
+        self.acks = Acknowledgements(s.abort_hold)   # what /shaping/checked says
         self.pub_diag = self._publisher(T.DIAGNOSTICS)
         self._subs = []
         self._subscribe(s.max_data_age)
+        self.create_subscription(T.PLANNER_STATE.type, T.PLANNER_STATE.name,
+                                 self._on_planner_state, T.PLANNER_STATE.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.core = TensionMonitor(s, self.cell.material.F_break, self.ratio, self.horizon,
                                    self._steady.now().nanoseconds, TENSION_TOPICS,
@@ -190,6 +197,7 @@ class MonitorNode(Node):
     # -- state (the core's TensionMonitor decides) -------------------------------------
     def _configure(self) -> None:
         self.core.configure(self.settings, self.cell.material.F_break, self.ratio, self.horizon)
+        self.acks.hold_ns = int(round(self.settings.abort_hold * NS))
 
     def _clear(self) -> None:
         self.core.reset(self._steady.now().nanoseconds)
@@ -211,6 +219,7 @@ class MonitorNode(Node):
         self.core.abort(reason)
 
     def _on_abort(self, reason: str) -> None:
+        self.acks.on_abort(self._steady.now().nanoseconds)     # before the sample's ack
         self.pub_abort.publish(String(data=reason))
         self.pub_ready.publish(Bool(data=False))
         self.get_logger().error(f"ABORT: {reason}")
@@ -221,6 +230,7 @@ class MonitorNode(Node):
         self.pub_abort = self._publisher(T.ABORT)
         was = self.abort_reason
         self._clear()
+        self._acknowledge(self.acks.reset())
         response.success = True
         response.message = "re-armed" + (f" (was aborted: {was})" if was else "")
         self.get_logger().info(f"reset: {response.message}")
@@ -230,9 +240,15 @@ class MonitorNode(Node):
     def _on_tensions(self, msg: Float64MultiArray, info=None) -> None:
         self.core.on_tensions(msg.data, self._steady.now().nanoseconds,
                               self.get_clock().now().nanoseconds)
+        # judged: the simulator may run on (monitor_lead), unless an abort is on its way
         seq = (info or {}).get("publication_sequence_number", 0)
-        if seq > self._checked:       # judged: the simulator may run on (monitor_lead)
-            self._checked = seq
+        self._acknowledge(self.acks.on_judged(seq))
+
+    def _on_planner_state(self, msg: String) -> None:
+        self._acknowledge(self.acks.on_planner_state(msg.data))
+
+    def _acknowledge(self, seq: int | None) -> None:
+        if seq and self.settings.acknowledge:
             self.pub_checked.publish(UInt64(data=seq))
 
     def _on_contact(self, msg: Float64) -> None:
@@ -259,8 +275,7 @@ class MonitorNode(Node):
         if ready and was == "waiting":
             self.get_logger().info("ready: fresh tension data")
         self.pub_ready.publish(Bool(data=ready))
-        if self._checked and self.settings.acknowledge:
-            self.pub_checked.publish(UInt64(data=self._checked))     # a lost one is replaced
+        self._acknowledge(self.acks.tick(self._steady.now().nanoseconds))   # a lost one too
 
     def _publish_diagnostics(self) -> None:
         level, message, values = self.core.diagnostics(self._steady.now().nanoseconds)

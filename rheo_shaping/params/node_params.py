@@ -51,7 +51,7 @@ class SimulatorNodeParams:
         "lost: the tool holds its last set-point and lockstep stops waiting (keep it below "
         "the monitor's max_data_age)", "s", 0.0, 10.0, lo_open=True)
     monitor_lead: int = param(
-        3, "on simulated time: tension samples the simulator may publish beyond the newest one "
+        1, "on simulated time: tension samples the simulator may publish beyond the newest one "
         "the monitor has acknowledged on /shaping/checked, so that a stalled link stalls the "
         "simulation, not the monitor's view of it (0: do not wait; without acknowledgements for "
         "command_timeout it does not wait either)", "", 0, 1000)
@@ -191,6 +191,10 @@ class MonitorNodeParams:
     startup_timeout: float = param(
         60.0, "wall-clock time after start within which tension data must arrive; none by "
         "then: abort", "s", 0.0, 3600.0, lo_open=True)
+    abort_hold: float = param(
+        1.0, "after an abort, the longest wall-clock time the acknowledgements on "
+        "/shaping/checked wait for /shaping/planner_state to show the planner off its plan (a "
+        "simulator faster than real time stands still meanwhile)", "s", 0.0, 60.0)
     acknowledge: bool = param(
         True, "publish /shaping/checked, the DDS sequence number of each /sheet/tensions sample "
         "judged, which holds a simulator on simulated time to the monitor (monitor_lead); needs "

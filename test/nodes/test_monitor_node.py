@@ -16,6 +16,10 @@ from rheo_shaping.nodes import messages as m  # noqa: E402
 
 from _support.rigs import F_BREAK, FakeCell, get_ready, listen, make_monitor  # noqa: E402
 from _support.ros import Recorder  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 from rheo_shaping.units import NS  # noqa: E402
 
 
@@ -202,3 +206,33 @@ def test_acknowledges_each_judged_sample_by_its_sequence_number(ros, cell):
     ros.spin_until(lambda: len(rec["/shaping/checked"]) >= n + 3, 10.0, "repeated every period")
     assert {a.data for a in rec["/shaping/checked"][n:]} == {sent[0]}
     assert monitor.state == "ready"
+
+
+def test_after_an_abort_acknowledgements_wait_for_the_planner_to_stop(ros, cell):
+    """The sample that aborts is acknowledged only once /shaping/planner_state shows the
+    planner off its plan: a simulator faster than real time stands still meanwhile."""
+    monitor = make_monitor(ros, trend_abort=False, abort_hold=30.0)
+    node = ros.node("ack_planner")
+    state = node.create_publisher(String, "/shaping/planner_state", LATCHED)
+    rec = Recorder(node, {"/shaping/checked": UInt64, "/shaping/abort": (String, True)})
+    sent = [0]
+    publish = cell.publish
+
+    def counted(**kw):
+        publish(**kw)
+        sent[0] += 1
+    cell.publish = counted
+    state.publish(String(data="running"))
+    ros.spin_until(lambda: monitor.acks.planner_state == "running", 10.0, "the planner's state")
+    get_ready(ros, monitor, cell)
+    ros.spin_until(lambda: rec["/shaping/checked"] and rec.last("/shaping/checked").data
+                   == sent[0], 10.0, "every sample acknowledged")
+    before = sent[0]
+    cell.publish(tension=1.01 * monitor.threshold)
+    ros.spin_until(lambda: rec["/shaping/abort"], 5.0, "abort")
+    n = len(rec["/shaping/checked"])
+    ros.spin_until(lambda: len(rec["/shaping/checked"]) >= n + 5, 10.0, "5 more periods")
+    assert {a.data for a in rec["/shaping/checked"]} <= set(range(1, before + 1))
+    state.publish(String(data="stopping"))
+    ros.spin_until(lambda: rec.last("/shaping/checked").data == before + 1, 10.0,
+                   "the aborting sample acknowledged once the planner stops")

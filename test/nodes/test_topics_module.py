@@ -22,7 +22,7 @@ EXPECTED = {
     ("planner", "sub"): {"/shaping/abort", "/shaping/ready", "/tool/pose"},
     ("monitor", "pub"): {"/shaping/abort", "/shaping/ready", "/shaping/checked", "/diagnostics"},
     ("monitor", "sub"): {"/sheet/tensions", "/sheet/contact_tension", "/sheet/profile",
-                         "/tool/wrench"},
+                         "/tool/wrench", "/shaping/planner_state"},
 }
 
 

@@ -1,0 +1,72 @@
+"""The monitor's acknowledgements: which tension sample a simulator may run past.
+
+A simulator faster than real time waits, before each step, until the monitor has
+acknowledged its newest tension samples (``monitor_lead``, docs/ros.md).  The
+monitor acknowledges a sample once it has judged it, by the DDS sequence number of
+the sample (``/sheet/tensions`` carries no stamp).  After an abort it withholds its
+acknowledgements until the planner reports that it no longer runs the plan (its
+state on ``/shaping/planner_state``), or for at most ``hold`` seconds: so the
+simulated sheet stands still while the abort travels to the planner, as a real
+sheet would move only for that wall time.  Times are steady-clock nanoseconds.
+"""
+from __future__ import annotations
+
+from ..units import NS
+
+#: The planner state in which it streams its plan (any other: stopped, stopping or
+#: not started).
+RUNNING = "running"
+
+
+class Acknowledgements:
+    """What the monitor acknowledges on ``/shaping/checked`` (0: nothing yet)."""
+
+    def __init__(self, hold: float):
+        self.hold_ns = int(round(hold * NS))   # longest wait for the planner's reaction [ns]
+        self.judged = 0          # sequence number of the newest judged sample
+        self.acked = 0           # the newest acknowledged one
+        self.planner_state = ""  # the planner's last reported state ("" unknown)
+        self._held_since: int | None = None
+
+    @property
+    def holding(self) -> bool:
+        """Whether acknowledgements are withheld (an abort not yet reacted to)."""
+        return self._held_since is not None
+
+    def on_judged(self, seq: int) -> int | None:
+        """Sample ``seq`` was judged; the number to acknowledge now, or None."""
+        if seq <= self.judged:
+            return None
+        self.judged = seq
+        return self._release()
+
+    def on_abort(self, steady_ns: int) -> None:
+        """The monitor aborted: hold while the planner (if one is known) runs its plan."""
+        if self.planner_state == RUNNING and self._held_since is None:
+            self._held_since = steady_ns
+
+    def on_planner_state(self, state: str) -> int | None:
+        """The planner reported ``state``; the number to acknowledge now, or None."""
+        self.planner_state = state
+        if state != RUNNING and self._held_since is not None:
+            self._held_since = None
+            return self._release()
+        return None
+
+    def tick(self, steady_ns: int) -> int:
+        """The number to (re-)publish at a watchdog tick, after the hold's limit too."""
+        if self._held_since is not None and steady_ns - self._held_since >= self.hold_ns:
+            self._held_since = None
+        self._release()
+        return self.acked
+
+    def reset(self) -> int | None:
+        """The monitor was re-armed: no hold; the number to acknowledge now, or None."""
+        self._held_since = None
+        return self._release()
+
+    def _release(self) -> int | None:
+        if self._held_since is not None or self.judged <= self.acked:
+            return None
+        self.acked = self.judged
+        return self.acked
