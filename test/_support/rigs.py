@@ -144,6 +144,7 @@ class FakeCell:
         self.profile = self.node.create_publisher(PoseArray, "/sheet/profile", 10)
         self.wrench = self.node.create_publisher(WrenchStamped, "/tool/wrench", 10)
         self.t_ns = 10 * NS
+        self.sent = 0          # samples published (= the tension writer's sequence number)
 
     def publish(self, tension=0.2, contact=0.1, stamp_ns=None, dt=0.05):
         """One sample of the cell at simulated time t (advanced by dt)."""
@@ -154,6 +155,7 @@ class FakeCell:
         self.wrench.publish(m.wrench_msg([0.0, 0.0], stamp))
         values = tension if isinstance(tension, list) else [0.1, tension, 0.05]
         self.tensions.publish(m.tensions_msg(values))
+        self.sent += 1
         self.contact.publish(m.float_msg(contact))
 
     def stream(self, seconds, **kw):

@@ -190,21 +190,14 @@ def test_acknowledges_each_judged_sample_by_its_sequence_number(ros, cell):
     monitor = make_monitor(ros)
     node = ros.node("ack_listener")
     rec = Recorder(node, {"/shaping/checked": UInt64})
-    sent = [0]
-    publish = cell.publish
-
-    def counted(**kw):
-        publish(**kw)
-        sent[0] += 1
-    cell.publish = counted
     get_ready(ros, monitor, cell)
     for _ in range(7):
         cell.publish()
     ros.spin_until(lambda: rec["/shaping/checked"] and rec.last("/shaping/checked").data
-                   == sent[0], 10.0, f"the acknowledgement of sample {sent[0]}")
+                   == cell.sent, 10.0, f"the acknowledgement of sample {cell.sent}")
     n = len(rec["/shaping/checked"])
     ros.spin_until(lambda: len(rec["/shaping/checked"]) >= n + 3, 10.0, "repeated every period")
-    assert {a.data for a in rec["/shaping/checked"][n:]} == {sent[0]}
+    assert {a.data for a in rec["/shaping/checked"][n:]} == {cell.sent}
     assert monitor.state == "ready"
 
 
@@ -215,19 +208,12 @@ def test_after_an_abort_acknowledgements_wait_for_the_planner_to_stop(ros, cell)
     node = ros.node("ack_planner")
     state = node.create_publisher(String, "/shaping/planner_state", LATCHED)
     rec = Recorder(node, {"/shaping/checked": UInt64, "/shaping/abort": (String, True)})
-    sent = [0]
-    publish = cell.publish
-
-    def counted(**kw):
-        publish(**kw)
-        sent[0] += 1
-    cell.publish = counted
     state.publish(String(data="running"))
     ros.spin_until(lambda: monitor.acks.planner_state == "running", 10.0, "the planner's state")
     get_ready(ros, monitor, cell)
     ros.spin_until(lambda: rec["/shaping/checked"] and rec.last("/shaping/checked").data
-                   == sent[0], 10.0, "every sample acknowledged")
-    before = sent[0]
+                   == cell.sent, 10.0, "every sample acknowledged")
+    before = cell.sent
     cell.publish(tension=1.01 * monitor.threshold)
     ros.spin_until(lambda: rec["/shaping/abort"], 5.0, "abort")
     n = len(rec["/shaping/checked"])
