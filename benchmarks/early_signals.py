@@ -28,9 +28,18 @@ BIN = Path(sys.executable).parent
 READY = {"simulator": "simulator up", "planner": "state:", "monitor": "monitor up"}
 
 
+def _default_signals() -> None:
+    """The node starts with SIGINT and SIGTERM at their defaults, as from a terminal or
+    ros2 launch, whatever this script inherited (a background job of a script ignores
+    SIGINT, and a signal that comes while it is ignored is rightly dropped)."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_DFL)
+
+
 def start(exe: str, env: dict) -> subprocess.Popen:
     return subprocess.Popen([str(BIN / exe)], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
+                            stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True,
+                            preexec_fn=_default_signals)
 
 
 def startup_time(exe: str, env: dict, timeout: float = 120.0) -> float:

@@ -127,6 +127,9 @@ def test_setup_py_console_scripts():
     assert scripts == CONSOLE_SCRIPTS
 
 
+QUOTES = "'''"
+
+
 def test_each_node_executable_is_the_launcher_shell_and_python_at_once():
     """setup.py installs its LAUNCHER per node (``scripts``): a shell script that starts Python
     on itself with SIGINT and SIGTERM blocked, and a Python script that runs the node
@@ -139,8 +142,12 @@ def test_each_node_executable_is_the_launcher_shell_and_python_at_once():
     template = ast.literal_eval(consts["LAUNCHER"])
     for node in NODES:
         text = template.replace("@NODE@", node).replace("@PYTHON@", "/usr/bin/python3")
+        text = text.replace("@BLOCK@", "env --block-signal=INT --block-signal=TERM ")
         assert text.startswith("#!/bin/sh\n")
         assert 'exec env --block-signal=INT --block-signal=TERM "$py" "$0" "$@"' in text
+        # no child of the shell before the exec: dash clears its signal mask on each wait
+        shell = text.split(QUOTES)[1]
+        assert shell.count("env ") == 1 and "if " not in shell
         assert f"from rheo_shaping.nodes.entry import {node}\n" in text
         compile(text, node, "exec")
 
