@@ -50,6 +50,7 @@ from ..params.params import CellParams
 from ..planning.scenarios import movement_scenario
 from ..sheet.setpoints import SetpointRun
 from ..sheet.tools import tool_shape
+from ..safety.acknowledge import MonitorLead
 from ..safety.watchdog import Freshness
 from . import messages as m
 from . import topics as T
@@ -89,10 +90,8 @@ class SimulatorNode(Node):
         self._t_ns = 0
         self._pending = False          # a step is due (lockstep may hold it back)
         self._waits = 0                # lockstep waits so far
-        self._tension_seq = 0          # /sheet/tensions samples published (= DDS sequence no.)
-        self._checked = 0              # the newest of them the monitor has acknowledged
-        self._checked_fresh: Freshness | None = None   # acknowledgements still arriving
-        self._monitor_waits = 0        # steps held back for the monitor so far
+        # steps wait for the monitor's acknowledgements of the tension samples (core)
+        self._lead = MonitorLead(self.settings.monitor_lead, self.settings.command_timeout)
         self._clock_holds = 0          # steps held at the start for the first set-point
         self._late_steps = 0           # steps taken without their set-point (stream lost/late)
         self._last_pub_ns = None
@@ -208,7 +207,7 @@ class SimulatorNode(Node):
     @property
     def monitor_waits(self) -> int:
         """Steps held back so far because the monitor had not judged the samples before."""
-        return self._monitor_waits
+        return self._lead.waits
 
     def _on_reset(self, request, response):
         self._new_run()
@@ -244,22 +243,9 @@ class SimulatorNode(Node):
         return not self._commands_fresh.stale(self._steady.now().nanoseconds)
 
     def _on_checked(self, msg) -> None:
-        if msg.data > self._checked:
-            self._checked = msg.data
-        if self._checked_fresh is None:
-            self._checked_fresh = Freshness(self.settings.command_timeout)
-        self._checked_fresh.received(self._steady.now().nanoseconds)
+        self._lead.on_checked(msg.data, self._steady.now().nanoseconds)
         if self._pending:
             self._try_step()
-
-    def _monitor_behind(self) -> bool:
-        """Whether a step must wait for the monitor: ``monitor_lead`` published tension
-        samples are unacknowledged while acknowledgements still arrive (within
-        ``command_timeout``, wall)."""
-        lead = self.settings.monitor_lead
-        fresh = self._checked_fresh
-        return (lead > 0 and fresh is not None and self._tension_seq - self._checked >= lead
-                and not fresh.stale(self._steady.now().nanoseconds))
 
     # -- stepping ---------------------------------------------------------------------
     def _on_timer(self) -> None:
@@ -288,8 +274,7 @@ class SimulatorNode(Node):
                 self._publish_steady(self._t_ns)
                 return
             target = self._t_ns + self._dt_ns
-            if self._monitor_behind():
-                self._monitor_waits += 1
+            if self._lead.behind(self._steady.now().nanoseconds):
                 return                              # re-tried on the next acknowledgement
             if self.run.lacks_setpoint(target):
                 if s.lockstep and self._stream_live():
@@ -379,7 +364,7 @@ class SimulatorNode(Node):
     def _publish_tensions(self) -> None:
         contact = math.nan if self.run.broken else self.sim.contact_tension()
         self.pub_tensions.publish(m.tensions_msg(self.run.tensions()))
-        self._tension_seq += 1
+        self._lead.published()
         self.pub_contact.publish(m.float_msg(contact))
 
     def _hold_camera(self) -> None:
@@ -444,7 +429,7 @@ class SimulatorNode(Node):
                   "F_max": float(self.peak.value) if self.started else 0.0,
                   "real_time_factor": self.settings.real_time_factor,
                   "achieved_factor": float(self.achieved_factor), "lockstep_waits": self._waits,
-                  "monitor_waits": self._monitor_waits, "clock_holds": self._clock_holds,
+                  "monitor_waits": self._lead.waits, "clock_holds": self._clock_holds,
                   "late_steps": self._late_steps}
         if self.summary is not None:
             values.update({"final_F_max": self.summary.F_max, "final_SF": self.summary.SF,

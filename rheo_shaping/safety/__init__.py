@@ -6,5 +6,5 @@ from .._lazy import lazy_api
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'abort_budget': ['AbortBudget', 'abort_budget'],
     'watchdog': ['StallGuard', 'Freshness'],
-    'acknowledge': ['Acknowledgements'],
+    'acknowledge': ['Acknowledgements', 'MonitorLead'],
 })

@@ -12,6 +12,7 @@ sheet would move only for that wall time.  Times are steady-clock nanoseconds.
 from __future__ import annotations
 
 from ..units import NS
+from .watchdog import Freshness
 
 #: The planner state in which it streams its plan (any other: stopped, stopping or
 #: not started).
@@ -70,3 +71,41 @@ class Acknowledgements:
             return None
         self.acked = self.judged
         return self.acked
+
+
+class MonitorLead:
+    """The simulator's side: whether its next step must wait for the monitor.
+
+    ``lead``: the most unacknowledged tension samples it may have published (0: never
+    wait); ``timeout`` [s]: acknowledgements older than this count as stopped, and the
+    simulator no longer waits for them (a monitor that is gone, or a cell without one).
+    Until the first acknowledgement arrives, it does not wait either.
+    """
+
+    def __init__(self, lead: int, timeout: float):
+        self.lead = int(lead)
+        self.sent = 0            # tension samples published (= their DDS sequence numbers)
+        self.checked = 0         # the newest of them the monitor has acknowledged
+        self.waits = 0           # steps held back so far
+        self._timeout = timeout
+        self._fresh: Freshness | None = None
+
+    def published(self) -> None:
+        """One more tension sample was published."""
+        self.sent += 1
+
+    def on_checked(self, seq: int, steady_ns: int) -> None:
+        """An acknowledgement of sample ``seq`` arrived at ``steady_ns``."""
+        self.checked = max(self.checked, int(seq))
+        if self._fresh is None:
+            self._fresh = Freshness(self._timeout)
+        self._fresh.received(steady_ns)
+
+    def behind(self, steady_ns: int) -> bool:
+        """Whether a step must wait: ``lead`` published samples are unacknowledged while
+        acknowledgements still arrive.  Counts the wait in :attr:`waits`."""
+        wait = (self.lead > 0 and self._fresh is not None
+                and self.sent - self.checked >= self.lead
+                and not self._fresh.stale(steady_ns))
+        self.waits += wait
+        return wait

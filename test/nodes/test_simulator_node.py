@@ -175,16 +175,16 @@ def test_waits_for_the_monitors_acknowledgements(ros):
     node = ros.node("fake_monitor")
     ack = node.create_publisher(UInt64, "/shaping/checked", 1)
     wait_for_subscribers(ros, ack)
-    ros.spin_until(lambda: sim._tension_seq > 3, 20.0, "tension samples")
+    ros.spin_until(lambda: sim._lead.sent > 3, 20.0, "tension samples")
     nothing = lambda: ack.publish(UInt64(data=0))              # noqa: E731  fresh, none judged
     ros.spin_until(lambda: sim.monitor_waits >= 5, 10.0, "held for the monitor", every=nothing)
-    held = sim._tension_seq
+    held = sim._lead.sent
     w = sim.monitor_waits
     ros.spin_until(lambda: sim.monitor_waits >= w + 20, 10.0, "still held", every=nothing)
-    assert sim._tension_seq == held
+    assert sim._lead.sent == held
     judged = lambda: ack.publish(UInt64(data=held))            # noqa: E731
-    ros.spin_until(lambda: sim._tension_seq == held + 3, 10.0, "3 more samples", every=judged)
+    ros.spin_until(lambda: sim._lead.sent == held + 3, 10.0, "3 more samples", every=judged)
     w = sim.monitor_waits
     ros.spin_until(lambda: sim.monitor_waits >= w + 20, 10.0, "held again", every=judged)
-    assert sim._tension_seq == held + 3
-    ros.spin_until(lambda: sim._tension_seq > held + 20, 10.0, "running on without a monitor")
+    assert sim._lead.sent == held + 3
+    ros.spin_until(lambda: sim._lead.sent > held + 20, 10.0, "running on without a monitor")

@@ -1,8 +1,9 @@
 """The monitor's acknowledgements (rheo_shaping.safety.acknowledge): each judged sample,
-withheld after an abort until the planner is off its plan or the hold's limit."""
+withheld after an abort until the planner is off its plan or the hold's limit; and the
+simulator's side (MonitorLead): a step waits while ``lead`` samples are unacknowledged."""
 from __future__ import annotations
 
-from rheo_shaping.safety.acknowledge import Acknowledgements
+from rheo_shaping.safety.acknowledge import Acknowledgements, MonitorLead
 from rheo_shaping.units import NS
 
 
@@ -51,3 +52,45 @@ def test_reset_releases_a_hold():
     a.on_abort(0)
     assert a.on_judged(4) is None
     assert a.reset() == 4 and not a.holding
+
+
+def _published(lead: MonitorLead, n: int) -> MonitorLead:
+    for _ in range(n):
+        lead.published()
+    return lead
+
+
+def test_a_step_waits_while_lead_samples_are_unacknowledged():
+    ms = NS // 1000
+    lead = _published(MonitorLead(lead=2, timeout=0.2), 2)
+    assert not lead.behind(0)                   # no acknowledgement yet: no monitor to wait for
+    lead.on_checked(1, 0)
+    assert not lead.behind(10 * ms)             # 2 out, 1 acknowledged: 1 unacknowledged < 2
+    lead.published()
+    assert lead.behind(20 * ms)                 # 3 out, 1 acknowledged: 2 unacknowledged
+    lead.on_checked(1, 30 * ms)                 # a repeat (the monitor re-sends each period)
+    assert lead.behind(40 * ms)
+    lead.on_checked(2, 50 * ms)
+    assert not lead.behind(60 * ms)
+    lead.on_checked(1, 70 * ms)                 # an old one late: the newest still counts
+    assert lead.checked == 2 and lead.waits == 2
+
+
+def test_without_acknowledgements_for_longer_than_the_timeout_steps_go_on():
+    ms = NS // 1000
+    lead = _published(MonitorLead(lead=1, timeout=0.2), 5)
+    lead.on_checked(4, 0)
+    t = 0
+    while lead.behind(t):                       # checked every 50 ms, as the steps try
+        t += 50 * ms
+        assert t < NS, "still waiting after 1 s"
+    assert 200 * ms < t <= 250 * ms             # the first check past the 0.2 s timeout
+    lead.on_checked(5, t)
+    lead.published()
+    assert lead.behind(t + ms)                  # acknowledgements again: waits again
+
+
+def test_lead_zero_never_waits():
+    lead = _published(MonitorLead(lead=0, timeout=0.2), 10)
+    lead.on_checked(1, 0)
+    assert not lead.behind(NS // 100) and lead.waits == 0
