@@ -249,6 +249,23 @@ def run_condition(condition: str, seed: int, args) -> dict:
     return {"summary": summary, "runs": rows}
 
 
+def provenance() -> dict:
+    """The code and the machine a campaign ran on (its commit, cores, CPU, Python)."""
+    repo = Path(__file__).resolve().parents[1]
+    try:
+        commit = subprocess.run(["git", "-C", str(repo), "rev-parse", "--short", "HEAD"],
+                                capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        commit = ""
+    cpu = ""
+    with contextlib.suppress(OSError):
+        cpu = next((line.split(":", 1)[1].strip() for line in
+                    Path("/proc/cpuinfo").read_text().splitlines()
+                    if line.startswith("model name")), "")
+    return {"commit": commit or None, "cpus": os.cpu_count(), "cpu": cpu,
+            "python": sys.version.split()[0], "load_average_end": os.getloadavg()}
+
+
 def _terminate(signum, frame) -> None:  # noqa: ARG001 - a signal handler's signature
     raise SystemExit(128 + signum)
 
@@ -257,12 +274,15 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=300, help="runs per condition and seed")
     ap.add_argument("--seeds", default="1,2", help="comma-separated seeds (default 1,2)")
-    ap.add_argument("--conditions", default="idle,cpu,loss")
+    ap.add_argument("--conditions", default="idle,cpu,loss",
+                    help="comma-separated, any of idle, cpu, loss (default all three)")
     ap.add_argument("--loss", type=int, default=5, help="percent of UDP packets dropped (loss)")
-    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                    help="cases run at once (default: the number of cores)")
     ap.add_argument("--domain", type=int, default=120, help="first ROS domain id to claim")
     ap.add_argument("--timeout", type=float, default=120.0, help="wall time per loss run [s]")
-    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--json", action="store_true",
+                    help="print the summary as one JSON line at the end")
     ap.add_argument("--save", metavar="FILE",
                     help="write every run to FILE (JSON), after each condition and seed; "
                          "an existing FILE is never overwritten")
@@ -289,6 +309,7 @@ def main(argv: list[str] | None = None) -> int:
     for c in conditions:
         for s in seeds:
             results.append(run_condition(c, s, args))
+            results[-1]["summary"].update(provenance())
             if args.save:          # after every condition and seed: an interrupt loses one
                 Path(args.save).write_text(json.dumps(results, indent=1))
     keys = ("condition", "seed", "runs", "failed", "would_tear", "tears", "aborts", "false_aborts",
