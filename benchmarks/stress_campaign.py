@@ -22,11 +22,16 @@ the threshold crossing comes from the offline run of the same plan, which the cl
 loop follows until the abort. A false abort under loss is reported with its reason,
 so that aborts on data that really went stale can be told from wrong ones.
 
+``--fault-tests`` runs the fault tests (``test/nodes/test_faults.py``: lost, late and
+out-of-order samples, a node killed or restarted mid-run) under each condition instead,
+once per condition, and reports pytest's counts.
+
 Bounded: ``--runs`` per condition and seed, each run under a timeout; the hog and the
 namespace are removed on exit, also on Ctrl-C.
 
     sudo .venv/bin/python benchmarks/stress_campaign.py [--runs 300] [--seeds 1,2]
         [--conditions idle,cpu,loss] [--loss 5] [--jobs 2] [--json] [--save FILE]
+    sudo .venv/bin/python benchmarks/stress_campaign.py --fault-tests --conditions cpu,loss
 """
 from __future__ import annotations
 
@@ -249,6 +254,46 @@ def run_condition(condition: str, seed: int, args) -> dict:
     return {"summary": summary, "runs": rows}
 
 
+def run_fault_tests(condition: str, args) -> dict:
+    """``test/nodes/test_faults.py`` (pytest, the ROS stage) under ``condition``: under the
+    hog, or inside the lossy namespace with DDS on UDPv4 (its node processes talk through the
+    lossy loopback; its one-process cases pass samples within the process).  pytest's counts
+    and the failed tests' names, from its JUnit XML."""
+    import xml.etree.ElementTree as ET
+    repo = Path(__file__).resolve().parents[1]
+    t0 = time.monotonic()
+    with tempfile.TemporaryDirectory(prefix="rheo-faults-") as tmp:
+        junit = Path(tmp) / "junit.xml"
+        cmd = [sys.executable, "-m", "pytest", "--stage=ros", "-q", "-p", "no:cacheprovider",
+               f"--junitxml={junit}", str(repo / "test" / "nodes" / "test_faults.py")]
+        env = dict(os.environ)
+        where = contextlib.nullcontext([])
+        if condition == "loss":
+            env["FASTDDS_BUILTIN_TRANSPORTS"] = "UDPv4"
+            where = lossy_namespace(args.loss)
+        hog = cpu_hog(os.cpu_count() or 2) if condition == "cpu" else contextlib.nullcontext()
+        with hog, where as prefix:
+            proc = subprocess.run([*prefix, *cmd], env=env, cwd=repo, capture_output=True,
+                                  text=True, timeout=args.timeout * 20)
+        tests = failed = skipped = 0
+        names = []
+        if junit.exists():
+            for case in ET.parse(junit).iter("testcase"):
+                tests += 1
+                if case.find("failure") is not None or case.find("error") is not None:
+                    failed += 1
+                    names.append(case.get("name"))
+                elif case.find("skipped") is not None:
+                    skipped += 1
+    summary = {"condition": condition, "fault_tests": tests, "passed": tests - failed - skipped,
+               "failed": failed, "skipped": skipped, "failed_tests": names,
+               "pytest_exit": proc.returncode, "wall_time_s": time.monotonic() - t0}
+    if condition == "loss":
+        summary["loss_percent"] = args.loss
+    tail = proc.stdout[-3000:] if proc.returncode else ""
+    return {"summary": summary, "output_tail": tail}
+
+
 def provenance() -> dict:
     """The code and the machine a campaign ran on (its commit, cores, CPU, Python)."""
     repo = Path(__file__).resolve().parents[1]
@@ -283,6 +328,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=120.0, help="wall time per loss run [s]")
     ap.add_argument("--json", action="store_true",
                     help="print the summary as one JSON line at the end")
+    ap.add_argument("--fault-tests", action="store_true",
+                    help="run test/nodes/test_faults.py under each condition instead of the "
+                         "campaign (once per condition; --runs and --seeds unused)")
     ap.add_argument("--save", metavar="FILE",
                     help="write every run to FILE (JSON), after each condition and seed; "
                          "an existing FILE is never overwritten")
@@ -306,6 +354,16 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     seeds = [int(s) for s in args.seeds.split(",") if s]
     results = []
+    if args.fault_tests:
+        for c in conditions:
+            print(f"  fault tests under {c} ...", file=sys.stderr, flush=True)
+            results.append(run_fault_tests(c, args))
+            results[-1]["summary"].update(provenance())
+            print(json.dumps(results[-1]["summary"]) if args.json else results[-1]["summary"])
+            if args.save:
+                Path(args.save).write_text(json.dumps(results, indent=1))
+        return 0 if all(r["summary"]["failed"] == 0 and r["summary"]["fault_tests"] > 0
+                        for r in results) else 1
     for c in conditions:
         for s in seeds:
             results.append(run_condition(c, s, args))
