@@ -11,7 +11,9 @@ topic                      type                             required
 =========================  ===============================  ========
 
 A message's time is its header stamp; t = 0 is the earliest ``/tool/pose``
-stamp.  ``scenario.yaml`` is the nominal cell in the project's params schema.
+stamp, and all stamps of the three topics lie within ``MAX_RECORD_SECONDS`` of
+each other (a stamp beyond is wrong: zero, or from another clock).
+``scenario.yaml`` is the nominal cell in the project's params schema.
 Synthetic stand-ins also hold ``truth.yaml`` (the cell with the effects that
 made them): for benchmarks only, the diagnosis never reads it.
 """
@@ -29,6 +31,10 @@ from ..units import NS
 POSE, PROFILE, WRENCH = "/tool/pose", "/sheet/measured_profile", "/tool/wrench"
 TYPES = {POSE: "geometry_msgs/msg/PoseStamped", PROFILE: "geometry_msgs/msg/PoseArray",
          WRENCH: "geometry_msgs/msg/WrenchStamped"}
+
+
+#: The longest time [s] a record's stamps may span: one shaping run lasts minutes.
+MAX_RECORD_SECONDS = 3600.0
 
 
 class RecordError(ValueError):
@@ -176,10 +182,27 @@ def _assemble(scenario: CellParams, data: dict, name: str, where) -> Record:
         if not np.all(np.isfinite(w)):
             raise RecordError(f"record {where}: /tool/wrench holds non-finite forces")
         wrench_t, wrench = w[:, 0] - t0, w[:, 1:]
+    _check_span(where, pose[:, 0] - t0, np.array([f[0] for f in frames]) - t0, wrench_t)
     return Record(scenario=scenario, pose_t=pose[:, 0] - t0, pose_xz=pose[:, 1:],
                   profile_t=np.array([f[0] for f in frames]) - t0,
                   profiles=tuple(f[1] for f in frames), wrench_t=wrench_t, wrench_xz=wrench,
                   name=name, path=Path(where) if not isinstance(where, Path) else where)
+
+
+def _check_span(where, pose_t, profile_t, wrench_t) -> None:
+    """Every stamp [s, from the first pose stamp] within ``MAX_RECORD_SECONDS`` of the others."""
+    stamps = [(POSE, pose_t), (PROFILE, profile_t)]
+    if wrench_t is not None:
+        stamps.append((WRENCH, wrench_t))
+    lo = min(float(t.min()) for _, t in stamps)
+    hi = max(float(t.max()) for _, t in stamps)
+    if not (np.isfinite(lo) and np.isfinite(hi)) or hi - lo > MAX_RECORD_SECONDS:
+        topic, t = max(((name, float(t.max() if abs(t.max()) >= abs(t.min()) else t.min()))
+                        for name, t in stamps), key=lambda item: abs(item[1]))
+        raise RecordError(
+            f"record {where}: its stamps span {hi - lo:.6g} s ({topic} has one {t:.6g} s from "
+            f"the first /tool/pose stamp); expected at most {MAX_RECORD_SECONDS:g} s for one "
+            f"run: a stamp is wrong (zero, or from another clock)")
 
 
 def read_truth(path: str | Path) -> CellParams | None:

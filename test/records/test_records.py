@@ -111,6 +111,24 @@ def test_read_errors_name_the_record(tmp_path, synthetic):
         write_record(rec, out)
 
 
+@pytest.mark.parametrize("topic", ["/tool/pose", "/sheet/measured_profile", "/tool/wrench"])
+def test_a_stamp_far_from_the_run_is_named(tmp_path, synthetic, topic):
+    """One stamp 2**31 - 1 s (the largest) off, as a wrong clock gives: refused by name, not
+    a diagnosis that plans a 68-year tool path (80 GiB; found by fuzz_inputs, seed 24)."""
+    (rec, _), _ = synthetic
+    field = {"/tool/pose": "pose_t", "/sheet/measured_profile": "profile_t",
+             "/tool/wrench": "wrench_t"}[topic]
+    t = getattr(rec, field).copy()
+    t[-1] = 2.0 ** 31 - 1 - 1.7e9
+    out = write_record(replace(rec, **{field: t}), tmp_path / "far", start_stamp=1.7e9)
+    with pytest.raises(RecordError, match=rf"far: its stamps span .* \({topic} has one "
+                                          rf".*expected at most 3600 s"):
+        read_record(out)
+    t[-1] = rec.pose_t[-1] + 3000.0                   # within an hour: a valid (long) record
+    ok = write_record(replace(rec, **{field: t}), tmp_path / "near", start_stamp=1.7e9)
+    assert read_record(ok).duration == pytest.approx(t[-1], abs=1e-6)
+
+
 def write_csvs(tmp_path, rec):
     (tmp_path / "pose.csv").write_text("t,x,z\n" + "\n".join(
         f"{float(t) + 100.0!r},{float(x)!r},{float(z)!r}" for t,
