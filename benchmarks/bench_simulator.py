@@ -94,20 +94,16 @@ from rheo_shaping.planning.movement import movement_plan  # noqa: E402
 from rheo_shaping.sheet.sheet import ChainConstants, SheetModel  # noqa: E402
 from rheo_shaping.sheet.simulation import Simulation, run_scenario  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _machine import cpu_name  # noqa: E402
+
 SIZES = (25, 50, 63, 100, 200, 400, 1000)
 MB = 1024.0 * 1024.0
 
 
 # ---------------------------------------------------------------------- machine
 def machine_info() -> dict:
-    cpu = platform.processor() or ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu = cpu_name()
     try:
         import mujoco
         mj = mujoco.__version__

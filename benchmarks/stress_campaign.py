@@ -55,6 +55,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import abort_campaign as campaign  # noqa: E402
+from _machine import cpu_name  # noqa: E402
 
 BIN = Path(sys.executable).parent
 NUM = r"([-+0-9.eE]+|inf|nan)"
@@ -261,6 +262,8 @@ def run_fault_tests(condition: str, args) -> dict:
     and the failed tests' names, from its JUnit XML."""
     import xml.etree.ElementTree as ET
     repo = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(repo))
+    from dev import junit_counts     # the counts `dev.py test` reports
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="rheo-faults-") as tmp:
         junit = Path(tmp) / "junit.xml"
@@ -272,22 +275,16 @@ def run_fault_tests(condition: str, args) -> dict:
             env["FASTDDS_BUILTIN_TRANSPORTS"] = "UDPv4"
             where = lossy_namespace(args.loss)
         hog = cpu_hog(os.cpu_count() or 2) if condition == "cpu" else contextlib.nullcontext()
-        with hog, where as prefix:
+        with hog, where as prefix:       # bounded: 20 loss runs' worth of wall time
             proc = subprocess.run([*prefix, *cmd], env=env, cwd=repo, capture_output=True,
                                   text=True, timeout=args.timeout * 20)
-        tests = failed = skipped = 0
-        names = []
-        if junit.exists():
-            for case in ET.parse(junit).iter("testcase"):
-                tests += 1
-                if case.find("failure") is not None or case.find("error") is not None:
-                    failed += 1
-                    names.append(case.get("name"))
-                elif case.find("skipped") is not None:
-                    skipped += 1
-    summary = {"condition": condition, "fault_tests": tests, "passed": tests - failed - skipped,
-               "failed": failed, "skipped": skipped, "failed_tests": names,
-               "pytest_exit": proc.returncode, "wall_time_s": time.monotonic() - t0}
+        n = {"passed": 0, "failed": 0, "skipped": 0} | junit_counts(junit)
+        names = [case.get("name") for case in ET.parse(junit).iter("testcase")
+                 if case.find("failure") is not None or case.find("error") is not None
+                 ] if junit.exists() else []
+    summary = {"condition": condition, "fault_tests": sum(n.values()), **n,
+               "failed_tests": names, "pytest_exit": proc.returncode,
+               "wall_time_s": time.monotonic() - t0}
     if condition == "loss":
         summary["loss_percent"] = args.loss
     tail = proc.stdout[-3000:] if proc.returncode else ""
@@ -302,12 +299,7 @@ def provenance() -> dict:
                                 capture_output=True, text=True, timeout=10).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         commit = ""
-    cpu = ""
-    with contextlib.suppress(OSError):
-        cpu = next((line.split(":", 1)[1].strip() for line in
-                    Path("/proc/cpuinfo").read_text().splitlines()
-                    if line.startswith("model name")), "")
-    return {"commit": commit or None, "cpus": os.cpu_count(), "cpu": cpu,
+    return {"commit": commit or None, "cpus": os.cpu_count(), "cpu": cpu_name(),
             "python": sys.version.split()[0], "load_average_end": os.getloadavg()}
 
 

@@ -182,27 +182,27 @@ def _assemble(scenario: CellParams, data: dict, name: str, where) -> Record:
         if not np.all(np.isfinite(w)):
             raise RecordError(f"record {where}: /tool/wrench holds non-finite forces")
         wrench_t, wrench = w[:, 0] - t0, w[:, 1:]
-    _check_span(where, pose[:, 0] - t0, np.array([f[0] for f in frames]) - t0, wrench_t)
-    return Record(scenario=scenario, pose_t=pose[:, 0] - t0, pose_xz=pose[:, 1:],
-                  profile_t=np.array([f[0] for f in frames]) - t0,
+    pose_t, profile_t = pose[:, 0] - t0, np.array([f[0] for f in frames]) - t0
+    _check_span(where, {POSE: pose_t, PROFILE: profile_t, WRENCH: wrench_t})
+    return Record(scenario=scenario, pose_t=pose_t, pose_xz=pose[:, 1:],
+                  profile_t=profile_t,
                   profiles=tuple(f[1] for f in frames), wrench_t=wrench_t, wrench_xz=wrench,
                   name=name, path=Path(where) if not isinstance(where, Path) else where)
 
 
-def _check_span(where, pose_t, profile_t, wrench_t) -> None:
-    """Every stamp [s, from the first pose stamp] within ``MAX_RECORD_SECONDS`` of the others."""
-    stamps = [(POSE, pose_t), (PROFILE, profile_t)]
-    if wrench_t is not None:
-        stamps.append((WRENCH, wrench_t))
-    lo = min(float(t.min()) for _, t in stamps)
-    hi = max(float(t.max()) for _, t in stamps)
-    if not (np.isfinite(lo) and np.isfinite(hi)) or hi - lo > MAX_RECORD_SECONDS:
-        topic, t = max(((name, float(t.max() if abs(t.max()) >= abs(t.min()) else t.min()))
-                        for name, t in stamps), key=lambda item: abs(item[1]))
-        raise RecordError(
-            f"record {where}: its stamps span {hi - lo:.6g} s ({topic} has one {t:.6g} s from "
-            f"the first /tool/pose stamp); expected at most {MAX_RECORD_SECONDS:g} s for one "
-            f"run: a stamp is wrong (zero, or from another clock)")
+def _check_span(where, stamps: dict) -> None:
+    """Every stamp [s, from the first pose stamp] of ``stamps`` (topic: times or None)
+    within ``MAX_RECORD_SECONDS`` of the others."""
+    ends = {topic: (float(t.min()), float(t.max())) for topic, t in stamps.items()
+            if t is not None}
+    lo, hi = min(a for a, _ in ends.values()), max(b for _, b in ends.values())
+    if hi - lo <= MAX_RECORD_SECONDS:      # a non-finite span is refused (NaN compares False)
+        return
+    topic, t = max(((k, v) for k, pair in ends.items() for v in pair), key=lambda kv: abs(kv[1]))
+    raise RecordError(
+        f"record {where}: its stamps span {hi - lo:.6g} s ({topic} has one {t:.6g} s from "
+        f"the first /tool/pose stamp); expected at most {MAX_RECORD_SECONDS:g} s for one "
+        f"run: a stamp is wrong (zero, or from another clock)")
 
 
 def read_truth(path: str | Path) -> CellParams | None:
