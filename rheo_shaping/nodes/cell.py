@@ -90,7 +90,7 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
     executor = None
     t_wall = time.monotonic()
     try:
-        sim = SimulatorNode(context=context, parameter_overrides=sim_params)
+        sim = SimulatorNode(context=context, parameter_overrides=sim_params, message_info=False)
         nodes.append(sim)
         # no /shaping/checked: the EventsExecutor passes no message info, and nothing can
         # stall between nodes that share this process

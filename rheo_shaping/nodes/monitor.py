@@ -48,12 +48,14 @@ from ..params.params import CellParams
 from ..safety.abort_budget import abort_horizon, configured_speed_threshold
 from ..params.schema import ParameterError
 from ..safety.acknowledge import Acknowledgements
+from ..safety.clock_guard import ClockGuard
 from ..safety.monitor import TensionMonitor
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
+from .guards import CellCheck, Presence, clock_publishers, guard_clock
 from .ros_params import SchemaParameters
-from .spin import run_node
+from .spin import Yielded, run_node
 from ..units import NS
 
 TENSION_TOPICS = (T.TENSIONS.contract, T.CONTACT_TENSION.contract)
@@ -84,7 +86,12 @@ class MonitorNode(Node):
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.core = TensionMonitor(s, self.cell.material.F_break, self.ratio, self.horizon,
                                    self._steady.now().nanoseconds, TENSION_TOPICS,
-                                   STAMPED_TOPICS, on_abort=self._on_abort)
+                                   STAMPED_TOPICS, on_abort=self._on_abort,
+                                   n_links=self.cell.sheet.n_masses + 1)
+        # what this node takes from others only after its own checks (docs/safety.md)
+        self.clock_guard = ClockGuard(s.max_clock_jump)
+        guard_clock(self, self.clock_guard, lambda why: self._abort(f"monitor: {why}"))
+        self.cell_check = CellCheck(self, "the monitor", lambda: self.cell)
         self._watchdog_guard = StallGuard(0.5 * s.max_data_age)
         self._watchdog = self.create_timer(s.period, self._on_watchdog, clock=self._steady)
         self._diag_timer = self.create_timer(s.diagnostics_period, self._publish_diagnostics,
@@ -93,6 +100,7 @@ class MonitorNode(Node):
             f"monitor up: abort at {self.threshold:.4f} N = {self.ratio:.3f} x F_break "
             f"{self.cell.material.F_break:g} N; trend horizon {self.horizon:.3f} s; "
             f"data older than {s.max_data_age:g} s is a fault")
+        self.presence = Presence(self, self._yield)     # last: a node that is fully up
 
     # -- parameters -------------------------------------------------------------------
     @property
@@ -196,7 +204,8 @@ class MonitorNode(Node):
 
     # -- state (the core's TensionMonitor decides) -------------------------------------
     def _configure(self) -> None:
-        self.core.configure(self.settings, self.cell.material.F_break, self.ratio, self.horizon)
+        self.core.configure(self.settings, self.cell.material.F_break, self.ratio, self.horizon,
+                            self.cell.sheet.n_masses + 1)
         self.acks.hold_ns = int(round(self.settings.abort_hold * NS))
 
     def _clear(self) -> None:
@@ -264,8 +273,31 @@ class MonitorNode(Node):
         self.core.on_deadline(topic)
 
     # -- watchdog (steady clock) ------------------------------------------------------
+    def _yield(self, reason: str) -> None:
+        raise Yielded(reason)
+
+    def _not_yet(self) -> str:
+        """Why this monitor may not report ready (cell, clocks, twins); aborts on a cell that
+        is not its own or a second clock."""
+        if not self.presence.settled:
+            return "starting up: checking that no other monitor of this name runs"
+        if self.settings.check_cell:
+            why = self.cell_check.mismatch()
+            if why is None:
+                return (f"waiting for the simulator's cell on {T.CELL.contract} (check_cell "
+                        f"false for a cell without one)")
+            if why:
+                self._abort(f"monitor: {why}")
+                return why
+        clocks = clock_publishers(self)
+        if clocks > 1:
+            self._abort(f"monitor: {clocks} publishers of /clock: one simulator is the cell's "
+                        f"clock")
+        return ""
+
     def _on_watchdog(self) -> None:
         now = self._steady.now().nanoseconds
+        self.core.blocked = self._not_yet()
         # this process stood still for over max_data_age / 2 (a busy machine): samples may
         # wait unread behind this timer, so they are judged at the next tick, not now
         stalled = self._watchdog_guard.check(now)

@@ -52,11 +52,13 @@ from ..planning.planning import MotionLimits, Plan
 from ..planning.movement import approach_plan, autostart_refusal, movement_plan
 from ..params.schema import ParameterError
 from ..planning.stopping import TrajectoryStreamer
+from ..safety.clock_guard import ClockGuard
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
+from .guards import CellCheck, Presence, clock_publishers, guard_clock
 from .ros_params import SchemaParameters
-from .spin import run_node
+from .spin import Yielded, run_node
 from ..units import NS
 
 #: Most set-points published in one timer call (a huge clock jump skips ahead).
@@ -75,14 +77,24 @@ class PlannerNode(Node):
                                        on_change=self._on_parameters,
                                        cli_args=node_kwargs.get('cli_args'))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        for attr, topic in (("pub_command", T.TOOL_COMMAND),
-                            ("pub_trajectory", T.PLANNED_TRAJECTORY),
+        # /tool/command is created once no older planner of this name is known (a twin
+        # that yields never shows up as a second commander, _supervise)
+        self.pub_command = None
+        for attr, topic in (("pub_trajectory", T.PLANNED_TRAJECTORY),
                             ("pub_state", T.PLANNER_STATE)):
             setattr(self, attr, self.create_publisher(topic.type, topic.name, topic.qos))
-        for topic, callback in ((T.ABORT, self._on_abort), (T.READY, self._on_ready),
-                                (T.TOOL_POSE, self._on_pose)):
-            self.create_subscription(topic.type, topic.name, callback, topic.qos)
+        subs = {topic.contract: self.create_subscription(topic.type, topic.name, callback,
+                                                         topic.qos)
+                for topic, callback in ((T.ABORT, self._on_abort), (T.READY, self._on_ready),
+                                        (T.TOOL_POSE, self._on_pose))}
+        self._ready_topic = subs[T.READY.contract].topic_name      # resolved (namespace)
         self._tool_pose: np.ndarray | None = None     # the latest measured tool pose [m]
+        self._pose_ns: int | None = None              # its stamp: the executed time [ns]
+        self._lead_note = ""                          # why set-points wait for execution
+        # what this node takes from others only after its own checks (docs/safety.md)
+        self.clock_guard = ClockGuard(self.settings.max_clock_jump)
+        guard_clock(self, self.clock_guard, lambda why: self._abort(f"planner: {why}"))
+        self.cell_check = CellCheck(self, "the planner", lambda: self.cell)
         self.create_service(Trigger, '~/start', self._on_start)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
@@ -114,7 +126,8 @@ class PlannerNode(Node):
                 f"the plan lasts {self.plan.duration:.1f} s, longer than movement.process_time = "
                 f"{mv.process_time:g} s: the process figures are taken at {mv.process_time:g} s "
                 f"and the plan is finished after it")
-        self._set_state("idle" if not self.settings.autostart else "waiting")
+        self._set_state("starting")       # idle / waiting once it knows it is the only one
+        self.presence = Presence(self, self._yield)     # last: a node that is fully up
 
     # -- parameters and plan --------------------------------------------------------
     @property
@@ -210,6 +223,9 @@ class PlannerNode(Node):
             return False, f"no ready heartbeat from the monitor for {age:.2f} s"
         if not self._ready:
             return False, "the monitor reports not ready"
+        beats = self.count_publishers(self._ready_topic)
+        if beats > 1:
+            return False, f"{beats} publishers of {self._ready_topic} (a spoofed heartbeat?)"
         return True, ""
 
     # -- callbacks ------------------------------------------------------------------
@@ -219,6 +235,38 @@ class PlannerNode(Node):
 
     def _on_pose(self, msg: PoseStamped) -> None:
         self._tool_pose = np.array(m.pose_xz(msg), dtype=float)
+        stamp = m.stamp_ns(msg.header.stamp)
+        if self._pose_ns is None or stamp > self._pose_ns:
+            self._pose_ns = stamp
+            if self.streamer is not None and self._lead_note:
+                self._stream()                  # execution caught up: the stream goes on
+
+    def _yield(self, reason: str) -> None:
+        """An older planner of this name runs: this one never moves the tool."""
+        if self.streamer is not None:
+            self._abort(f"planner: {reason}")
+        raise Yielded(reason)
+
+    def _refusal(self) -> str:
+        """Why the plan may not start now (cell, clocks, heartbeats, twins); "" if it may."""
+        if not self.presence.settled:
+            return "starting up: checking that no other planner of this name runs"
+        if self.settings.check_cell:
+            why = self.cell_check.mismatch()
+            if why is None:
+                return (f"waiting for the simulator's cell on {T.CELL.contract} (the "
+                        f"fingerprint of every cell parameter; check_cell false for a cell "
+                        f"without one)")
+            if why:
+                return why
+        clocks = clock_publishers(self)
+        if clocks > 1:
+            return f"{clocks} publishers of /clock: one simulator is the cell's clock"
+        beats = self.count_publishers(self._ready_topic)
+        if self.settings.wait_for_monitor and beats > 1:
+            return (f"{beats} publishers of {self._ready_topic}: the interlock takes the "
+                    f"heartbeat of one monitor only")
+        return ""
 
     def _tool_away(self) -> str:
         """Why autostart is unsafe (:func:`~rheo_shaping.planning.movement.autostart_refusal`)."""
@@ -237,11 +285,18 @@ class PlannerNode(Node):
         now = self._now_ns()
         if self.streamer is not None and self.streamer.state in ("running", "done", "retracting"):
             was = self.streamer.state
-            # The stop starts from the last published set-point (the state the tool was
-            # commanded to): every set-point after it comes from the stop, so the stream
-            # stays continuous in position, velocity and acceleration.
-            t = self._last_cmd_ns if self._last_cmd_ns is not None else now
+            # The stop starts from where the tool is: the executed pose's time (at most
+            # max_lead behind the newest set-point), on the plan's exact state there; the
+            # set-points sent after it are superseded by the stop's, sent again from there,
+            # so the stream stays continuous in position, velocity and acceleration.
+            t = self._executed_ns(now)
             self.streamer.abort(t / NS, reason)
+            t = int(round(self.streamer.abort_time * NS))
+            if self._last_cmd_ns is not None and t < self._last_cmd_ns:
+                self._last_cmd_ns = t - 1
+                self._publish_setpoint(t)
+                period = int(round(NS / self.settings.control_rate))
+                self._k = (t - self._t0_ns) // period + 1
             stop = self.streamer.stop_plan
             self.get_logger().error(
                 f"ABORT ({reason}): stopping from {was} at {t / NS:.6f} s, at rest in "
@@ -252,6 +307,15 @@ class PlannerNode(Node):
             self.get_logger().error(f"ABORT ({reason}) before the start: the plan will not run "
                                     f"(~/reset to re-arm)")
         self._update_state()
+
+    def _executed_ns(self, now: int) -> int:
+        """The time of the executed tool pose during the run [ns] (the newest set-point's
+        when no pose of the run has arrived)."""
+        last = self._last_cmd_ns if self._last_cmd_ns is not None else now
+        pose = self._pose_ns
+        if pose is None or self._t0_ns is None or pose < self._t0_ns:
+            return last
+        return min(pose, last)
 
     def _on_start(self, request, response):
         if self.streamer is not None:
@@ -265,6 +329,8 @@ class PlannerNode(Node):
             if self._tool_away():
                 self._hold = self._tool_pose.copy()          # the plan approaches from there
             response.success, response.message = True, "start requested: waiting for the interlock"
+            if not self.presence.settled:     # served only if no older planner of this name
+                response.message += " (starting up: checking that no other planner runs)"
         return response
 
     def _on_reset(self, request, response):
@@ -290,6 +356,12 @@ class PlannerNode(Node):
 
     # -- supervision (steady clock) -------------------------------------------------
     def _supervise(self) -> None:
+        if self.pub_command is None:
+            if not self.presence.settled or self.presence.twin:
+                return
+            self.pub_command = self.create_publisher(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name,
+                                                     T.TOOL_COMMAND.qos)
+            self._set_state("idle" if not self.settings.autostart else "waiting")
         ok, why = self._monitor_ok()
         # this process stood still for over monitor_timeout / 2 (a busy machine): heartbeats
         # may wait unread behind this timer, so a lost monitor is judged at the next tick
@@ -312,8 +384,13 @@ class PlannerNode(Node):
                 self._set_state("tool_away")
                 return
             now = self._now_ns()
+            refusal = self._refusal() if ok else ""
             if not ok:
                 self._set_state("waiting_for_monitor")
+            elif refusal:
+                self._refuse(refusal)
+            elif now > 0 and self._start_lead(now):
+                self._refuse(self._start_lead(now), "error")
             elif now <= 0:
                 self._set_state("waiting_for_clock")
             elif self.pub_command.get_subscription_count() == 0:
@@ -325,7 +402,31 @@ class PlannerNode(Node):
         elif (self.streamer.state == "running" and not ok
               and not guard.excuses(stalled, self._ready_rx, self.settings.monitor_timeout)):
             self._abort(f"planner: monitor lost ({why})")
+        elif self.streamer.state == "running":
+            refusal = self._refusal()
+            if refusal:
+                self._abort(f"planner: {refusal}")
         self._update_state()
+
+    def _refuse(self, reason: str, state: str = "") -> None:
+        """Do not start: the state says why (waiting_* or error), the log once per reason."""
+        if reason != getattr(self, "_refused", ""):
+            self._refused = reason
+            self.get_logger().warning(f"not starting: {reason}")
+        self._set_state(state or ("waiting_for_cell" if "cell" in reason else "waiting"))
+
+    def _start_lead(self, now: int) -> str:
+        """Why the stream could not keep within max_lead of the executed pose: the
+        simulator's clock runs further ahead of its published pose than max_lead."""
+        if self._pose_ns is None:
+            return ("no /tool/pose yet: the planner streams only against the executed pose "
+                    "(its stamp bounds the lead)")
+        ahead = (now - self._pose_ns) / NS
+        if ahead > self.settings.max_lead:
+            return (f"/clock runs {ahead:.3f} s ahead of /tool/pose, beyond max_lead "
+                    f"{self.settings.max_lead:g} s: the simulator's step (real_time_factor x "
+                    f"step_period) must stay below max_lead")
+        return ""
 
     def _start(self, now_ns: int) -> None:
         if self.plan_error or self._start_failed:
@@ -369,24 +470,39 @@ class PlannerNode(Node):
         if st is None or self._t0_ns is None:
             return
         now = self._now_ns()
+        limit = self._lead_limit(now)
         period = int(round(NS / self.settings.control_rate))
-        n_due = (now - self._t0_ns) // period - self._k + 1
+        n_due = (min(now, limit) - self._t0_ns) // period - self._k + 1
         if n_due > MAX_BATCH:
             self.get_logger().warning(f"the clock jumped {n_due} control periods: skipping ahead",
                                       throttle_duration_sec=5.0)
             self._k += n_due - MAX_BATCH
         while True:
             t = self._t0_ns + self._k * period
-            if t > now:
+            if t > now or t > limit:
                 break
             self._publish_setpoint(t)
             self._k += 1
-        if self.get_clock().ros_time_is_active and (self._last_cmd_ns is None
-                                                    or self._last_cmd_ns < now):
+        if self.get_clock().ros_time_is_active and now <= limit and (
+                self._last_cmd_ns is None or self._last_cmd_ns < now):
             # On simulated time /clock jumps: the set-point at the clock's time too, so the
             # simulator (lockstep) has the set-point for the end of its step.
             self._publish_setpoint(now)
         self._update_state()
+
+    def _lead_limit(self, now: int) -> int:
+        """The newest set-point time allowed [ns]: the executed pose's stamp + max_lead."""
+        lead = int(round(self.settings.max_lead * NS))
+        pose = self._pose_ns
+        limit = (self._t0_ns if pose is None else max(pose, self._t0_ns)) + lead
+        note = ""
+        if now > limit:
+            note = (f"set-points wait for the tool: /tool/pose at {(pose or 0) / NS:.3f} s, "
+                    f"clock {now / NS:.3f} s (max_lead {self.settings.max_lead:g} s)")
+            if not self._lead_note:
+                self.get_logger().warning(note, throttle_duration_sec=5.0)
+        self._lead_note = note
+        return limit
 
     def _publish_setpoint(self, t_ns: int) -> None:
         if self._last_cmd_ns is not None and t_ns <= self._last_cmd_ns:

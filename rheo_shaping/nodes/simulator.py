@@ -41,6 +41,7 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from ..sheet.geometry import Cake
@@ -50,19 +51,32 @@ from ..params.params import CellParams
 from ..planning.scenarios import movement_scenario
 from ..sheet.setpoints import SetpointRun
 from ..sheet.tools import tool_shape
+from ..params.fingerprint import cell_message
 from ..safety.acknowledge import MonitorLead
+from ..safety.command_gate import CommandGate, Publisher, ToolLimits
 from ..safety.watchdog import Freshness
 from . import messages as m
 from . import topics as T
+from .guards import Presence
 from .ros_params import SchemaParameters
-from .spin import run_node
+from .spin import Yielded, run_node
+
 from ..units import NS
+
+#: Wall-clock time [s] between re-publications of the unchanged state while /clock holds
+#: for the first set-point (the monitor's data stay fresh; nothing else changes).
+HOLD_REPUBLISH = 0.1
+#: Longest wall-clock time [s] a set-point waits for the graph to show its publisher.
+GRAPH_WAIT = 5.0
 
 
 class SimulatorNode(Node):
     """Steps the sheet under /tool/command and publishes the cell's state."""
 
-    def __init__(self, **node_kwargs):
+    def __init__(self, message_info: bool = True, **node_kwargs):
+        """``message_info``: the executor passes rmw message info to callbacks (rclpy's
+        EventsExecutor, which the one-process cell uses, does not): the publication sequence
+        number of each set-point is then checked too (:class:`CommandGate`)."""
         super().__init__('simulator', **node_kwargs)
         self.get_logger().info('starting: parameters, then the settled sheet')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": SimulatorNodeParams},
@@ -81,8 +95,19 @@ class SimulatorNode(Node):
         self.pub_camera = pub(T.MEASURED_PROFILE)
         # only while this node is the clock (_configure_time)
         self.pub_clock = None
-        self.create_subscription(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name, self._on_command,
-                                 T.TOOL_COMMAND.qos)
+        self._command_sub = self.create_subscription(
+            T.TOOL_COMMAND.type, T.TOOL_COMMAND.name,
+            (lambda msg, info: self._on_command(msg, info)) if message_info
+            else self._on_command, T.TOOL_COMMAND.qos)
+        # one commander: the bound planner's set-points, within the tool's limits
+        self.gate = CommandGate(self._tool_limits())
+        self._unbound: list[tuple] = []            # set-points waiting for the graph
+        self.pub_abort = self._latched(T.ABORT)
+        self.create_subscription(T.ABORT.type, T.ABORT.name,
+                                 lambda msg: self._hold(f"abort: {msg.data}", publish=False),
+                                 T.ABORT.qos)
+        self.pub_cell = self._latched(T.CELL)
+        self._last_hold_pub = None     # steady time of the last state re-published on hold
         self.create_subscription(T.CHECKED.type, T.CHECKED.name, self._on_checked, T.CHECKED.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
@@ -91,7 +116,7 @@ class SimulatorNode(Node):
         self._pending = False          # a step is due (lockstep may hold it back)
         self._waits = 0                # lockstep waits so far
         # steps wait for the monitor's acknowledgements of the tension samples (core)
-        self._lead = MonitorLead(self.settings.monitor_lead, self.settings.command_timeout)
+        self._lead = self._monitor_lead()
         self._clock_holds = 0          # steps held at the start for the first set-point
         self._late_steps = 0           # steps taken without their set-point (stream lost/late)
         self._last_pub_ns = None
@@ -114,9 +139,48 @@ class SimulatorNode(Node):
             f"simulator up: {self.cell.sheet.n_masses} masses, movement "
             f"{self.cell.movement.number}, "
             f"{mode}, step {self._dt_ns / NS:g} s every {self.settings.step_period:g} s")
+        self.presence = Presence(self, self._yield)     # last: a node that is fully up
 
     def _publisher(self, topic: T.Topic, qos=None):
         return self.create_publisher(topic.type, topic.name, T.writer_qos(qos or topic.qos))
+
+    def _latched(self, topic: T.Topic):
+        """A latched topic: the newest sample only, for late joiners too."""
+        return self.create_publisher(topic.type, topic.name, topic.qos)
+
+    def _tool_limits(self) -> ToolLimits:
+        s = self.settings
+        return ToolLimits(s.max_tool_speed, s.max_tool_accel, s.max_tool_jump)
+
+    def _monitor_lead(self) -> MonitorLead:
+        """Steps wait for the monitor's acknowledgements; with monitor_timeout, a monitor
+        silent for that long is lost (the tool holds), else after command_timeout it is gone
+        and steps no longer wait."""
+        s = self.settings
+        return MonitorLead(s.monitor_lead, s.monitor_timeout or s.command_timeout)
+
+    def _yield(self, reason: str) -> None:
+        raise Yielded(reason)
+
+    # -- one commander (the core's CommandGate) ----------------------------------------
+    def _hold(self, reason: str, publish: bool = True) -> None:
+        """Latch a hold: the tool stays where it is, set-points are ignored until ~/reset;
+        the reason goes out on /shaping/abort (the planner stops, the monitor sees it)."""
+        if not self.gate.hold(reason):
+            return
+        tool = self.sim.state.tool
+        self.run.cmds = [(self._t_ns, float(tool[0]), float(tool[1]))]
+        self.get_logger().error(f"the tool holds at ({tool[0] * 1e3:.3f}, {tool[1] * 1e3:.3f}) mm"
+                                f" until ~/reset: {reason}")
+        if publish:
+            self.pub_abort.publish(String(data=f"simulator: {reason}"))
+        self._force_publish = True
+        self._last_diag = None                          # /diagnostics says it at once
+
+    def _command_publishers(self) -> list[Publisher]:
+        return [Publisher(f"{i.node_namespace.rstrip('/')}/{i.node_name}",
+                          ".".join(f"{b:02x}" for b in i.endpoint_gid))
+                for i in self.get_publishers_info_by_topic(self._command_sub.topic_name)]
 
     # -- parameters -------------------------------------------------------------------
     @property
@@ -139,6 +203,8 @@ class SimulatorNode(Node):
 
     def _on_parameters(self, names: set[str]) -> None:
         settings = {n for n in names if n in self.params.names("settings")}
+        if settings & {"max_tool_speed", "max_tool_accel", "max_tool_jump"}:
+            self.gate.limits = self._tool_limits()
         if settings:
             was = self._sim_clock
             self._configure_time()
@@ -166,6 +232,7 @@ class SimulatorNode(Node):
                                   cell.cake.radius).outline(48)
         self._commands_fresh = Freshness(self.settings.command_timeout)
         self._next_progress = self.settings.progress_period
+        self.pub_cell.publish(String(data=cell_message(cell)))
 
     @property
     def sim(self):
@@ -210,6 +277,10 @@ class SimulatorNode(Node):
         return self._lead.waits
 
     def _on_reset(self, request, response):
+        if self.gate.held:
+            self.destroy_publisher(self.pub_abort)     # drops its latched abort sample
+            self.pub_abort = self._latched(T.ABORT)
+        self.gate.reset()
         self._new_run()
         response.success = True
         response.message = "run restarted: settled sheet at process time 0"
@@ -217,7 +288,47 @@ class SimulatorNode(Node):
         return response
 
     # -- set-points -------------------------------------------------------------------
-    def _on_command(self, msg: PoseStamped) -> None:
+    def _on_command(self, msg: PoseStamped, info=None) -> None:
+        seq = int((info or {}).get("publication_sequence_number", 0))
+        if self.gate.held:
+            if self.gate.report_once("held"):
+                self.get_logger().warning(f"ignoring /tool/command while the tool holds "
+                                          f"({self.gate.held}); ~/reset to re-arm")
+            return
+        pubs = self._command_publishers()
+        if self.gate.bound is None and not pubs:
+            # the sample came before the graph shows its writer: judged once it does
+            self._unbound.append((msg, seq, self._steady.now().nanoseconds))
+            return
+        self._admit(pubs, msg, seq)
+
+    def _admit(self, pubs: list[Publisher], msg: PoseStamped, seq: int) -> bool:
+        """Follow ``msg`` if it comes from the bound planner, else hold; False once held."""
+        why = self.gate.source(pubs, seq)
+        if why:
+            self._hold(why)
+            return False
+        self._follow(msg)
+        return not self.gate.held
+
+    def _bind_waiting(self) -> None:
+        """Set-points that came before the graph showed their writer: judged now."""
+        if not self._unbound:
+            return
+        pubs = self._command_publishers()
+        waited = (self._steady.now().nanoseconds - self._unbound[0][2]) / NS
+        if not pubs and waited < GRAPH_WAIT:
+            return
+        waiting, self._unbound = self._unbound, []
+        if not pubs:
+            self._hold(f"set-points from a writer the graph does not show after {GRAPH_WAIT:g} s")
+            return
+        for msg, seq, _ in waiting:
+            if not self._admit(pubs, msg, seq):
+                return
+
+    def _follow(self, msg: PoseStamped) -> None:
+        """A set-point of the bound planner: checked, then buffered for the steps."""
         t = m.stamp_ns(msg.header.stamp)
         x, z = m.pose_xz(msg)
         if t <= 0 or not (math.isfinite(x) and math.isfinite(z)):
@@ -227,6 +338,10 @@ class SimulatorNode(Node):
         if msg.header.frame_id not in (m.FRAME, ""):
             self.get_logger().warning(f"ignored /tool/command in frame '{msg.header.frame_id}': "
                                       f"expected '{m.FRAME}'", throttle_duration_sec=5.0)
+            return
+        why = self.gate.judge(t, x, z, self.sim.state.tool)
+        if why:
+            self._hold(why)
             return
         started = self.run.command(t, x, z)
         self._commands_fresh.received(self._steady.now().nanoseconds)
@@ -249,6 +364,14 @@ class SimulatorNode(Node):
 
     # -- stepping ---------------------------------------------------------------------
     def _on_timer(self) -> None:
+        if not self.presence.settled:
+            return                      # an older simulator of this name would be known by then
+        self._bind_waiting()
+        s = self.settings
+        if (s.monitor_timeout > 0 and not self.gate.held
+                and self._lead.lost(self._steady.now().nanoseconds)):
+            self._hold(f"monitor lost: no {T.CHECKED.contract} for over {s.monitor_timeout:g} s"
+                       f" (monitor_timeout)")
         self._pending = True
         self._try_step()
 
@@ -269,14 +392,18 @@ class SimulatorNode(Node):
                 self._pending = False
                 self._clock_holds += 1
                 self.pub_clock.publish(m.clock_msg(self._t_ns + self._dt_ns))
-                self._publish_state(self._t_ns)    # the same state, fresh for the monitor
+                now = self._steady.now().nanoseconds
+                if (self._last_hold_pub is None
+                        or now - self._last_hold_pub >= HOLD_REPUBLISH * NS):
+                    self._last_hold_pub = now
+                    self._publish_state(self._t_ns)    # the same state, fresh for the monitor
                 self._hold_camera()
                 self._publish_steady(self._t_ns)
                 return
             target = self._t_ns + self._dt_ns
             if self._lead.behind(self._steady.now().nanoseconds):
                 return                              # re-tried on the next acknowledgement
-            if self.run.lacks_setpoint(target):
+            if self.run.lacks_setpoint(target) and not self.gate.held:
                 if s.lockstep and self._stream_live():
                     self._waits += 1
                     return                              # wait for the step's set-point
@@ -417,6 +544,8 @@ class SimulatorNode(Node):
         st = self.sim.state
         if self.run.broken:
             level, message = "ERROR", f"sheet solver failed: {self.run.broken}"
+        elif self.gate.held:
+            level, message = "ERROR", f"the tool holds: {self.gate.held}"
         elif not self.started:
             level, message = "OK", "waiting for the first /tool/command"
         elif self.summary is None:

@@ -61,6 +61,11 @@ class _StopSignal:
             signal.signal(sig, self)
 
 
+class Yielded(Exception):
+    """Raised in a node's callback when an older node of its name runs: the process ends
+    with the reason (exit code 2), the older node runs on (docs/safety.md, "One of each")."""
+
+
 def _fatal(name: str, message: str) -> int:
     print(f"[FATAL] [{name}]: {message}", file=sys.stderr, flush=True)
     return 2
@@ -118,10 +123,14 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
             raise
         rclpy.logging.get_logger(name).info("interrupted while starting")
         return 0
+    code = 0
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Yielded as exc:
+        rclpy.logging.get_logger(name).fatal(f"yields: {exc}")
+        code = 2
     except Exception:                 # noqa: BLE001
         # rclpy's SIGINT handler shuts the context down asynchronously; when that lands
         # while the executor builds its wait set, rcl reports an invalid context
@@ -133,4 +142,4 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return code

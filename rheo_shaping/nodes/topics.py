@@ -107,11 +107,21 @@ PLANNER_STATE = Topic("shaping/planner_state", String, LATCHED_QOS)
 #: sample it has judged (the simulator runs at most ``monitor_lead`` samples ahead of it).
 CHECKED = Topic("shaping/checked", UInt64, HEARTBEAT_QOS)
 DIAGNOSTICS = Topic("diagnostics", DiagnosticArray, STATE_QOS)
+#: The simulator's cell (rheo_shaping.params.fingerprint.cell_message, JSON): planner and
+#: monitor refuse to run on another cell.
+CELL = Topic("shaping/cell", String, LATCHED_QOS)
+#: Who is up: every node announces itself once (JSON: name, start time, pid); a second
+#: node of a name yields to the one that started first (docs/safety.md, "One of each").
+PRESENCE = Topic("shaping/presence", String,
+                 QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                            history=HistoryPolicy.KEEP_LAST))
 
 #: Every topic of the cell, by its contract name.
 ALL: dict[str, Topic] = {t.contract: t for t in (
     PROFILE, MEASURED_PROFILE, TENSIONS, CONTACT_TENSION, TOOL_POSE, TOOL_WRENCH, MARKERS, CLOCK,
-    TOOL_COMMAND, PLANNED_TRAJECTORY, ABORT, READY, PLANNER_STATE, CHECKED, DIAGNOSTICS)}
+    TOOL_COMMAND, PLANNED_TRAJECTORY, ABORT, READY, PLANNER_STATE, CHECKED, DIAGNOSTICS, CELL,
+    PRESENCE)}
 
 #: The remap that makes a namespaced planner or monitor follow its own simulator's clock.
 CLOCK_REMAP = ("-r", "/clock:=clock")

@@ -23,6 +23,21 @@ from dataclasses import dataclass
 from .schema import iter_fields, param
 
 
+def _max_clock_jump():
+    """``max_clock_jump`` of the nodes on simulated time (planner, monitor)."""
+    return param(
+        5.0, "a /clock message more than this ahead of the previous one, or behind it, or "
+        "negative, is refused and stops the run with the reason; must exceed the simulator's "
+        "step", "s", 0.0, 3600.0, lo_open=True)
+
+
+def _check_cell(what: str, then: str):
+    """``check_cell`` of the planner and the monitor."""
+    return param(
+        True, f"{what} the simulator's cell: wait for its fingerprint on /shaping/cell; a cell "
+        f"that differs from this node's is {then}, naming each parameter and both values")
+
+
 @dataclass(frozen=True)
 class SimulatorNodeParams:
     """The ``simulator`` node: how it steps the sheet and what it publishes."""
@@ -69,6 +84,21 @@ class SimulatorNodeParams:
              "status", "s", 0.0, 60.0, lo_open=True)
     progress_period: float = param(
         10.0, "process time between progress lines in the log (0: none)", "s", 0.0, 3600.0)
+    max_tool_speed: float = param(
+        0.05, "joint limit of the executed tool path: a set-point path faster than this stops the "
+        "tool (it holds) with the reason, published on /shaping/abort", "m/s", 0.0, 1.0,
+        lo_open=True)
+    max_tool_accel: float = param(
+        1.0, "joint limit: a set-point path accelerating faster than this stops the tool",
+        "m/s^2", 0.0, 100.0, lo_open=True)
+    max_tool_jump: float = param(
+        5e-3, "joint limit: a set-point farther than this from the one before (or from the tool, "
+        "for the first) stops the tool", "m", 0.0, 1.0, lo_open=True)
+    monitor_timeout: float = param(
+        0.5, "once the monitor has acknowledged samples (/shaping/checked), no acknowledgement "
+        "for this wall-clock time is a lost (frozen) monitor: the tool holds, the reason goes "
+        "out on /shaping/abort (0: never; on simulated time the sheet stands still meanwhile, "
+        "at most monitor_lead samples past the newest acknowledgement)", "s", 0.0, 60.0)
     camera: bool = param(
         True, "publish sheet/measured_profile: a simulated camera with the measurement model of "
         "rheo-shaping record (rheo_shaping.records.measurement: points along the centreline, "
@@ -106,6 +136,12 @@ class PlannerNodeParams:
     monitor_timeout: float = param(
         1.0, "wall-clock age of the monitor's last ready heartbeat beyond which it counts as "
         "lost", "s", 0.0, 60.0, lo_open=True)
+    max_lead: float = param(
+        0.5, "the most the set-points may run ahead of the executed tool pose (/tool/pose stamp), "
+        "on the node's clock, whatever /clock does; must exceed the simulator's step "
+        "(real_time_factor x step_period), checked at the start", "s", 0.0, 10.0, lo_open=True)
+    max_clock_jump: float = _max_clock_jump()
+    check_cell: bool = _check_cell("run only on", "refused")
     retract_speed: float = param(
         1e-3, "tool speed of the slow retract to home after an "
               "abort", "m/s", 0.0, 0.1, lo_open=True)
@@ -153,6 +189,9 @@ class MonitorNodeParams:
     noise_sigma: float = param(
         0.005, "1-sigma noise of the tension data budgeted by abort_ratio 0 (simulated data: "
         "none; a load cell's)", "N", 0.0, 10.0)
+    max_tension_ratio: float = param(
+        10.0, "a tension above max_tension_ratio x material.F_break (or below -3 noise_sigma) "
+        "is not data but a lying source: abort", "", 1.0, 1e6)
     warn_ratio: float = param(
         0.8, "diagnostics WARN from this fraction of the abort "
              "threshold", "", 0.0, 1.0, lo_open=True)
@@ -195,6 +234,8 @@ class MonitorNodeParams:
         1.0, "after an abort, the longest wall-clock time the acknowledgements on "
         "/shaping/checked wait for /shaping/planner_state to show the planner off its plan (a "
         "simulator faster than real time stands still meanwhile)", "s", 0.0, 60.0)
+    max_clock_jump: float = _max_clock_jump()
+    check_cell: bool = _check_cell("ready only on", "an abort")
     acknowledge: bool = param(
         True, "publish /shaping/checked, the DDS sequence number of each /sheet/tensions sample "
         "judged, which holds a simulator on simulated time to the monitor (monitor_lead); needs "

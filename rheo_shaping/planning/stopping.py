@@ -196,10 +196,17 @@ class TrajectoryStreamer:
     def abort(self, t: float, reason: str = "") -> None:
         """Latch an abort at ``t`` [s]: stop at once from the exact current state.
 
-        Ignored (already latched) while stopping or holding."""
+        ``t`` may lie before the newest time sampled (the executed tool pose trails the
+        set-points sent ahead of it): within the present phase the stop then starts from the
+        phase's state at ``t`` and supersedes what was sampled after it; before the phase
+        began, at the newest time sampled.  Ignored (already latched) while stopping or
+        holding."""
         if self._state in ("stopping", "holding"):
             return
-        t = self._advance(check_finite("t [s]", t))
+        t = check_finite("t [s]", t)
+        if self._phase_plan is not None and self._phase_t0 <= t < self._t_last:
+            self._t_last = t                  # rewind within the phase (the executed state)
+        t = self._advance(t)
         self._abort_time, self._abort_reason = t, reason
         if self._phase_plan is None:  # idle without a plan: nothing moves
             self._state, self._final_state, self._rest_time = "holding", "holding", t

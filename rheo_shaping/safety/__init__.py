@@ -7,4 +7,6 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'abort_budget': ['AbortBudget', 'abort_budget'],
     'watchdog': ['StallGuard', 'Freshness'],
     'acknowledge': ['Acknowledgements', 'MonitorLead'],
+    'clock_guard': ['ClockGuard'],
+    'command_gate': ['CommandGate', 'Publisher', 'ToolLimits'],
 })

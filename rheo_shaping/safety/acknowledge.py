@@ -101,6 +101,11 @@ class MonitorLead:
             self._fresh = Freshness(self._timeout)
         self._fresh.received(steady_ns)
 
+    def lost(self, steady_ns: int) -> bool:
+        """Whether acknowledgements came and then stopped for over ``timeout`` (a frozen or
+        dead monitor)."""
+        return self._fresh is not None and self._fresh.stale(steady_ns)
+
     def behind(self, steady_ns: int) -> bool:
         """Whether a step must wait: ``lead`` published samples are unacknowledged while
         acknowledgements still arrive.  Counts the wait in :attr:`waits`."""

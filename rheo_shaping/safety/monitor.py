@@ -33,17 +33,28 @@ class TensionMonitor:
     def __init__(self, settings: MonitorNodeParams, F_break: float, ratio: float,
                  horizon: float, steady: int, tension_topics: Sequence[str],
                  stamped_topics: Sequence[str],
-                 on_abort: Callable[[str], None] = lambda reason: None):
+                 on_abort: Callable[[str], None] = lambda reason: None,
+                 n_links: int | None = None):
         self.tension_topics = tuple(tension_topics)   # (link tensions, contact tension)
         self.stamped_topics = tuple(stamped_topics)
         self.on_abort = on_abort
-        self.configure(settings, F_break, ratio, horizon)
+        self.configure(settings, F_break, ratio, horizon, n_links)
         self.reset(steady)
 
     def configure(self, settings: MonitorNodeParams, F_break: float, ratio: float,
-                  horizon: float) -> None:
-        """New settings, F_break [N], abort ratio and trend horizon [s]."""
+                  horizon: float, n_links: int | None = None) -> None:
+        """New settings, F_break [N], abort ratio, trend horizon [s] and the number of links
+        a tension sample must have (``sheet.n_masses + 1``; None: any)."""
         self.settings, self.F_break, self.ratio, self.horizon = settings, F_break, ratio, horizon
+        self.n_links = n_links
+
+    @property
+    def plausible(self) -> tuple[float, float]:
+        """(lowest, highest) tension [N] that can be data: below ``-3 noise_sigma`` a link
+        would push (the contract's tensions are non-negative), above ``max_tension_ratio x
+        F_break`` the sheet would long have torn.  Outside: a lying source, abort."""
+        s = self.settings
+        return -3.0 * s.noise_sigma, s.max_tension_ratio * self.F_break
 
     @property
     def threshold(self) -> float:
@@ -58,6 +69,9 @@ class TensionMonitor:
         """Re-arm: back to ``waiting``, everything seen so far forgotten."""
         self.state = "waiting"                 # waiting -> ready -> aborted
         self.abort_reason = ""
+        #: why the monitor may not become ready yet besides its data ("" none): the node's
+        #: checks of the cell, the clock, its twins
+        self.blocked = ""
         self._start = steady
         self._rx: dict[str, int | None] = {t: None for t in self.tension_topics
                                            + self.stamped_topics}
@@ -99,6 +113,12 @@ class TensionMonitor:
             i = int(np.argmax(bad))
             self.abort(f"non-finite tension ({values[i]}) in link {i + 1} on {topic}")
             return
+        if self.n_links is not None and values.size != self.n_links:
+            self.abort(f"{topic} has {values.size} links, expected {self.n_links} "
+                       f"(sheet.n_masses + 1): another sheet or a lying source")
+            return
+        if self._implausible(values, topic):
+            return
         i = int(np.argmax(values))
         self.tension, self.link = float(values[i]), i + 1
         self.F_seen = max(self.F_seen, self.tension)
@@ -113,8 +133,23 @@ class TensionMonitor:
         if not math.isfinite(value):
             self.abort(f"non-finite contact tension ({value}) on {topic}")
             return
+        if self._implausible(np.array([value]), topic, "contact tension"):
+            return
         self.contact = value
         self._check(value, "contact tension")
+
+    def _implausible(self, values: np.ndarray, topic: str, what: str = "") -> bool:
+        """Abort (True) on a value outside :attr:`plausible`."""
+        lo, hi = self.plausible
+        bad = (values < lo) | (values > hi)
+        if not bad.any():
+            return False
+        i = int(np.argmax(bad))
+        where = what or f"link {i + 1}"
+        self.abort(f"implausible tension {values[i]:.6g} N ({where}) on {topic}: expected "
+                   f"[{lo:.4g}, {hi:.4g}] N (-3 noise_sigma to max_tension_ratio "
+                   f"{self.settings.max_tension_ratio:g} x F_break)")
+        return True
 
     def _check(self, value: float, where: str) -> None:
         if self.state != "aborted" and value >= self.threshold:
@@ -229,11 +264,12 @@ class TensionMonitor:
                        + (f"{ages[t]:.3f} s" if math.isfinite(ages[t]) else "ever")
                        + f" (max_data_age {s.max_data_age:g} s)")
         elif self.state == "waiting":
-            if not stale and not self._old and not self._future and clock > 0:
+            if (not stale and not self._old and not self._future and clock > 0
+                    and not self.blocked):
                 self.state = "ready"
             elif (steady - self._start) / NS > s.startup_timeout:
                 why = ("no " + ", ".join(stale) if stale
-                       else next(iter(self._old.values()), "") or "no clock")
+                       else next(iter(self._old.values()), "") or self.blocked or "no clock")
                 self.abort(f"not ready within startup_timeout {s.startup_timeout:g} s: {why}")
         return self.ready
 
@@ -243,7 +279,7 @@ class TensionMonitor:
         if self.state == "aborted":
             level, message = "ERROR", f"aborted: {self.abort_reason}"
         elif self.state == "waiting":
-            level, message = "STALE", "waiting for fresh tension data"
+            level, message = "STALE", self.blocked or "waiting for fresh tension data"
         elif math.isfinite(F) and F >= self.settings.warn_ratio * self.threshold:
             level, message = "WARN", (f"tension {F:.4f} N near the abort threshold "
                                       f"{self.threshold:.4f} N")

@@ -230,6 +230,8 @@ def settle(model: SheetModel, x0: np.ndarray, duration: float, dt: float, tool=(
     """
     state = model.initial_state(x0, tool)
     n = int(np.ceil(duration / dt - 1e-9))
+    if n <= 0:                                # settle_time 0: the undeformed drape as it is
+        return replace(state, t=float(duration))
     if on_step is None:                       # all n steps in the compiled kernel
         return model.run_steps(state, duration / n, n, tool, dynamic=True)
     for _ in range(n):

@@ -20,13 +20,16 @@ from std_srvs.srv import Trigger  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
+from rheo_shaping.nodes.topics import LATCHED_QOS  # noqa: E402
+from rheo_shaping.params.fingerprint import cell_message  # noqa: E402
 from rheo_shaping.nodes.monitor import MonitorNode  # noqa: E402
 from rheo_shaping.params.params import CellParams  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
-from .ros import Recorder, wait_for_publishers, wait_for_subscribers  # noqa: E402
+from .ros import Recorder, executed, wait_for_publishers, wait_for_subscribers  # noqa: E402
 
 F_BREAK = CellParams().material.F_break
+N_LINKS = CellParams().sheet.n_masses + 1
 
 
 #: The streams the rig records: every message of each (reliable, 1000 deep).
@@ -125,9 +128,8 @@ class Cell:
         return np.array(out, dtype=float).reshape(-1, 2)
 
     def commands(self):
-        cmds = self.rec["/tool/command"]
-        return (np.array([m.stamp_ns(c.header.stamp) for c in cmds], dtype=np.int64),
-                np.array([m.pose_xz(c) for c in cmds]).reshape(-1, 2))
+        """The executed set-point path (:func:`_support.ros.executed`)."""
+        return executed(self.rec["/tool/command"])
 
 
 class FakeCell:
@@ -143,6 +145,9 @@ class FakeCell:
         self.contact = self.node.create_publisher(Float64, "/sheet/contact_tension", q)
         self.profile = self.node.create_publisher(PoseArray, "/sheet/profile", 10)
         self.wrench = self.node.create_publisher(WrenchStamped, "/tool/wrench", 10)
+        # the simulator's cell (latched): the monitor is ready only on its own cell
+        self.cell = self.node.create_publisher(String, "/shaping/cell", LATCHED_QOS)
+        self.cell.publish(String(data=cell_message(CellParams())))
         self.t_ns = 10 * NS
         self.sent = 0          # samples published (= the tension writer's sequence number)
 
@@ -153,7 +158,8 @@ class FakeCell:
         stamp = self.t_ns if stamp_ns is None else stamp_ns
         self.profile.publish(m.profile_msg([[0.01, 0.05]], stamp))
         self.wrench.publish(m.wrench_msg([0.0, 0.0], stamp))
-        values = tension if isinstance(tension, list) else [0.1, tension, 0.05]
+        # the default cell's sheet: n_masses + 1 link tensions (the monitor checks the count)
+        values = tension if isinstance(tension, list) else [0.1, tension] + [0.05] * (N_LINKS - 2)
         self.tensions.publish(m.tensions_msg(values))
         self.sent += 1
         self.contact.publish(m.float_msg(contact))

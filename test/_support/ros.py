@@ -190,6 +190,22 @@ def procs(tmp_path):
 
 
 # -- motion checks --------------------------------------------------------------------
+def executed(cmds):
+    """(stamps [ns], positions [m]) of the path a simulator follows from set-point messages:
+    a set-point for a time already commanded replaces what followed (the planner's stop,
+    re-planned from the executed pose, supersedes what it had sent ahead)."""
+    import numpy as np
+    from rheo_shaping.nodes import messages as m
+    path: list = []
+    for c in cmds:
+        t = m.stamp_ns(c.header.stamp)
+        while path and path[-1][0] >= t:
+            path.pop()
+        path.append((t, m.pose_xz(c)))
+    return (np.array([q[0] for q in path], dtype=np.int64),
+            np.array([q[1] for q in path], dtype=float).reshape(-1, 2))
+
+
 def motion_bounds(t_ns, p, min_gap: float = 1e-4):
     """Largest speed, acceleration and jerk a C2 motion through the points can have locally:
     1!, 2! and 3! times the divided differences (exact averages of the derivative weighted by

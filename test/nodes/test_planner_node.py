@@ -17,11 +17,12 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.planner import PlannerNode  # noqa: E402
+from rheo_shaping.params.fingerprint import cell_message  # noqa: E402
 from rheo_shaping.params.params import CellParams  # noqa: E402
 from rheo_shaping.params.schema import ParameterError  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan  # noqa: E402
 
-from _support.ros import Recorder, motion_bounds, wait_for_subscribers  # noqa: E402
+from _support.ros import Recorder, executed, motion_bounds, wait_for_subscribers  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -45,14 +46,23 @@ class Bench:
         overrides += [Parameter(k, value=v) for k, v in settings.items()]
         self.planner = ros.add(PlannerNode(context=ros.context, parameter_overrides=overrides))
         self.heartbeat = True
+        # the executed tool pose: a tool that follows the newest set-point at once
+        self.pose = self.node.create_publisher(PoseStamped, "/tool/pose", 10)
+        self.cell = self.node.create_publisher(String, "/shaping/cell", LATCHED)
+        self.cell.publish(String(data=cell_message(self.planner.cell)))
         wait_for_subscribers(ros, self.clock)
         wait_for_subscribers(ros, self.ready)
+        wait_for_subscribers(ros, self.pose)
 
     def tick(self, dt=0.02, spin=0.002):
         self.t_ns += int(round(dt * NS))
         self.clock.publish(m.clock_msg(self.t_ns))
         if self.heartbeat:
             self.ready.publish(Bool(data=True))
+        # the tool at the newest set-point, executed one tick behind the clock
+        last = self.rec.last("/tool/command")
+        xz = m.pose_xz(last) if last is not None else self.planner.plan.start
+        self.pose.publish(m.pose_msg(xz, self.t_ns - int(round(dt * NS))))
         self.ros.spin_for(spin)
 
     def run(self, seconds, dt=0.02):
@@ -71,10 +81,7 @@ class Bench:
 
     def commands(self):
         self.drain()
-        cmds = self.rec["/tool/command"]
-        t = np.array([m.stamp_ns(c.header.stamp) for c in cmds], dtype=np.int64)
-        p = np.array([m.pose_xz(c) for c in cmds])
-        return t, p
+        return executed(self.rec["/tool/command"])
 
     def states(self):
         return [s.data for s in self.rec["/shaping/planner_state"]]
@@ -83,6 +90,7 @@ class Bench:
 def test_interlock_no_motion_until_the_monitor_is_ready(ros):
     b = Bench(ros)
     b.heartbeat = False
+    b.until(lambda: b.planner.state != "starting", what="the planner up")
     b.run(1.5)
     assert b.rec["/tool/command"] == []
     assert b.planner.state == "waiting_for_monitor"
@@ -213,6 +221,9 @@ def test_starts_only_once_its_set_points_have_a_subscriber(ros):
     ready = node.create_publisher(Bool, "/shaping/ready", 1)
     planner = ros.add(PlannerNode(context=ros.context,
                                   parameter_overrides=[Parameter("use_sim_time", value=True)]))
+    pose = node.create_publisher(PoseStamped, "/tool/pose", 10)
+    cell = node.create_publisher(String, "/shaping/cell", LATCHED)
+    cell.publish(String(data=cell_message(planner.cell)))
     wait_for_subscribers(ros, clock)
     wait_for_subscribers(ros, ready)
     t = [5 * NS]
@@ -221,6 +232,7 @@ def test_starts_only_once_its_set_points_have_a_subscriber(ros):
         t[0] += int(0.02 * NS)
         clock.publish(m.clock_msg(t[0]))
         ready.publish(Bool(data=True))
+        pose.publish(m.pose_msg(planner.plan.start, t[0] - int(0.02 * NS)))
     ros.spin_until(lambda: planner.state == "waiting_for_subscriber", 20.0,
                    "waiting_for_subscriber", every=tick)
     t_wait = t[0]

@@ -16,13 +16,19 @@ from rheo_shaping.nodes import topics as T  # noqa: E402
 EXPECTED = {
     ("simulator", "pub"): {"/sheet/profile", "/sheet/measured_profile", "/sheet/tensions",
                            "/sheet/contact_tension", "/tool/pose", "/tool/wrench",
-                           "/sheet/markers", "/diagnostics", "/clock"},
-    ("simulator", "sub"): {"/tool/command", "/shaping/checked"},
-    ("planner", "pub"): {"/tool/command", "/tool/planned_trajectory", "/shaping/planner_state"},
-    ("planner", "sub"): {"/shaping/abort", "/shaping/ready", "/tool/pose"},
-    ("monitor", "pub"): {"/shaping/abort", "/shaping/ready", "/shaping/checked", "/diagnostics"},
+                           "/sheet/markers", "/diagnostics", "/clock", "/shaping/abort",
+                           "/shaping/cell", "/shaping/presence"},
+    ("simulator", "sub"): {"/tool/command", "/shaping/checked", "/shaping/abort",
+                           "/shaping/presence"},
+    ("planner", "pub"): {"/tool/command", "/tool/planned_trajectory", "/shaping/planner_state",
+                         "/shaping/presence"},
+    ("planner", "sub"): {"/shaping/abort", "/shaping/ready", "/tool/pose", "/shaping/cell",
+                         "/shaping/presence"},
+    ("monitor", "pub"): {"/shaping/abort", "/shaping/ready", "/shaping/checked", "/diagnostics",
+                         "/shaping/presence"},
     ("monitor", "sub"): {"/sheet/tensions", "/sheet/contact_tension", "/sheet/profile",
-                         "/tool/wrench", "/shaping/planner_state"},
+                         "/tool/wrench", "/shaping/planner_state", "/shaping/cell",
+                         "/shaping/presence"},
 }
 
 
@@ -40,6 +46,8 @@ def _nodes(ros, namespace: str):
 @pytest.mark.parametrize("namespace", ["/", "/cell7"])
 def test_every_endpoint_is_a_topic_of_the_module(ros, namespace):
     nodes = _nodes(ros, namespace)
+    # the planner creates /tool/command once it knows it is the only planner of its name
+    ros.spin_until(lambda: nodes["planner"].pub_command is not None, 10.0, "/tool/command")
     for (name, direction), want in EXPECTED.items():
         node = nodes[name]
         endpoints = node.publishers if direction == "pub" else node.subscriptions
@@ -59,7 +67,8 @@ def test_every_endpoint_is_a_topic_of_the_module(ros, namespace):
             assert q.reliability == ReliabilityPolicy.RELIABLE, (name, contract)
             assert q.durability == topic.qos.durability, (name, contract)
             # publishers of state keep a deeper history for slow readers (topics.writer_qos)
-            writer = direction == "pub" and name == "simulator"
+            writer = (direction == "pub" and name == "simulator"
+                      and topic.qos.durability == DurabilityPolicy.VOLATILE)
             want_depth = T.writer_qos(topic.qos).depth if writer else topic.qos.depth
             assert q.depth == want_depth, (name, contract)
     assert (nodes["simulator"].pub_tensions.qos_profile.deadline.nanoseconds

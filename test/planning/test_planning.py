@@ -586,3 +586,21 @@ def test_autostart_refusal_and_approach_plan():
     assert ap.duration > plan.duration
     p_end = ap.sample(ap.duration)[0]
     assert p_end == pytest.approx(plan.sample(plan.duration)[0], abs=1e-9)
+
+
+def test_abort_from_the_executed_time_behind_the_newest_set_point():
+    """The planner stops from where the tool is (/tool/pose), which trails the set-points it
+    sent by up to max_lead: the stop starts from the plan's exact state at that time."""
+    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.planning.movement import movement_plan
+    from rheo_shaping.planning.stopping import TrajectoryStreamer, stop_from_state
+    plan = movement_plan(CellParams()).plan
+    s = TrajectoryStreamer()
+    s.start(plan, 0.0)
+    s.setpoint(20.5)                          # sent ahead ...
+    s.abort(20.0, "tension")                  # ... of the executed pose at 20 s
+    assert s.abort_time == 20.0
+    expect = stop_from_state(*plan.sample(20.0), plan.limits)
+    assert s.stop_plan.duration == pytest.approx(expect.duration, abs=1e-12)
+    assert np.allclose(s.setpoint(20.0)[0], plan.sample(20.0)[0], atol=1e-12)
+    assert np.allclose(s.setpoint(20.2)[0], expect.sample(0.2)[0], atol=1e-12)

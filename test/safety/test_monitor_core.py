@@ -304,3 +304,35 @@ def test_configure_moves_the_threshold():
     assert h.mon.threshold == pytest.approx(0.52)
     h.sample(tension=0.52)
     assert h.aborts and "0.5200 N = 0.500 x F_break" in h.aborts[0]
+
+
+# -- plausible data only (issue 27: a lying source) -----------------------------------
+@pytest.mark.parametrize("values, why", [
+    ([0.1], "has 1 links, expected 3"),
+    ([0.1] * 100_000, "has 100000 links, expected 3"),
+    ([0.1, -5.0, 0.1], "implausible tension -5 N (link 2)"),
+    ([0.1, -1e300, 0.1], "implausible tension -1e+300 N (link 2)"),
+    ([0.1, 0.2, 10.5], "implausible tension 10.5 N (link 3)"),
+])
+def test_a_sample_of_the_wrong_length_negative_or_huge_aborts_with_the_reason(values, why):
+    h = Harness()
+    h.mon.configure(h.s, F_BREAK, RATIO, HORIZON, n_links=3)
+    h.mon.on_tensions([0.1, 0.2, 0.1], h.steady, h.clock)
+    h.mon.on_contact(0.05, h.steady)
+    assert h.mon.tick(h.steady, h.clock)
+    h.advance(0.01)
+    h.mon.on_tensions(values, h.steady, h.clock)
+    assert h.mon.state == "aborted" and len(h.aborts) == 1
+    assert why in h.aborts[0], h.aborts[0]
+
+
+def test_the_plausible_band_is_minus_three_sigma_to_max_tension_ratio_times_F_break():
+    h = Harness(noise_sigma=0.005, max_tension_ratio=10.0)
+    lo, hi = h.mon.plausible
+    assert lo == pytest.approx(-0.015) and hi == pytest.approx(10.4)
+    h.make_ready()
+    h.mon.on_tensions([-0.0149, 0.2], h.steady, h.clock)      # load-cell noise around 0: data
+    h.mon.on_contact(-0.0149, h.steady)
+    assert h.mon.state == "ready"
+    h.mon.on_contact(-0.016, h.steady)
+    assert h.mon.state == "aborted" and "contact tension" in h.aborts[0]

@@ -203,3 +203,18 @@ def test_slack_links_carry_no_force_and_do_not_flow():
     assert np.all(state.p <= 1e-15)
     d, _ = Workplane().signed_distance(state.x)
     assert np.min(d) > c.radius - 1e-5
+
+
+def test_settle_time_zero_starts_from_the_undeformed_drape():
+    """solver.settle_time 0 lies inside its range [0, 3600] s: the run starts from the
+    undeformed drape (no sag), it does not divide by zero (issue 27, fuzz of bounds)."""
+    from dataclasses import replace as _replace
+
+    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.sheet.simulation import Simulation
+    cell = CellParams()
+    cell = _replace(cell, solver=_replace(cell.solver, settle_time=0.0))
+    sim = Simulation(cell, tool_start=(0.1, 0.2))
+    st = sim.state
+    assert st.t == 0.0 and np.all(np.isfinite(st.x))
+    assert np.allclose(st.x, sim.model.initial_state(sim.x0, st.tool).x)

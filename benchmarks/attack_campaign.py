@@ -1,0 +1,127 @@
+#!/usr/bin/env python3
+"""The attack campaign: every attack of test/nodes/test_attacks.py, N runs each with random
+timing, at x1 and x10 simulated time (issue 27, docs/safety.md "Attacks").
+
+Each run is one pytest run of one attack test against the three node processes, with the
+attack's start drawn per run (``RHEO_ATTACK_SEED``: uniform in [2, 14] s of process time)
+and the real-time factor set (``RHEO_ATTACK_RTF``).  A run counts as a **tear** when the
+simulator's own F_max (every step, from its /diagnostics) reached F_break, as a
+**traceback** when any process printed one; every other failure of the test's checks
+(a reason not named, a limit missed) is counted apart with its message.  The figures
+(F_max median / max per attack, the frozen monitor's detection time) are printed as JSON.
+
+    .venv/bin/python benchmarks/attack_campaign.py [--runs 50] [--rates 1,10] [--seed 1]
+        [-k ATTACK] [--json OUT]
+
+Run it with ``python3 dev.py``'s environment (a ROS_DOMAIN_ID of its own):
+``.venv/bin/python benchmarks/attack_campaign.py`` from the repository root.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import re
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+TESTS = "test/nodes/test_attacks.py"
+ATTACKS = [
+    "test_a_second_commander_is_refused_and_the_tool_holds[during_run]",
+    "test_a_second_commander_is_refused_and_the_tool_holds[after_abort]",
+    "test_a_forged_clock_stops_the_run_with_the_reason[+30s]",
+    "test_a_forged_clock_stops_the_run_with_the_reason[negative]",
+    "test_a_frozen_monitor_holds_the_tool_within_the_budget",
+    "test_a_second_planner_yields_and_a_start_is_served_once",
+    "test_lying_tension_data_aborts_with_the_reason",
+    "test_a_parameter_slip_in_one_node_is_refused_with_both_values",
+    "test_a_spoofed_ready_heartbeat_does_not_open_the_interlock",
+]
+F_RE = re.compile(r"F_max ([0-9.]+) N \(threshold ([0-9.]+) N, allowed ([0-9.]+) N, "
+                  r"F_break ([0-9.]+) N\)")
+TB_RE = re.compile(r"process tracebacks: ([0-9]+)")
+SEEN_RE = re.compile(r"frozen monitor seen by the simulator ([0-9.]+) s")
+
+
+def one_run(attack: str, rtf: float, seed: int, domain: int) -> dict:
+    env = dict(os.environ, RHEO_ATTACK_SEED=str(seed), RHEO_ATTACK_RTF=str(rtf),
+               ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    t0 = time.monotonic()
+    p = subprocess.run([sys.executable, "-m", "pytest", "-q", "-s", "-p", "no:cacheprovider",
+                        f"{TESTS}::{attack}"], cwd=REPO, env=env, capture_output=True,
+                       text=True)
+    out = p.stdout + p.stderr
+    m = F_RE.search(out)
+    seen = SEEN_RE.search(out)
+    res = {"attack": attack, "rtf": rtf, "seed": seed, "passed": p.returncode == 0,
+           "wall_s": round(time.monotonic() - t0, 1),
+           "F_max": float(m.group(1)) if m else None,
+           "F_break": float(m.group(4)) if m else None,
+           "traceback_in_nodes": bool(TB_RE.search(out)) and int(TB_RE.search(out).group(1)) > 0,
+           "seen_s": float(seen.group(1)) if seen else None}
+    res["tear"] = bool(m) and res["F_max"] >= res["F_break"]
+    if p.returncode != 0:
+        fail = [ln for ln in out.splitlines() if ln.startswith("E ")][:6]
+        res["failure"] = "\n".join(fail)[-800:]
+    return res
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=50, help="runs per attack and rate")
+    ap.add_argument("--rates", default="1,10", help="real-time factors (default 1,10)")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("-k", default="", help="only attacks whose name contains this")
+    ap.add_argument("--domain", type=int, default=int(os.environ.get("ROS_DOMAIN_ID", "61")))
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    rng = random.Random(args.seed)
+    rates = [float(r) for r in args.rates.split(",")]
+    todo = [(a, r) for a in ATTACKS if args.k in a for r in rates for _ in range(args.runs)]
+    rng.shuffle(todo)
+    results, t0 = [], time.monotonic()
+    for i, (attack, rtf) in enumerate(todo, 1):
+        results.append(one_run(attack, rtf, rng.randrange(2**31), args.domain))
+        el = time.monotonic() - t0
+        print(f"\r[{i}/{len(todo)}] {el:.0f} s, ETA {el / i * (len(todo) - i):.0f} s, "
+              f"failed {sum(not r['passed'] for r in results)}, "
+              f"tears {sum(r['tear'] for r in results)}", end="", flush=True)
+    print()
+    summary = {}
+    for attack in ATTACKS:
+        for rtf in rates:
+            rs = [r for r in results if r["attack"] == attack and r["rtf"] == rtf]
+            if not rs:
+                continue
+            F = [r["F_max"] for r in rs if r["F_max"] is not None]
+            seen = [r["seen_s"] for r in rs if r["seen_s"] is not None]
+            summary[f"{attack} x{rtf:g}"] = {
+                "runs": len(rs), "passed": sum(r["passed"] for r in rs),
+                "tears": sum(r["tear"] for r in rs),
+                "tracebacks": sum(r["traceback_in_nodes"] for r in rs),
+                "F_max_median": statistics.median(F) if F else None,
+                "F_max_max": max(F) if F else None,
+                "seen_s_median": statistics.median(seen) if seen else None,
+                "seen_s_max": max(seen) if seen else None,
+                "failures": [r["failure"] for r in rs if not r["passed"]][:3]}
+    with open("/proc/cpuinfo") as f:
+        cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "")
+    report = {"machine": f"{cpu}, {os.cpu_count()} cores", "seed": args.seed,
+              "runs_per_attack_and_rate": args.runs, "rates": rates,
+              "tears": sum(r["tear"] for r in results),
+              "tracebacks": sum(r["traceback_in_nodes"] for r in results),
+              "failed": sum(not r["passed"] for r in results), "runs": len(results),
+              "wall_s": round(time.monotonic() - t0, 1), "attacks": summary}
+    print(json.dumps(report, indent=1))
+    if args.json:
+        args.json.write_text(json.dumps({"report": report, "runs": results}, indent=1))
+    return 0 if report["tears"] == 0 and report["tracebacks"] == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,115 @@
+"""What a node takes from others only after checks of its own (docs/safety.md): the clock,
+the cell, its twins.  Thin ROS glue around the core's rules
+(:class:`~rheo_shaping.safety.clock_guard.ClockGuard`,
+:func:`~rheo_shaping.params.fingerprint.cell_mismatch`,
+:mod:`~rheo_shaping.safety.one_of_each`).
+"""
+from __future__ import annotations
+
+import os
+import socket
+import time
+from typing import Callable
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.time_source import TimeSource
+from std_msgs.msg import String
+
+from ..params.fingerprint import cell_mismatch
+from ..params.params import CellParams
+from ..safety.clock_guard import ClockGuard
+from ..safety.one_of_each import SETTLE_TIME, Announcement, twin_reason
+from ..units import NS
+from . import topics as T
+
+
+def guard_clock(node: Node, guard: ClockGuard, on_fault: Callable[[str], None]) -> None:
+    """Put ``guard`` in front of the node's time source: a refused ``/clock`` value is not
+    applied (the node's clock keeps the last accepted one) and ``on_fault(reason)`` is called.
+
+    rclpy's TimeSource subscribes its bound ``clock_callback``; the subscription is made
+    again with the guarded one (same topic, so remaps such as ``/clock:=clock`` hold).  A
+    negative time never reaches rclpy (whose ``Time`` would raise in the executor)."""
+    ts = node._time_source                              # rclpy keeps it private
+
+    def callback(msg) -> None:
+        t_ns = int(msg.clock.sec) * NS + int(msg.clock.nanosec)
+        why = guard.check(t_ns)
+        if why:
+            on_fault(why)
+            return
+        TimeSource.clock_callback(ts, msg)
+
+    ts.clock_callback = callback
+    if ts._clock_sub is not None:
+        node.destroy_subscription(ts._clock_sub)
+        ts._clock_sub = None
+        ts._subscribe_to_clock_topic()
+
+
+def clock_publishers(node: Node) -> int:
+    """Publishers of the topic the node's time source follows (0 on wall time)."""
+    sub = node._time_source._clock_sub
+    return node.count_publishers(sub.topic_name) if sub is not None else 0
+
+
+class CellCheck:
+    """The simulator's cell (latched on ``/shaping/cell``) against this node's own."""
+
+    def __init__(self, node: Node, own_name: str, cell: Callable[[], CellParams]):
+        self.own_name, self._cell = own_name, cell
+        self.message: str | None = None     # the simulator's cell message, once received
+        node.create_subscription(T.CELL.type, T.CELL.name, self._on, T.CELL.qos)
+
+    def _on(self, msg: String) -> None:
+        self.message = msg.data
+
+    def mismatch(self) -> str | None:
+        """None while no cell has arrived; "" when it is this node's; else the reason."""
+        if self.message is None:
+            return None
+        return cell_mismatch(self._cell(), self.message, self.own_name, "the simulator")
+
+
+class Presence:
+    """Announces the node on ``/shaping/presence``; calls ``on_twin(reason)`` when an older
+    node of the same name is up (this one must then yield)."""
+
+    def __init__(self, node: Node, on_twin: Callable[[str], None]):
+        self.mine = Announcement(time.time_ns(), os.getpid(), socket.gethostname(),
+                                 node.get_fully_qualified_name())
+        self._node = node
+        self._on_twin = on_twin
+        self.twin = ""
+        self._younger: set[Announcement] = set()   # same-name nodes that started after this
+        self._settled = False
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._t0 = self._steady.now().nanoseconds
+        self._pub = node.create_publisher(T.PRESENCE.type, T.PRESENCE.name, T.PRESENCE.qos)
+        node.create_subscription(T.PRESENCE.type, T.PRESENCE.name, self._on, T.PRESENCE.qos)
+        self._pub.publish(String(data=self.mine.message()))
+
+    @property
+    def settled(self) -> bool:
+        """Whether this node knows it is the only (or the oldest) node of its name: at least
+        :data:`SETTLE_TIME` after its start, and every other node of its name in the graph
+        has announced itself as younger.  Latches once true."""
+        if self._settled:
+            return True
+        if self.twin or (self._steady.now().nanoseconds - self._t0) / NS < SETTLE_TIME:
+            return False
+        ns, _, name = self.mine.node.rpartition("/")
+        same = sum(1 for n, s in self._node.get_node_names_and_namespaces()
+                   if n == name and (s.rstrip("/") or "") == ns)
+        self._settled = same - 1 <= len(self._younger)
+        return self._settled
+
+    def _on(self, msg: String) -> None:
+        other = Announcement.parse(msg.data)
+        if other is not None and other.node == self.mine.node and self.mine < other:
+            self._younger.add(other)
+        why = twin_reason(self.mine, other) if other is not None else ""
+        if why and not self.twin:
+            self.twin = why
+            self._on_twin(why)

@@ -1,0 +1,48 @@
+"""One of each: a second simulator, planner or monitor of a name yields (docs/safety.md).
+
+Every node announces itself once on ``/shaping/presence`` (latched): its fully qualified
+name, its start time and its process.  A node that reads the announcement of another node
+of its own name that started earlier yields to it (it stops with the reason); the older
+one runs on.  A node acts (starts a plan, reports ready, steps the sheet) only
+:data:`SETTLE_TIME` after its own start, so that an older twin's announcement has arrived
+by then.  Ties of start time go to the smaller process id, then host name.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+
+#: Wall-clock time [s] a node waits after its start before it acts (an older twin's latched
+#: announcement arrives within DDS discovery, well under a second on one host).
+SETTLE_TIME = 1.0
+
+
+@dataclass(frozen=True, order=True)
+class Announcement:
+    """Who a node is: ordered by start time [ns since the epoch], then pid and host."""
+
+    start_ns: int
+    pid: int
+    host: str
+    node: str                 # fully qualified node name (/cell2/planner)
+
+    def message(self) -> str:
+        return json.dumps(asdict(self), sort_keys=True)
+
+    @classmethod
+    def parse(cls, text: str) -> "Announcement | None":
+        """The announcement in ``text``; None for anything else (ignored)."""
+        try:
+            d = json.loads(text)
+            return cls(int(d["start_ns"]), int(d["pid"]), str(d["host"]), str(d["node"]))
+        except (ValueError, KeyError, TypeError):
+            return None
+
+
+def twin_reason(mine: Announcement, other: Announcement) -> str:
+    """Why ``mine`` must yield to ``other``: "" unless ``other`` is another node of the same
+    name that started first."""
+    if other.node != mine.node or other == mine or not other < mine:
+        return ""
+    return (f"a second {mine.node} in this namespace: the one of pid {other.pid} on "
+            f"{other.host} started first and runs; this one (pid {mine.pid}) yields")
