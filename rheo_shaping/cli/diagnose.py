@@ -7,12 +7,11 @@ import json
 import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
 from ..sheet.effects import EFFECT_NAMES
 from ..records.records import RecordError, read_record
 from . import UserError
-from .common import add_executor_arguments, executor_from_args, output_path
+from .common import add_executor_arguments, executor_from_args, output_dir, output_path
 
 
 def add_parser(sub) -> None:
@@ -69,12 +68,7 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--effects: unknown effect '{bad[0] if bad else args.effects}': "
                             "expected some of " + ", ".join(EFFECT_NAMES))
     scen = output_path(args.write_scenario, args.force, "--write-scenario file")
-    out = Path(args.out) if args.out else None
-    if out is not None:
-        if out.exists() and any(out.iterdir()) and not args.force:
-            raise UserError(f"--out {out} exists and is not empty: not overwritten (use --force)")
-        if not out.parent.exists():
-            raise UserError(f"--out {out}: folder {out.parent} does not exist")
+    out = output_dir(args.out, args.force)
     try:
         fit = [read_record(p) for p in args.records]
         hold = [read_record(p) for p in args.holdout]

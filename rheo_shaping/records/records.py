@@ -58,6 +58,12 @@ def _pose(ts, x: float, z: float):
     return P(position=Pt(x=float(x), y=0.0, z=float(z)), orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0))
 
 
+def is_record_dir(path: str | Path) -> bool:
+    """Whether ``path`` is a folder this module wrote (the one kind ``force`` replaces)."""
+    p = Path(path)
+    return (p / "metadata.yaml").is_file() and (p / "scenario.yaml").is_file()
+
+
 def write_record(record: Record, out_dir: str | Path, truth: CellParams | None = None,
                  start_stamp: float | None = None, force: bool = False) -> Path:
     """Write ``record`` as a rosbag2 MCAP directory ``out_dir`` with scenario.yaml (and
@@ -78,7 +84,7 @@ def write_record(record: Record, out_dir: str | Path, truth: CellParams | None =
     if out.exists():
         if not force:
             raise RecordError(f"{out} exists: not overwritten (use --force to replace it)")
-        if not (out / "metadata.yaml").exists() or not (out / "scenario.yaml").exists():
+        if not is_record_dir(out):
             raise RecordError(f"{out} exists and is not a record directory: not replaced")
         shutil.rmtree(out)
     if not out.parent.exists():
