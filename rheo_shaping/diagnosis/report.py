@@ -87,6 +87,11 @@ def _fmt(v, scale=1.0, digits=3):
     return f"{v * scale:.{digits}f}"
 
 
+def _sentence(text: str) -> str:
+    """``text`` as a sentence: its first letter upper case (the rest as it is), a stop."""
+    return text[:1].upper() + text[1:] + "."
+
+
 def _g(v):
     return "n/a" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.4g}"
 
@@ -157,8 +162,7 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
         lines.append("No candidate accounts for what the baseline leaves (significant and "
                      "adequate on fit and holdout records): see the signature below.")
     lines += ["", "## Baseline: what a careful user knows within a tolerance", "",
-              f"The baseline took {_fmt(diag.baseline_took, 100, 1)} % of the nominal model's "
-              "excess misfit.", "",
+              _sentence(diag.baseline_took_text()), "",
               "| knob | written | fitted | in tolerances | outside |", "|---|---|---|---|---|"]
     for name, b in diag.baseline.items():
         lines.append(f"| {name} | {_g(b.get('written'))} | {_g(b['value'])} {b['unit']} | "
