@@ -166,7 +166,10 @@ def test_each_node_executable_is_the_launcher_shell_and_python_at_once():
     consts = {t.id: n.value for n in tree.body if isinstance(n, ast.Assign)
               for t in n.targets if isinstance(t, ast.Name)}
     assert ast.literal_eval(consts["NODES"]) == NODES
-    assert ast.unparse(_setup_kwargs()["scripts"]) == "node_launchers()"
+    kwargs = _setup_kwargs()
+    assert ast.unparse(kwargs["scripts"]) == "[os.path.join('launchers', node) for node in NODES]"
+    assert ast.unparse(kwargs["cmdclass"]) == \
+        "{'build_scripts': BuildLaunchers, 'develop': DevelopLaunchers}"
     template = ast.literal_eval(consts["LAUNCHER"])
     for node in NODES:
         text = template.replace("@NODE@", node).replace("@PYTHON@", "/usr/bin/python3")
