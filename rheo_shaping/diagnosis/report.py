@@ -105,7 +105,8 @@ def force_residual(diag, path: Path) -> bool:
         for col, axis in enumerate("xz"):
             ax = axes[row, col]
             if math.isfinite(sf):
-                ax.axhspan(-sf, sf, color="0.9", lw=0, label=f"noise +-{sf * 1e3:.1f} mN")
+                ax.axhspan(-sf * 1e3, sf * 1e3, color="0.88", lw=0,
+                           label=f"load cell noise +-{sf * 1e3:.1f} mN")
             ax.axhline(0.0, color="0.6", lw=0.6)
             for res, title, c in ((before, "nominal model", "C0"), (after, after_title, "C3")):
                 if res.force is None:
@@ -115,7 +116,8 @@ def force_residual(diag, path: Path) -> bool:
             ax.set_title(f"{data.record.name}{held}: tool force {axis}", fontsize=9)
             ax.set_xlabel("time [s]")
             ax.set_ylabel(f"F{axis} residual [mN]")
-            ax.legend(fontsize=7, loc="upper right")
+    # one legend, under the last row (in a panel it would cover a curve)
+    axes[-1, 0].legend(fontsize=7, ncol=3, loc="upper left", bbox_to_anchor=(0.0, -0.22))
     fig.suptitle("Tool force residual (measured - model, force of the sheet on the tool): the "
                  f"nominal model against {after_title}", fontsize=11)
     fig.savefig(path, dpi=80)
@@ -155,9 +157,10 @@ def effects_chart(diag, path: Path) -> None:
     ax.set_xlim(-0.2, 1.05)
     ax.axvline(0.0, color="0.5", lw=0.6)
     ax.set_xlabel("fraction of the calibrated baseline's excess misfit explained")
-    why = (f"holdout bars: only the {CHECKED} best single effects (and a pair) are checked by "
-           "simulation on the holdout records;\nthe others are linearised fits on the fit "
-           "records" if diag.holdout else "no holdout records: fit records only")
+    why = (f"holdout bars: only the {CHECKED} best single effects (and the best pair, where "
+           "pairs are tried) are checked by\nsimulation on the holdout records; the others are "
+           "linearised fits on the fit records" if diag.holdout
+           else "no holdout records: fit records only")
     ax.set_title(f"Candidate effects, best first (verdict: {diag.verdict})\n{why}",
                  fontsize=9)
     ax.legend(loc="lower right", fontsize=8)

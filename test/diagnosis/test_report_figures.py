@@ -62,10 +62,20 @@ def test_the_force_figure_has_x_and_z_for_each_record(report):
                       for a in "xz"]
 
 
+def test_the_noise_band_is_the_load_cells_noise_in_the_axis_units(report):
+    diag, figs, _, _ = report
+    sf_mN = diag.noise["force_N"] * 1e3
+    for ax in figs["force_residual.png"].axes:
+        (band,) = [p for p in ax.patches if "noise" in p.get_label()]
+        ys = band.get_path().transformed(band.get_patch_transform()).vertices[:, 1] \
+            if hasattr(band, "get_patch_transform") else band.get_xy()[:, 1]
+        assert min(ys) == pytest.approx(-sf_mN) and max(ys) == pytest.approx(sf_mN)
+
+
 def test_effects_chart_says_why_a_candidate_has_no_holdout_bar(report):
     diag, figs, _, _ = report
     ax = figs["effects.png"].axes[0]
-    assert "checked by simulation on the holdout records" in ax.get_title()
+    assert "simulation on the holdout records" in ax.get_title()
     notes = [t.get_text() for t in ax.texts]
     unchecked = [e for e in diag.effects if not e.checked]
     assert unchecked and sum("holdout: not simulated" in n for n in notes) >= len(unchecked)
