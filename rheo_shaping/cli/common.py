@@ -38,10 +38,89 @@ def output_path(path: str | None, force: bool, what: str = "file") -> Path | Non
     if path is None:
         return None
     p = Path(path)
+    if p.is_dir():
+        raise UserError(f"{what} {p}: is a folder; expected a file name")
     if p.exists() and not force:
         raise UserError(f"{what} {p} exists: not overwritten (use --force to replace it)")
+    above = _first_existing(p)
+    if not above.is_dir():
+        raise UserError(f"{what} {p}: {above} is a file, not a folder; expected a file name "
+                        "in an existing folder")
     if not p.parent.exists():
         raise UserError(f"{what} {p}: folder {p.parent} does not exist")
+    _probe_writable(what, p, p.parent, "a file")
+    return p
+
+
+def _first_existing(p: Path) -> Path:
+    """``p``'s nearest ancestor that exists (``.`` for a relative path at the top)."""
+    a = p.parent
+    while not a.exists() and a != a.parent:
+        a = a.parent
+    return a
+
+
+def _probe_writable(option: str, p: Path, folder: Path, expected: str) -> None:
+    """Create and remove a file in ``folder``: the one test that also holds for root, a
+    read-only file system and an ACL (``os.access`` answers yes to root everywhere)."""
+    import tempfile
+    try:
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".rheo-shaping-probe-")
+    except OSError as exc:
+        raise UserError(f"{option} {p}: cannot write in folder {folder} "
+                        f"({exc.strerror or exc}); expected {expected} in a writable "
+                        "folder") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def output_dir(path: str | None, force: bool, option: str = "--out", *,
+               record: bool = False, create: bool = False) -> Path | None:
+    """The folder an ``--out DIR`` option names, checked before any work is done: not an
+    existing file, under an existing folder (not under a file), writable, and not holding
+    anything that ``force`` was not given to replace.
+
+    ``record``: the folder is a record directory, created by its writer: any existing path
+    needs ``force`` (the writer replaces only a record). Otherwise an existing folder may
+    be written into when empty or with ``force``; ``create`` makes a missing one.
+    Each refusal is a one-line :class:`UserError` naming ``option``, the path and what was
+    expected.
+    """
+    if path is None:
+        return None
+    p = Path(path)
+    expected = "a new record folder" if record else "a folder (new, empty or with --force)"
+    if p.exists() and not p.is_dir():
+        raise UserError(f"{option} {p}: is an existing file, not a folder; expected {expected}")
+    if p.is_dir():
+        if record and not force:
+            raise UserError(f"{option} {p}: exists: not overwritten (use --force to replace "
+                            "the record)")
+        if record:
+            from ..records.records import is_record_dir
+            if not is_record_dir(p):
+                raise UserError(f"{option} {p}: folder exists and is not a record (no "
+                                "metadata.yaml and scenario.yaml): not replaced; expected "
+                                f"{expected} or an old record")
+        if not record and not force and any(p.iterdir()):
+            raise UserError(f"{option} {p}: folder exists and is not empty: not written into "
+                            "(use --force)")
+        _probe_writable(option, p, p, expected)
+        return p
+    above = _first_existing(p)
+    if not above.is_dir():
+        raise UserError(f"{option} {p}: {above} is a file, not a folder; expected {expected} "
+                        "inside an existing folder")
+    if above != p.parent:
+        raise UserError(f"{option} {p}: folder {p.parent} does not exist; expected {expected} "
+                        "inside an existing folder")
+    _probe_writable(option, p, above, expected)
+    if create:
+        try:
+            p.mkdir()
+        except OSError as exc:
+            raise UserError(f"{option} {p}: cannot create the folder ({exc.strerror or exc}); "
+                            f"expected {expected}") from None
     return p
 
 

@@ -7,12 +7,11 @@ import json
 import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
 from ..sheet.effects import EFFECT_NAMES
 from ..records.records import RecordError, read_record
 from . import UserError
-from .common import add_executor_arguments, executor_from_args, output_path
+from .common import add_executor_arguments, executor_from_args, output_dir, output_path
 
 
 def add_parser(sub) -> None:
@@ -45,19 +44,46 @@ def add_parser(sub) -> None:
 
 
 class _Progress:
-    """The diagnosis's progress on a tqdm bar: each batch of simulations adds its size to
-    the total as it starts (the later batches depend on the earlier results), so the bar
-    shows done / known so far and an ETA for the known work."""
+    """The diagnosis's progress as "stage k of n", a tqdm bar per stage on stderr.
 
-    def __init__(self, bar):
-        self.bar = bar
+    A stage's total is known when it begins (the engine says it: one batch, or the most
+    its batches can run), so its ETA holds; only the candidate checks, whose later
+    batches depend on the earlier results, learn their total batch by batch (their bar
+    says so). A stage that ends short of its most closes at what it ran."""
+
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+        self.bar = None
+        self.fixed = False
+
+    def stage(self, k: int, n: int, name: str, total: int | None) -> None:
+        from tqdm import tqdm
+        self.close()
+        grows = total is None
+        desc = f"diagnose: stage {k} of {n}, {name}" + (" (total grows)" if grows else "")
+        self.bar = tqdm(desc=desc, unit="sim", file=sys.stderr, disable=self.quiet,
+                        total=0 if grows else total)
+        self.fixed = not grows
 
     def expect(self, n: int) -> None:
-        self.bar.total = (self.bar.total or 0) + n
+        if self.bar is None:
+            self.stage(1, 1, "simulations", None)
+        if not self.fixed:
+            self.bar.total += n
+        elif self.bar.n + n > self.bar.total:       # more than the engine said: never less
+            self.bar.total = self.bar.n + n
         self.bar.refresh()
 
     def __call__(self, n: int) -> None:
         self.bar.update(n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            if self.bar.total != self.bar.n:
+                self.bar.total = self.bar.n
+                self.bar.refresh()
+            self.bar.close()
+            self.bar = None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -69,30 +95,23 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--effects: unknown effect '{bad[0] if bad else args.effects}': "
                             "expected some of " + ", ".join(EFFECT_NAMES))
     scen = output_path(args.write_scenario, args.force, "--write-scenario file")
-    out = Path(args.out) if args.out else None
-    if out is not None:
-        if out.exists() and any(out.iterdir()) and not args.force:
-            raise UserError(f"--out {out} exists and is not empty: not overwritten (use --force)")
-        if not out.parent.exists():
-            raise UserError(f"--out {out}: folder {out.parent} does not exist")
+    out = output_dir(args.out, args.force)
     try:
         fit = [read_record(p) for p in args.records]
         hold = [read_record(p) for p in args.holdout]
     except RecordError as exc:
         raise UserError(str(exc)) from None
-    from tqdm import tqdm
-
     from ..diagnosis.engine import diagnose
-    bar = tqdm(desc="diagnose", unit="sim", file=sys.stderr, disable=args.quiet, total=0)
+    progress = _Progress(args.quiet)
     t0 = time.monotonic()
     try:
         with executor_from_args(args) as executor:
-            diag = diagnose(fit, hold, library=library, progress=_Progress(bar),
+            diag = diagnose(fit, hold, library=library, progress=progress,
                             executor=executor)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     finally:
-        bar.close()
+        progress.close()
     result = diag.to_json()
     result["wall_time_s"] = time.monotonic() - t0
     process = None
@@ -122,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
                   + ", ".join(f"{x:.4g} [{lo:.4g}, {hi:.4g}]" for x, (lo, hi) in zip(v, iv)))
         print(f"  p = {diag.verdict_fit.p:.3g}")
     print(f"gap test: baseline J - 1 = {diag.J_base - 1:.4f}, p_gap = {diag.p_gap:.3g}; "
-          f"baseline took {100 * diag.baseline_took:.0f} % of the nominal gap; "
+          f"{diag.baseline_took_text()}; "
           f"side: {diag.side['side']}")
     if diag.signature:
         print("signature: kinds of cause " + ", ".join(

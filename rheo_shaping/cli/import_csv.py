@@ -2,11 +2,11 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from ..records.csv_import import import_csv
 from ..records.records import RecordError, write_record
 from . import UserError
+from .common import output_dir
 
 
 def add_parser(sub) -> None:
@@ -31,10 +31,8 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
+    out = output_dir(args.out, args.force, record=True)
     try:
-        if out.exists() and not args.force:
-            raise RecordError(f"record {out} exists: not overwritten (use --force to replace it)")
         record = import_csv(args.scenario, args.pose, args.profile, args.wrench, name=out.name)
         write_record(record, out, force=args.force)
     except RecordError as exc:

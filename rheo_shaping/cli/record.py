@@ -4,14 +4,13 @@ from __future__ import annotations
 import argparse
 import json
 from dataclasses import replace
-from pathlib import Path
 
 from ..sheet.effects import active_effects
 from ..records.measurement import MeasurementParams, synthesize_record
 from ..records.records import RecordError, write_record
 from ..params.schema import ParameterError, iter_fields, validate_value
 from . import UserError
-from .common import add_params_argument, cell_from_args
+from .common import add_params_argument, cell_from_args, output_dir
 
 
 def add_parser(sub) -> None:
@@ -62,11 +61,7 @@ def run(args: argparse.Namespace) -> int:
     if args.movement is not None:
         params = replace(params, movement=replace(params.movement, number=args.movement))
     ms = measurement_from_args(args)
-    out = Path(args.out)
-    if out.exists() and not args.force:
-        raise UserError(f"record {out} exists: not overwritten (use --force to replace it)")
-    if not out.parent.exists():
-        raise UserError(f"record {out}: folder {out.parent} does not exist")
+    out = output_dir(args.out, args.force, record=True)
     record, run_ = synthesize_record(params, ms, seed=args.seed, name=out.name)
     try:
         write_record(record, out, truth=params, start_stamp=ms.start_stamp, force=args.force)

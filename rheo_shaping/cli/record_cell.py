@@ -3,11 +3,10 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 from . import UserError
 from .cell import _namespace
-from .common import add_params_argument, cell_from_args
+from .common import add_params_argument, cell_from_args, output_dir
 
 
 def add_parser(sub) -> None:
@@ -48,11 +47,7 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise UserError(f"--{name.replace('_', '-')} = {value:g}: expected a value > 0")
-    out = Path(args.out)
-    if out.exists() and not args.force:
-        raise UserError(f"record {out} exists: not overwritten (use --force to replace it)")
-    if not out.parent.exists():
-        raise UserError(f"record {out}: folder {out.parent} does not exist")
+    out = output_dir(args.out, args.force, record=True)
     try:
         from ..nodes.recorder import RecordCellError, record_cell
     except ImportError as exc:

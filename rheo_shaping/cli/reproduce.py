@@ -15,10 +15,8 @@ import sys
 import time
 from pathlib import Path
 
-from . import UserError
 from .common import (add_executor_arguments, add_params_argument, cell_from_args,
-                     executor_from_args,
-                     executor_label)
+                     executor_from_args, executor_label, output_dir)
 
 
 def add_parser(sub) -> None:
@@ -36,21 +34,6 @@ def add_parser(sub) -> None:
     add_executor_arguments(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
-
-
-def _out_dir(path: str | None, force: bool) -> Path | None:
-    if path is None:
-        return None
-    d = Path(path)
-    if d.exists() and not d.is_dir():
-        raise UserError(f"--out {d}: exists and is not a folder")
-    if d.is_dir() and any(d.iterdir()) and not force:
-        raise UserError(f"--out {d}: folder is not empty; not written into (use --force)")
-    if not d.exists():
-        if not d.parent.exists():
-            raise UserError(f"--out {d}: parent folder {d.parent} does not exist")
-        d.mkdir()
-    return d
 
 
 class _Progress:
@@ -163,7 +146,7 @@ def table_lines(study) -> list[str]:
 def run(args: argparse.Namespace) -> int:
     from ..study.reproduce import DEFAULT_D_VALUES, reproduce
     params = cell_from_args(args)
-    out = _out_dir(args.out, args.force)
+    out = output_dir(args.out, args.force, create=True)
     wall = time.perf_counter()
     with executor_from_args(args) as executor:
         progress = _Progress(len(DEFAULT_D_VALUES) + 5, args.quiet)

@@ -89,6 +89,13 @@ class _Group:
         return float(z @ z)
 
 
+#: The diagnosis's stages, in order (a progress display shows "stage k of n"); a stage
+#: that has nothing to run (the replay misfit of a Maxwell cell, the effects when no gap
+#: is left) is passed over.
+STAGES = ("nominal models", "baseline Jacobian", "baseline fit",
+          "replay misfit (Kelvin cell)", "effect probes", "candidate checks", "verdict runs")
+
+
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
              library: Sequence[str] = EFFECT_NAMES, jobs: int | None = None,
              progress: Callable[[int], None] | None = None,
@@ -104,6 +111,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
     fit_d, hold_d = data[:nf], data[nf:]
     with Runner(executor, jobs, progress) as run:
         # 1. nominal: noise
+        run.stage(1, len(data))
         nominal = run([Task(d, d.record.scenario, keep_run=True) for d in data])
         bad = [d.record.name for d, o in zip(data, nominal) if not o.ok]
         if bad:
@@ -137,6 +145,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 break
             else:
                 raise ValueError(f"baseline knob {knob.name}: no valid step of half a tolerance")
+        run.stage(2, len(tasks))
         outs = run(tasks)
         cols = []
         for j in range(len(SHEET)):
@@ -165,6 +174,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         best = None
         u_s = np.zeros(n_s)
         tried = [(np.zeros(n_s), nominal)]
+        run.stage(3, 2 * len(data))
         for _it in range(2):
             u_try = np.clip(u_lin[:n_s], -1, 1)
             try:
@@ -195,6 +205,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         # 3. gap test; for a Kelvin cell the null plus the model's own replay misfit
         rp = (None, None)
         if any(replay.kelvin(d.record.scenario) for d in data):
+            run.stage(4, (1 + replay.DRAWS) * len(data))
             rp = tuple(replay.replay_misfit(dd, [base_params(d, u_s) for d in dd], run, sp, sf)
                        if dd else None for dd in (fit_d, hold_d))
         p_gap = stats.gap_p_value(J_base - 1.0, shift=rp[0])
@@ -222,6 +233,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                     for d in fit_d:
                         ptasks.append(Task(d, apply(base_params(d, u_s), ((name, vv),))))
                     index.append((name, vv))
+            run.stage(5, len(ptasks))
             pouts = run(ptasks)
             for i, (name, vv) in enumerate(index):
                 o = pouts[i * nf:(i + 1) * nf]
@@ -239,6 +251,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 c.p = min(1.0, stats.chi2_sf(c.LR, c.k) * m)
             effects.sort(key=lambda c: (c.p, c.J))
             chain_c.p = min(1.0, stats.chi2_sf(chain_c.LR, chain_c.k) * (m + 1))
+            run.stage(6)
             check(effects[:CHECKED] + [chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params,
                   chain_fit, parts_B, n_eff, J_base_h, m, chain_free,
                   (A_sheet, responses, REFINE_STEPS))
@@ -255,6 +268,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                 numerics(need + [base_c], run, fit_d, hold_d, G, H, base_params, n_s, A,
                          responses)
         elif gap_left:
+            run.stage(6)
             check([chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
                   parts_B, n_eff, J_base_h, 1, chain_free)
         # decision
@@ -322,6 +336,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         if verdict_fit is not None or verdict_fit_chain is not None:
             u_v = (verdict_fit or verdict_fit_chain).baseline_u
             cand = verdict_fit.candidate if verdict_fit else ()
+            run.stage(7, len(data))
             after = run([Task(d, apply(base_params(d, u_v[:n_s]), cand)) for d in data])
             u_cv = u_v[n_s:]
         else:

@@ -122,6 +122,15 @@ class Runner:
         self.progress = progress
         self.runs = 0
 
+    def stage(self, k: int, total: int | None = None) -> None:
+        """Stage ``k`` of :data:`engine.STAGES` begins, with ``total`` simulations when known
+        up front (None: its batches add theirs as they start); told to a progress display
+        that has a ``stage(k, n, name, total)`` method."""
+        from .engine import STAGES
+        stage = getattr(self.progress, "stage", None)
+        if stage is not None:
+            stage(k, len(STAGES), STAGES[k - 1], total)
+
     def __call__(self, tasks: Sequence[Task]) -> list[Outcome]:
         expect = getattr(self.progress, "expect", None)
         if expect is not None:             # a progress display learns each batch's size first

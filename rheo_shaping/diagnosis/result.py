@@ -59,6 +59,19 @@ class Diagnosis:
         """Fraction of the nominal model's excess misfit the calibrated baseline removes."""
         return (self.J0 - self.J_base) / (self.J0 - 1.0) if self.J0 > 1.0 else math.nan
 
+    def baseline_took_text(self) -> str:
+        """What the calibrated baseline did to the nominal model's misfit, in words: a
+        share of the excess misfit, or, where the nominal model had none (J0 <= 1: it fits
+        within the noise, as a record of the cell's own model does), that it had none."""
+        if not (math.isfinite(self.J0) and math.isfinite(self.J_base)):
+            return "the misfit could not be computed"
+        if self.J0 <= 1.0:
+            return (f"the nominal model already fits within the noise (J - 1 = "
+                    f"{self.J0 - 1.0:.4f} <= 0): no excess misfit for the baseline to take "
+                    f"(baseline J - 1 = {self.J_base - 1.0:.4f})")
+        return (f"the baseline took {100 * self.baseline_took:.1f} % of the nominal model's "
+                f"excess misfit (J - 1: {self.J0 - 1.0:.4f} -> {self.J_base - 1.0:.4f})")
+
     def to_json(self) -> dict:
         def eff(fr: Explanation, rank: int) -> dict:
             return {"name": "+".join(fr.names), "rank": rank, "checked": fr.checked,

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..params.config import ConfigError, dump_cell, load_cell
 from ..params.params import CellParams
+from .qos import RECORDED_QOS, to_rosbags
 from .record import Record
 from ..units import NS
 
@@ -58,6 +59,45 @@ def _pose(ts, x: float, z: float):
     return P(position=Pt(x=float(x), y=0.0, z=float(z)), orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0))
 
 
+#: The ROS 2 distribution the records are written for (metadata.yaml ``ros_distro``).
+ROS_DISTRO = "jazzy"
+
+
+def _with_distro(metadata: str) -> str:
+    """rosbags' metadata text with ``ros_distro: jazzy`` (rosbags writes its own name)."""
+    import re
+    text, n = re.subn(r"^(\s*ros_distro:) *\S+ *$", rf"\1 {ROS_DISTRO}", metadata,
+                      flags=re.MULTILINE)
+    if n != 1:
+        raise RecordError(f"metadata: expected one ros_distro line, found {n}")
+    return text
+
+
+def _jazzy_writer(Writer):
+    """``rosbags``' Writer that names the distribution as rosbag2 on Jazzy does, in
+    metadata.yaml and in the copy of it inside the MCAP file (its ``rosbag2`` record)."""
+
+    class JazzyWriter(Writer):
+        def close(self):
+            storage = self.storage
+            if storage is not None:
+                close_storage = storage.close
+                storage.close = lambda version, text: close_storage(version, _with_distro(text))
+            super().close()
+            if storage is not None:
+                tmp = self.metapath.with_suffix(".yaml.tmp")
+                tmp.write_text(_with_distro(self.metapath.read_text("utf8")), "utf8")
+                tmp.replace(self.metapath)
+
+    return JazzyWriter
+
+
+def is_record_dir(path: str | Path) -> bool:
+    """Whether ``path`` is a folder this module wrote (the one kind ``force`` replaces)."""
+    p = Path(path)
+    return (p / "metadata.yaml").is_file() and (p / "scenario.yaml").is_file()
+
+
 def write_record(record: Record, out_dir: str | Path, truth: CellParams | None = None,
                  start_stamp: float | None = None, force: bool = False) -> Path:
     """Write ``record`` as a rosbag2 MCAP directory ``out_dir`` with scenario.yaml (and
@@ -78,7 +118,7 @@ def write_record(record: Record, out_dir: str | Path, truth: CellParams | None =
     if out.exists():
         if not force:
             raise RecordError(f"{out} exists: not overwritten (use --force to replace it)")
-        if not (out / "metadata.yaml").exists() or not (out / "scenario.yaml").exists():
+        if not is_record_dir(out):
             raise RecordError(f"{out} exists and is not a record directory: not replaced")
         shutil.rmtree(out)
     if not out.parent.exists():
@@ -101,8 +141,10 @@ def write_record(record: Record, out_dir: str | Path, truth: CellParams | None =
             messages.append((t, WRENCH, WrenchStamped(
                 header=_header(ts, start_stamp + t), wrench=w)))
     messages.sort(key=lambda m: m[0])
-    with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        conns = {topic: writer.add_connection(topic, TYPES[topic], typestore=ts)
+    with _jazzy_writer(Writer)(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conns = {topic: writer.add_connection(
+                     topic, TYPES[topic], typestore=ts,
+                     offered_qos_profiles=[to_rosbags(q) for q in RECORDED_QOS[topic]])
                  for topic in TYPES if topic != WRENCH or record.has_wrench}
         for t, topic, msg in messages:
             stamp = int(round((start_stamp + t) * NS))

@@ -99,13 +99,20 @@ def plot_history(result: RunResult, path: str | Path, link: int | None = None,
 
 # ------------------------------------------------------------ the paper's study
 def _phase_legend(ax, phases) -> None:
+    """The phases' colours as a legend in one row under ``ax`` (below its x label), where
+    it covers neither the curves nor ``ax``'s own legend (kept)."""
     from matplotlib.patches import Patch
     names = []
     for _, _, n in phases:
         if n not in names:
             names.append(n)
-    handles = [Patch(color=PHASE_COLOURS.get(n, "#f0f0f0"), label=phase_label(n)) for n in names]
-    ax.legend(handles=handles, fontsize=7, loc="upper right", ncol=len(handles), frameon=False)
+    handles = [Patch(facecolor=PHASE_COLOURS.get(n, "#f0f0f0"), edgecolor="0.6",
+                     label=phase_label(n)) for n in names]
+    own = ax.get_legend()
+    ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.17),
+              ncol=len(handles), frameon=False, title="shaded phases", title_fontsize=7)
+    if own is not None:
+        ax.add_artist(own)
 
 
 def plot_movement_history(run, path: str | Path, title: str = "") -> Path:
@@ -132,9 +139,6 @@ def plot_movement_history(run, path: str | Path, title: str = "") -> Path:
     ax1.set_ylabel("tension [N]")
     ax1.set_ylim(0.0, max(1.15 * res.params.material.F_break, 1.1 * res.F_max))
     ax1.legend(fontsize=7, loc="upper left")
-    ax1t = ax1.twinx()
-    _phase_legend(ax1t, run.phases)
-    ax1t.set_yticks([])
     L0 = res.rest_length[i]
     ax2.plot(res.t, (res.elastic[:, i] + res.plastic[:, i]) * 1e3, color="C0", label="total")
     ax2.plot(res.t, res.elastic[:, i] * 1e3, color="C1", label="elastic (spring k1)")
@@ -143,6 +147,7 @@ def plot_movement_history(run, path: str | Path, title: str = "") -> Path:
     ax2.set_xlabel("t [s]")
     ax2.set_xlim(0.0, res.t[-1])
     ax2.legend(fontsize=7, loc="upper left")
+    _phase_legend(ax2, run.phases)
     ax1.set_title(title or f"movement {run.label}: F_max = {res.F_max:.3f} N, "
                   f"SF = {res.SF:.2f}, Delta = {res.delta * 1e3:.2f} mm")
     return _save(plt, fig, path)
@@ -264,6 +269,9 @@ def plot_speed_comparison(full, half, path: str | Path, delta_limit: float | Non
     ax2.set_ylabel("z [mm]")
     ax2.legend(fontsize=7)
     ax2.set_title(f"sheet at t = {full.result.t[-1]:.0f} s near the cake's foot", fontsize=9)
+    fig.suptitle(f"Fig. 19: movement 1 at {full.speed * 1e3:.1f} and {half.speed * 1e3:.1f} "
+                 "mm/s: the most stressed link's tension (left) and where the sheet ends "
+                 "at the cake's foot (right)", fontsize=10)
     return _save(plt, fig, path)
 
 

@@ -264,3 +264,48 @@ def test_colcon_test_fails_when_a_test_fails(workspace, tmp_path):
     assert proc.returncode != 0, proc.stdout
     rc, text = _test_result(workspace, "results_failing")
     assert rc != 0 and "1 failure" in text, text
+
+
+# -- the source folder stays as it was -------------------------------------------------------
+def _source_copy(dest: Path) -> Path:
+    """The repository's files as they are now (tracked and untracked, not ignored) copied
+    to ``dest`` and committed there, so that ``git status`` shows what a build adds."""
+    import shutil
+    files = subprocess.run(["git", "-C", str(REPO), "ls-files", "-z", "--cached", "--others",
+                            "--exclude-standard"], check=True, stdout=subprocess.PIPE
+                           ).stdout.decode().split("\0")
+    for rel in filter(None, files):
+        src = REPO / rel
+        if src.is_file():
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / rel)
+    git = ["git", "-C", str(dest), "-c", "user.name=test", "-c", "user.email=test@invalid"]
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "-A"], check=True)
+    subprocess.run([*git, "commit", "-q", "-m", "copy"], check=True)
+    return dest
+
+
+@pytest.mark.parametrize("symlink", [False, True], ids=["install", "symlink-install"])
+def test_colcon_build_writes_nothing_into_the_source_folder(tmp_path, symlink):
+    """``git status --porcelain --ignored`` of the built copy is empty: no build/launchers,
+    no egg-info, nothing git ignores either; and ``ros2 run``'s executables are there."""
+    src = _source_copy(tmp_path / "src" / PACKAGE)
+    ws = tmp_path / "ws"
+    cmd = [*_colcon_cmd(), "--log-base", str(ws / "log"), "build", "--base-paths", str(src),
+           "--build-base", str(ws / "build"), "--install-base", str(ws / "install"),
+           "--event-handlers", "console_direct-", *(["--symlink-install"] if symlink else [])]
+    ws.mkdir()
+    proc = subprocess.run(cmd, cwd=ws, env=_clean_env(COLCON_HOME=str(ws / "colcon_home")),
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          timeout=BUILD_TIMEOUT_S)
+    assert proc.returncode == 0, f"colcon build failed:\n{proc.stdout}"
+    status = subprocess.run(["git", "-C", str(src), "status", "--porcelain", "--ignored"],
+                            check=True, stdout=subprocess.PIPE, text=True).stdout
+    assert status == "", f"colcon build wrote into the source folder:\n{status}"
+    for exe in EXECUTABLES:
+        path = ws / "install" / PACKAGE / "lib" / PACKAGE / exe
+        assert path.is_file() and os.access(path, os.X_OK), path
+    for node in NODES:
+        text = (ws / "install" / PACKAGE / "lib" / PACKAGE / node).read_text()
+        assert text.startswith("#!/bin/sh\n") and f"entry import {node}\n" in text, node

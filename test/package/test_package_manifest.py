@@ -60,6 +60,34 @@ def test_package_xml_lists_every_dependency():
     assert TEST_DEPENDS <= test_deps, f"missing test_depend: {sorted(TEST_DEPENDS - test_deps)}"
 
 
+def test_package_xml_declares_each_dependency_once():
+    """A key declared twice (under any of the depend tags) is a copy that can drift."""
+    root = _manifest()
+    tags = ("depend", "build_depend", "build_export_depend", "exec_depend", "test_depend",
+            "doc_depend", "buildtool_depend")
+    seen: dict[str, list[str]] = {}
+    for tag in tags:
+        for e in root.iter(tag):
+            seen.setdefault(e.text.strip(), []).append(tag)
+    twice = {key: where for key, where in seen.items() if len(where) > 1}
+    assert not twice, f"package.xml declares these keys more than once: {twice}"
+
+
+def test_license_file_is_the_license_package_xml_and_setup_py_name():
+    """LICENSE holds the full Apache-2.0 text; package.xml, setup.py's license and its
+    classifier all say Apache-2.0."""
+    text = (REPO / "LICENSE").read_text()
+    assert "Apache License" in text and "Version 2.0, January 2004" in text
+    assert "TERMS AND CONDITIONS FOR USE, REPRODUCTION, AND DISTRIBUTION" in text
+    assert "END OF TERMS AND CONDITIONS" in text and len(text) > 10000, "the full text"
+    assert _manifest().findtext("license") == "Apache-2.0"
+    kwargs = _setup_kwargs()
+    assert ast.literal_eval(kwargs["license"]) == "Apache-2.0"
+    classifiers = ast.literal_eval(kwargs["classifiers"])
+    licenses = [c for c in classifiers if c.startswith("License ::")]
+    assert licenses == ["License :: OSI Approved :: Apache Software License"]
+
+
 def _third_party_imports() -> dict[str, set[str]]:
     """Top-level modules imported anywhere in rheo_shaping/ (and launch/) -> files."""
     import sys
@@ -138,7 +166,10 @@ def test_each_node_executable_is_the_launcher_shell_and_python_at_once():
     consts = {t.id: n.value for n in tree.body if isinstance(n, ast.Assign)
               for t in n.targets if isinstance(t, ast.Name)}
     assert ast.literal_eval(consts["NODES"]) == NODES
-    assert ast.unparse(_setup_kwargs()["scripts"]) == "node_launchers()"
+    kwargs = _setup_kwargs()
+    assert ast.unparse(kwargs["scripts"]) == "[os.path.join('launchers', node) for node in NODES]"
+    assert ast.unparse(kwargs["cmdclass"]) == \
+        "{'build_scripts': BuildLaunchers, 'develop': DevelopLaunchers}"
     template = ast.literal_eval(consts["LAUNCHER"])
     for node in NODES:
         text = template.replace("@NODE@", node).replace("@PYTHON@", "/usr/bin/python3")
