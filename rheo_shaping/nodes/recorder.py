@@ -26,10 +26,12 @@ from rclpy.context import Context
 from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
 
 from ..params.config import cell_from_flat
 from ..sheet.effects import nominal
 from ..params.params import CellParams
+from ..records.qos import QosSpec, offered_qos
 from ..records.record import Record
 from ..records.records import write_record
 from ..params.schema import iter_fields
@@ -297,6 +299,21 @@ def _start_planner(node: CellRecorder, executor, planner: str, timeout: float, s
 
 
 # -- replay ----------------------------------------------------------------------------------
+def qos_profile(spec: QosSpec) -> QoSProfile:
+    """The rclpy profile of a recorded :class:`~rheo_shaping.records.qos.QosSpec`."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, ReliabilityPolicy
+    kw = {name: Duration(seconds=getattr(spec, name + "_s"))
+          for name in ("deadline", "lifespan", "liveliness_lease_duration")
+          if getattr(spec, name + "_s") is not None}
+    return QoSProfile(depth=max(spec.depth, 1),
+                      history=HistoryPolicy[spec.history.upper()],
+                      reliability=ReliabilityPolicy[spec.reliability.upper()],
+                      durability=DurabilityPolicy[spec.durability.upper()],
+                      liveliness=LivelinessPolicy[spec.liveliness.upper()],
+                      avoid_ros_namespace_conventions=spec.avoid_ros_namespace_conventions,
+                      **kw)
+
+
 def replay(record_dir: Path, *, namespace: str = "", rate: float = 1.0, clock: bool = True,
            progress: Callable[[str], None] | None = None,
            wait_for_subscribers: float = 0.0) -> dict:
@@ -319,14 +336,19 @@ def replay(record_dir: Path, *, namespace: str = "", rate: float = 1.0, clock: b
     say = progress or (lambda _msg: None)
     counts: dict[str, int] = {}
     try:
+        offered = offered_qos(record_dir)         # rosbag2's offered_qos_profiles
         with Reader(record_dir) as reader:
             pubs = {}
             for c in reader.connections:
-                topic = T.ALL.get(c.topic)
-                qos = topic.qos if topic is not None else T.STATE_QOS
-                # a deep history: a subscriber slower than the replay loses nothing
+                specs = offered.get(c.topic)
+                if specs:                           # as recorded, like `ros2 bag play`
+                    qos = qos_profile(specs[0])
+                else:
+                    topic = T.ALL.get(c.topic)
+                    # a deep history: a subscriber slower than the replay loses nothing
+                    qos = T.writer_qos(topic.qos if topic is not None else T.STATE_QOS)
                 pubs[c.id] = node.create_publisher(get_message(c.msgtype), c.topic.lstrip("/"),
-                                                   T.writer_qos(qos))
+                                                   qos)
             clock_pub = node.create_publisher(T.CLOCK.type, T.CLOCK.name, T.CLOCK.qos) \
                 if clock else None
             if wait_for_subscribers > 0:

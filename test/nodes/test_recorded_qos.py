@@ -49,3 +49,17 @@ def test_the_spec_round_trips_through_rosbags_with_a_deadline():
     spec = _spec(T.writer_qos(T.tension_qos(0.25)))
     assert spec.deadline_s == 0.25
     assert Q.from_rosbags(Q.to_rosbags(spec)) == spec
+
+
+def test_replay_publishes_with_the_recorded_profiles():
+    """`replay` builds each publisher from the record's offered_qos_profiles (like
+    `ros2 bag play`): the profile it builds says what the record says."""
+    from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+
+    from rheo_shaping.nodes.recorder import qos_profile
+    from rheo_shaping.records.qos import QosSpec
+    q = qos_profile(QosSpec(depth=7, reliability="best_effort", durability="transient_local",
+                            deadline_s=0.25))
+    assert q.depth == 7 and q.reliability == ReliabilityPolicy.BEST_EFFORT
+    assert q.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert q.deadline.nanoseconds == 250_000_000
