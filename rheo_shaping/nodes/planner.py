@@ -51,6 +51,8 @@ from ..params.params import CellParams
 from ..planning.planning import MotionLimits, Plan
 from ..planning.movement import approach_plan, autostart_refusal, movement_plan
 from ..params.schema import ParameterError
+from ..planning.run_state import (SetpointGrid, StartInputs, lead_limit, running_decision,
+                                  start_decision)
 from ..planning.stopping import TrajectoryStreamer
 from ..safety.clock_guard import ClockGuard
 from ..safety.watchdog import StallGuard
@@ -60,9 +62,6 @@ from .guards import CellCheck, Presence, clock_publishers, guard_clock
 from .ros_params import SchemaParameters
 from .spin import Yielded, run_node
 from ..units import NS
-
-#: Most set-points published in one timer call (a huge clock jump skips ahead).
-MAX_BATCH = 5000
 
 MOVING = ("running", "stopping", "retracting")
 
@@ -91,6 +90,7 @@ class PlannerNode(Node):
         self._tool_pose: np.ndarray | None = None     # the latest measured tool pose [m]
         self._pose_ns: int | None = None              # its stamp: the executed time [ns]
         self._lead_note = ""                          # why set-points wait for execution
+        self._refused = ""                            # the last reason not to start (logged)
         # what this node takes from others only after its own checks (docs/safety.md)
         self.clock_guard = ClockGuard(self.settings.max_clock_jump)
         guard_clock(self, self.clock_guard, lambda why: self._abort(f"planner: {why}"))
@@ -106,9 +106,7 @@ class PlannerNode(Node):
         self.abort_reason = ""
         self._hold: np.ndarray | None = None        # where the tool holds after a run (known)
         self._start_requested = False
-        self._t0_ns: int | None = None
-        self._k = 0                                   # next grid index
-        self._last_cmd_ns: int | None = None
+        self.grid: SetpointGrid | None = None       # the run's set-point times (core)
         self._ready = False
         self._ready_rx: int | None = None
         self._supervise_guard: StallGuard | None = None
@@ -143,9 +141,8 @@ class PlannerNode(Node):
             self._command_timer.cancel()
             self.destroy_timer(self._command_timer)
             self._command_timer = self.create_timer(1.0 / self.settings.control_rate, self._stream)
-            if self._t0_ns is not None:       # keep the grid aligned with now
-                self._t0_ns = self._last_cmd_ns or self._t0_ns
-                self._k = 1
+            if self.grid is not None:         # keep the grid aligned with now
+                self.grid.realign(int(round(NS / self.settings.control_rate)))
         if names & set(self.params.names("cell")) or names & {"optimise_d", "d_min", "d_max",
                                                               "d_step", "delta_limit",
                                                               "clearance_factor"}:
@@ -293,10 +290,8 @@ class PlannerNode(Node):
             self.streamer.abort(t / NS, reason)
             t = int(round(self.streamer.abort_time * NS))
             if self._last_cmd_ns is not None and t < self._last_cmd_ns:
-                self._last_cmd_ns = t - 1
-                self._publish_setpoint(t)
-                period = int(round(NS / self.settings.control_rate))
-                self._k = (t - self._t0_ns) // period + 1
+                for t_send in self.grid.rewind(t):
+                    self._publish_setpoint(t_send)
             stop = self.streamer.stop_plan
             self.get_logger().error(
                 f"ABORT ({reason}): stopping from {was} at {t / NS:.6f} s, at rest in "
@@ -343,7 +338,7 @@ class PlannerNode(Node):
             self._hold = self.streamer.setpoint(t)[0]      # at rest: done or holding
         self.streamer = None
         self.aborted, self.abort_reason = False, ""
-        self._t0_ns, self._k, self._last_cmd_ns = None, 0, None
+        self.grid = None
         self._start_requested = False
         self._start_failed = ""
         self._set_state("idle" if not self.settings.autostart else "waiting")
@@ -370,50 +365,41 @@ class PlannerNode(Node):
             guard = self._supervise_guard = StallGuard(0.5 * self.settings.monitor_timeout)
         stalled = guard.check(self._steady.now().nanoseconds)
         if self.streamer is None:
-            if self.aborted or not (self.settings.autostart or self._start_requested):
+            now = self._now_ns()
+            state, why_not = start_decision(StartInputs(
+                aborted=self.aborted,
+                wants_start=self.settings.autostart or self._start_requested,
+                start_requested=self._start_requested,
+                pose_unknown=(self._tool_pose is None and self._hold is None
+                              and self.count_publishers(T.TOOL_POSE.name) > 0),
+                tool_away=self._tool_away(), monitor_ok=ok,
+                refusal=self._refusal() if ok else "",
+                lead=self._start_lead(now) if ok and now > 0 else "", now_ns=now,
+                subscribers=self.pub_command.get_subscription_count()))
+            if state == "start":
+                self._start(now)
+            elif state in ("idle", "holding"):
                 self._update_state()
                 return
-            if (not self._start_requested and self._tool_pose is None and self._hold is None
-                    and self.count_publishers(T.TOOL_POSE.name) > 0):
-                self._set_state("waiting_for_pose")      # know where the tool is before moving it
-                return
-            away = "" if self._start_requested else self._tool_away()
-            if away:
-                if self._state != "tool_away":
-                    self.get_logger().warning(away)
-                self._set_state("tool_away")
-                return
-            now = self._now_ns()
-            refusal = self._refusal() if ok else ""
-            if not ok:
-                self._set_state("waiting_for_monitor")
-            elif refusal:
-                self._refuse(refusal)
-            elif now > 0 and self._start_lead(now):
-                self._refuse(self._start_lead(now), "error")
-            elif now <= 0:
-                self._set_state("waiting_for_clock")
-            elif self.pub_command.get_subscription_count() == 0:
-                # nobody would get the first set-points (discovery not done yet, e.g. over a
-                # lossy link): a simulator or robot that matched later would start mid-plan
-                self._set_state("waiting_for_subscriber")
+            elif why_not and state != "waiting_for_pose":
+                self._refuse(why_not, state)
             else:
-                self._start(now)
-        elif (self.streamer.state == "running" and not ok
-              and not guard.excuses(stalled, self._ready_rx, self.settings.monitor_timeout)):
-            self._abort(f"planner: monitor lost ({why})")
+                self._set_state(state)
         elif self.streamer.state == "running":
-            refusal = self._refusal()
-            if refusal:
-                self._abort(f"planner: {refusal}")
+            stop = running_decision(
+                ok, guard.excuses(stalled, self._ready_rx, self.settings.monitor_timeout), why,
+                self._refusal())
+            if stop:
+                self._abort(stop)
         self._update_state()
 
-    def _refuse(self, reason: str, state: str = "") -> None:
-        """Do not start: the state says why (waiting_* or error), the log once per reason."""
-        if reason != getattr(self, "_refused", ""):
+    def _refuse(self, reason: str, state: str) -> None:
+        """Do not start: the state says why, the log once per reason."""
+        if reason != self._refused:
             self._refused = reason
-            self.get_logger().warning(f"not starting: {reason}")
-        self._set_state(state or ("waiting_for_cell" if "cell" in reason else "waiting"))
+            (self.get_logger().info if state == "waiting" else self.get_logger().warning)(
+                f"not starting ({state}): {reason}")
+        self._set_state(state)
 
     def _start_lead(self, now: int) -> str:
         """Why the stream could not keep within max_lead of the executed pose: the
@@ -442,7 +428,8 @@ class PlannerNode(Node):
         streamer = TrajectoryStreamer(home_xz=self.cell_used.tool.home,
                                       retract_limits=self._retract_limits())
         streamer.start(plan, now_ns / NS)
-        self.streamer, self._t0_ns, self._k, self._last_cmd_ns = streamer, now_ns, 0, None
+        self.streamer = streamer
+        self.grid = SetpointGrid(now_ns, int(round(NS / self.settings.control_rate)))
         self.pub_trajectory.publish(m.trajectory_msg(
             plan, now_ns, self.settings.trajectory_period))
         self.get_logger().info(f"starting the plan at t = {now_ns / NS:.3f} s "
@@ -465,51 +452,40 @@ class PlannerNode(Node):
             self._set_state(st.state)
 
     # -- streaming (node clock) -----------------------------------------------------
+    @property
+    def _t0_ns(self) -> int | None:
+        """The run's start on the node clock [ns] (None before it)."""
+        return None if self.grid is None else self.grid.t0_ns
+
+    @property
+    def _last_cmd_ns(self) -> int | None:
+        """The newest set-point time sent [ns]."""
+        return None if self.grid is None else self.grid.last_ns
+
     def _stream(self) -> None:
-        st = self.streamer
-        if st is None or self._t0_ns is None:
+        if self.streamer is None or self.grid is None:
             return
         now = self._now_ns()
-        limit = self._lead_limit(now)
-        period = int(round(NS / self.settings.control_rate))
-        n_due = (min(now, limit) - self._t0_ns) // period - self._k + 1
-        if n_due > MAX_BATCH:
-            self.get_logger().warning(f"the clock jumped {n_due} control periods: skipping ahead",
-                                      throttle_duration_sec=5.0)
-            self._k += n_due - MAX_BATCH
-        while True:
-            t = self._t0_ns + self._k * period
-            if t > now or t > limit:
-                break
-            self._publish_setpoint(t)
-            self._k += 1
-        if self.get_clock().ros_time_is_active and now <= limit and (
-                self._last_cmd_ns is None or self._last_cmd_ns < now):
-            # On simulated time /clock jumps: the set-point at the clock's time too, so the
-            # simulator (lockstep) has the set-point for the end of its step.
-            self._publish_setpoint(now)
-        self._update_state()
-
-    def _lead_limit(self, now: int) -> int:
-        """The newest set-point time allowed [ns]: the executed pose's stamp + max_lead."""
-        lead = int(round(self.settings.max_lead * NS))
-        pose = self._pose_ns
-        limit = (self._t0_ns if pose is None else max(pose, self._t0_ns)) + lead
+        limit = lead_limit(self.grid.t0_ns, self._pose_ns, self.settings.max_lead)
         note = ""
         if now > limit:
-            note = (f"set-points wait for the tool: /tool/pose at {(pose or 0) / NS:.3f} s, "
-                    f"clock {now / NS:.3f} s (max_lead {self.settings.max_lead:g} s)")
+            note = (f"set-points wait for the tool: /tool/pose at {(self._pose_ns or 0) / NS:.3f}"
+                    f" s, clock {now / NS:.3f} s (max_lead {self.settings.max_lead:g} s)")
             if not self._lead_note:
                 self.get_logger().warning(note, throttle_duration_sec=5.0)
         self._lead_note = note
-        return limit
+        skipped = self.grid.skipped
+        for t in self.grid.due(now, limit, self.get_clock().ros_time_is_active):
+            self._publish_setpoint(t)
+        if self.grid.skipped > skipped:
+            self.get_logger().warning(f"the clock jumped {self.grid.skipped - skipped} control "
+                                      f"periods beyond a batch: skipping ahead",
+                                      throttle_duration_sec=5.0)
+        self._update_state()
 
     def _publish_setpoint(self, t_ns: int) -> None:
-        if self._last_cmd_ns is not None and t_ns <= self._last_cmd_ns:
-            return
         pos, _, _ = self.streamer.setpoint(t_ns / NS)
         self.pub_command.publish(m.pose_msg(pos, t_ns))
-        self._last_cmd_ns = t_ns
 
 
 def main(args=None):
