@@ -306,6 +306,16 @@ class MonitorNode(Node):
                                previous=self._watchdog_guard.previous)
         if ready and was == "waiting":
             self.get_logger().info("ready: fresh tension data")
+        elif self.state == "waiting":
+            lacks = self.core.waiting_for(now, self.get_clock().now().nanoseconds)
+            clock = self._time_source._clock_sub
+            hint = (f"; the simulator's clock: {clock.topic_name} (in a namespace: -r "
+                    f"/clock:=clock)" if clock is not None and "clock" in lacks else "")
+            self.get_logger().info(
+                f"waiting (not ready, the planner will not move): {lacks}{hint}; tension topics "
+                f"{self.resolve_topic_name(T.TENSIONS.name)}, "
+                f"{self.resolve_topic_name(T.CONTACT_TENSION.name)}",
+                throttle_duration_sec=5.0)
         self.pub_ready.publish(Bool(data=ready))
         self._acknowledge(self.acks.tick(self._steady.now().nanoseconds))   # a lost one too
 

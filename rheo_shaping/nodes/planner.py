@@ -385,6 +385,7 @@ class PlannerNode(Node):
                 self._refuse(why_not, state)
             else:
                 self._set_state(state)
+                self._say_wait(state, why)
         elif self.streamer.state == "running":
             stop = running_decision(
                 ok, guard.excuses(stalled, self._ready_rx, self.settings.monitor_timeout), why,
@@ -392,6 +393,24 @@ class PlannerNode(Node):
             if stop:
                 self._abort(stop)
         self._update_state()
+
+    def _say_wait(self, state: str, monitor_why: str) -> None:
+        """What a wait waits for: the full topic name and the likely fix, every 5 s."""
+        clock = self._time_source._clock_sub
+        what = {
+            "waiting_for_monitor": (
+                f"the monitor's ready heartbeat on {self._ready_topic} ({monitor_why}): the "
+                f"monitor is the interlock, no motion without it; start it in this namespace "
+                f"(ros2 run rheo_shaping monitor, use_sim_time as here)"),
+            "waiting_for_clock": (
+                f"/clock on {clock.topic_name if clock else '/clock'}: the simulator publishes "
+                f"its clock relative to its namespace; in a namespace add -r /clock:=clock"),
+            "waiting_for_subscriber": (
+                f"a subscriber of {self.pub_command.topic_name} (the simulator or the robot)"),
+            "waiting_for_pose": f"the tool pose on {self.resolve_topic_name(T.TOOL_POSE.name)}",
+        }.get(state)
+        if what:
+            self.get_logger().info(f"waiting for {what}", throttle_duration_sec=5.0)
 
     def _refuse(self, reason: str, state: str) -> None:
         """Do not start: the state says why, the log once per reason."""

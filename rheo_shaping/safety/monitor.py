@@ -72,6 +72,7 @@ class TensionMonitor:
         #: why the monitor may not become ready yet besides its data ("" none): the node's
         #: checks of the cell, the clock, its twins
         self.blocked = ""
+        self._clock_seen = 0                   # the node clock at the newest tick [ns]
         self._start = steady
         self._rx: dict[str, int | None] = {t: None for t in self.tension_topics
                                            + self.stamped_topics}
@@ -245,6 +246,7 @@ class TensionMonitor:
         steady] is then judged at the next tick, not now (:class:`StallGuard.excuses`).
         """
         s = self.settings
+        self._clock_seen = clock
         if self._future and self.state != "aborted":
             self._check_future(steady, clock)
         ages = {t: self.age(t, steady) for t in self.tension_topics}
@@ -273,13 +275,25 @@ class TensionMonitor:
                 self.abort(f"not ready within startup_timeout {s.startup_timeout:g} s: {why}")
         return self.ready
 
+    def waiting_for(self, steady: int, clock: int) -> str:
+        """What a ``waiting`` monitor still lacks ("" when nothing): the node's own checks,
+        the clock, the tension streams with no fresh sample."""
+        if self.blocked:
+            return self.blocked
+        if clock <= 0:
+            return "no clock yet (use_sim_time: /clock)"
+        stale = [t for t in self.tension_topics
+                 if self.age(t, steady) > self.settings.max_data_age]
+        return ("no fresh sample on " + ", ".join(stale)) if stale else ""
+
     def diagnostics(self, steady: int) -> tuple[str, str, dict]:
         """(level OK/WARN/ERROR/STALE, message, key values) of the present state."""
         F = self.tension
         if self.state == "aborted":
             level, message = "ERROR", f"aborted: {self.abort_reason}"
         elif self.state == "waiting":
-            level, message = "STALE", self.blocked or "waiting for fresh tension data"
+            level, message = "STALE", ("waiting: " + (self.waiting_for(steady, self._clock_seen)
+                                                      or "fresh tension data"))
         elif math.isfinite(F) and F >= self.settings.warn_ratio * self.threshold:
             level, message = "WARN", (f"tension {F:.4f} N near the abort threshold "
                                       f"{self.threshold:.4f} N")

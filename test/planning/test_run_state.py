@@ -81,5 +81,5 @@ def test_rewind_sends_again_from_the_executed_time():
     g = SetpointGrid(0, NS // 50)
     g.due(NS, 10 * NS, sim_time=False)                 # up to 1 s sent
     assert g.rewind(NS // 2 + 7) == [NS // 2 + 7]       # the stop from the executed pose
-    assert g.due(NS // 2 + NS // 25, 10 * NS, sim_time=False) == [NS // 2 + NS // 50,
-                                                                 NS // 2 + NS // 25]
+    want = [NS // 2 + NS // 50, NS // 2 + NS // 25]
+    assert g.due(NS // 2 + NS // 25, 10 * NS, sim_time=False) == want

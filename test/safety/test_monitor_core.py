@@ -336,3 +336,15 @@ def test_the_plausible_band_is_minus_three_sigma_to_max_tension_ratio_times_F_br
     assert h.mon.state == "ready"
     h.mon.on_contact(-0.016, h.steady)
     assert h.mon.state == "aborted" and "contact tension" in h.aborts[0]
+
+
+def test_a_waiting_monitor_says_what_it_waits_for():
+    h = Harness()
+    assert h.mon.waiting_for(h.steady, 0) == "no clock yet (use_sim_time: /clock)"
+    assert h.mon.waiting_for(h.steady, h.clock) == (
+        "no fresh sample on /sheet/tensions, /sheet/contact_tension")
+    h.mon.blocked = "waiting for the simulator's cell on /shaping/cell"
+    assert h.mon.waiting_for(h.steady, h.clock) == h.mon.blocked
+    h.mon.tick(h.steady, h.clock)
+    level, message, _ = h.mon.diagnostics(h.steady)
+    assert level == "STALE" and message == "waiting: " + h.mon.blocked
