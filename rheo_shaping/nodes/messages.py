@@ -125,6 +125,13 @@ LEVELS = {"OK": DiagnosticStatus.OK, "WARN": DiagnosticStatus.WARN,
           "ERROR": DiagnosticStatus.ERROR, "STALE": DiagnosticStatus.STALE}
 
 
+def hardware_id(namespace: str) -> str:
+    """The hardware id of a cell's diagnostics: ``shaping_cell`` in the root namespace,
+    ``shaping_cell/cell2`` in ``/cell2`` (all cells report on the absolute /diagnostics)."""
+    ns = namespace.strip("/")
+    return "shaping_cell" + (f"/{ns}" if ns else "")
+
+
 def diagnostics_msg(ns: int, name: str, level: str, message: str, values: dict,
                     hardware_id: str = "shaping_cell") -> DiagnosticArray:
     status = DiagnosticStatus(level=LEVELS[level], name=name, message=message,

@@ -322,7 +322,8 @@ class MonitorNode(Node):
     def _publish_diagnostics(self) -> None:
         level, message, values = self.core.diagnostics(self._steady.now().nanoseconds)
         self.pub_diag.publish(m.diagnostics_msg(self.get_clock().now().nanoseconds,
-                                                "rheo_shaping/monitor", level, message, values))
+                                                "rheo_shaping/monitor", level, message, values,
+                                                m.hardware_id(self.get_namespace())))
 
 
 def main(args=None):

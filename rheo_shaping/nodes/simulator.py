@@ -563,7 +563,8 @@ class SimulatorNode(Node):
         if self.summary is not None:
             values.update({"final_F_max": self.summary.F_max, "final_SF": self.summary.SF,
                            "final_delta": self.summary.delta})
-        return m.diagnostics_msg(t_ns, "rheo_shaping/simulator", level, message, values)
+        return m.diagnostics_msg(t_ns, "rheo_shaping/simulator", level, message, values,
+                                 m.hardware_id(self.get_namespace()))
 
 
 def main(args=None):

@@ -82,10 +82,13 @@ class Topic:
     @property
     def contract(self) -> str:
         """The name in the root namespace (docs/interfaces.md), e.g. ``/sheet/profile``."""
-        return "/" + self.name
+        return self.name if self.name.startswith("/") else "/" + self.name
 
     def in_namespace(self, namespace: str) -> str:
-        """The fully qualified name in ``namespace`` (``/cell2`` -> ``/cell2/sheet/profile``)."""
+        """The fully qualified name in ``namespace`` (``/cell2`` -> ``/cell2/sheet/profile``);
+        an absolute name (``/diagnostics``) stays as it is."""
+        if self.name.startswith("/"):
+            return self.name
         ns = "/" + namespace.strip("/")
         return (ns.rstrip("/") + "/" + self.name) if ns != "/" else self.contract
 
@@ -106,7 +109,10 @@ PLANNER_STATE = Topic("shaping/planner_state", String, LATCHED_QOS)
 #: The monitor's acknowledgement: the DDS sequence number of the newest /sheet/tensions
 #: sample it has judged (the simulator runs at most ``monitor_lead`` samples ahead of it).
 CHECKED = Topic("shaping/checked", UInt64, HEARTBEAT_QOS)
-DIAGNOSTICS = Topic("diagnostics", DiagnosticArray, STATE_QOS)
+#: Absolute, as the ecosystem reads it (diagnostic_aggregator, rqt_robot_monitor): every
+#: cell's nodes report there, told apart by the status name and the hardware id (the cell's
+#: namespace, rheo_shaping.nodes.messages.hardware_id).
+DIAGNOSTICS = Topic("/diagnostics", DiagnosticArray, STATE_QOS)
 #: The simulator's cell (rheo_shaping.params.fingerprint.cell_message, JSON): planner and
 #: monitor refuse to run on another cell.
 CELL = Topic("shaping/cell", String, LATCHED_QOS)

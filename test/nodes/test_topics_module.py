@@ -77,3 +77,14 @@ def test_every_endpoint_is_a_topic_of_the_module(ros, namespace):
     assert sub.qos_profile.deadline.nanoseconds == int(
         nodes["monitor"].settings.max_data_age * 1e9)
     assert T.ABORT.qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+
+
+def test_diagnostics_are_absolute_with_a_hardware_id_per_cell():
+    """The diagnostic aggregator and rqt_robot_monitor read the absolute /diagnostics: every
+    cell reports there, its namespace in the hardware id."""
+    from rheo_shaping.nodes import messages as m
+    assert T.DIAGNOSTICS.in_namespace("/cellA") == "/diagnostics" == T.DIAGNOSTICS.contract
+    assert m.hardware_id("/cellA") == "shaping_cell/cellA" and m.hardware_id("/") == \
+        "shaping_cell"
+    msg = m.diagnostics_msg(1, "rheo_shaping/monitor", "OK", "ok", {}, m.hardware_id("/c2"))
+    assert msg.status[0].hardware_id == "shaping_cell/c2"
