@@ -188,3 +188,24 @@ def test_waits_for_the_monitors_acknowledgements(ros):
     ros.spin_until(lambda: sim.monitor_waits >= w + 20, 10.0, "held again", every=judged)
     assert sim._lead.sent == held + 3
     ros.spin_until(lambda: sim._lead.sent > held + 20, 10.0, "running on without a monitor")
+
+
+def test_while_it_waits_for_the_first_set_point_the_state_goes_out_a_few_times_a_second(ros):
+    """/clock holds before the first set-point; the unchanged state is re-published every
+    HOLD_REPUBLISH (0.1 s) of wall time for the monitor's freshness, not every step (it once
+    sent 2,429 identical profiles in 25 s at 100 steps/s)."""
+    import time
+
+    from rheo_shaping.nodes.simulator import HOLD_REPUBLISH
+    sim = make_sim(ros, real_time_factor=10.0, step_period=0.01, camera=False)
+    node, rec = listen(ros)
+    ros.spin_until(lambda: sim._clock_holds > 0, 20.0, "the hold for the first set-point")
+    n0, holds0, t0 = len(rec["/sheet/profile"]), sim._clock_holds, time.monotonic()
+    ros.spin_for(3.0)
+    wall = time.monotonic() - t0
+    profiles, steps = len(rec["/sheet/profile"]) - n0, sim._clock_holds - holds0
+    print(f"\nwaiting {wall:.2f} s: {steps} held steps, {profiles} profiles")
+    assert not sim.started
+    assert profiles <= wall / HOLD_REPUBLISH + 2            # not one per held step
+    assert profiles >= wall / 0.5 - 1                        # fresh for a 0.5 s max_data_age
+    assert steps > 2 * profiles
