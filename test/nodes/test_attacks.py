@@ -42,6 +42,9 @@ from _support.ros import Recorder  # noqa: E402
 _SEED = os.environ.get("RHEO_ATTACK_SEED")
 ATTACK_AT = random.Random(int(_SEED)).uniform(2.0, 14.0) if _SEED else 5.0
 RTF = float(os.environ.get("RHEO_ATTACK_RTF", "10"))
+#: wall time per simulator step [s]: a step of simulated time no shorter than the planner's
+#: control period (20 ms), so lockstep finds each step's set-point streamed
+STEP = 0.01 if RTF >= 2 else 0.02
 
 
 def tear_cell():
@@ -57,7 +60,7 @@ class Attacked:
         self.cell = tear_cell()
         self.params = write_params(
             tmp_path / "tear.yaml", self.cell,
-            simulator={"real_time_factor": rtf, "step_period": 0.01, "diagnostics_period": 0.2,
+            simulator={"real_time_factor": rtf, "step_period": STEP, "diagnostics_period": 0.2,
                        "publish_clock": True,            # at x1 too: the cell's clock
                        **(simulator or {})},
             planner={"autostart": False, **(planner or {})},
@@ -280,7 +283,7 @@ def test_lying_tension_data_aborts_with_the_reason(ros, procs, tmp_path):
 def test_a_parameter_slip_in_one_node_is_refused_with_both_values(ros, procs, tmp_path):
     cell = tear_cell()
     params = write_params(tmp_path / "tear.yaml", cell,
-                          simulator={"real_time_factor": RTF, "step_period": 0.01,
+                          simulator={"real_time_factor": RTF, "step_period": STEP,
                                      "publish_clock": True},
                           planner={"autostart": False})
     sim = procs("simulator", "--ros-args", "--params-file", str(params))
