@@ -23,7 +23,21 @@ from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
-BIN = Path(sys.executable).parent          # the venv's console scripts (simulator, planner, ...)
+def _bin() -> Path:
+    """Where the node executables are: the venv's scripts (pip install -e), else the
+    package's ``lib/rheo_shaping`` in an ament prefix (``colcon build`` then ``colcon
+    test``: AMENT_PREFIX_PATH)."""
+    here = Path(sys.executable).parent
+    if (here / "simulator").exists():
+        return here
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        lib = Path(prefix) / "lib" / "rheo_shaping"
+        if prefix and (lib / "simulator").exists():
+            return lib
+    return here
+
+
+BIN = _bin()          # the console scripts (simulator, planner, monitor, rheo-shaping)
 
 
 class Ros:

@@ -309,3 +309,20 @@ def test_colcon_build_writes_nothing_into_the_source_folder(tmp_path, symlink):
     for node in NODES:
         text = (ws / "install" / PACKAGE / "lib" / PACKAGE / node).read_text()
         assert text.startswith("#!/bin/sh\n") and f"entry import {node}\n" in text, node
+
+
+def test_a_bare_pytest_where_rclpy_imports_collects_every_stage():
+    """`colcon test` runs pytest without --stage: in a ROS 2 environment that is every test
+    of both stages (node tests included), not the ROS-free ones only."""
+    import re as _re
+    import subprocess as _sp
+    import sys as _sys
+    counts = {}
+    for stage in ("auto", "core", "ros"):
+        out = _sp.run([_sys.executable, "-m", "pytest", "--collect-only", "-q", "-p",
+                       "no:cacheprovider", f"--stage={stage}", "test"], cwd=REPO,
+                      capture_output=True, text=True).stdout
+        found = _re.search(r"(\d+) tests? collected", out)
+        assert found, out[-2000:]
+        counts[stage] = int(found.group(1))
+    assert counts["auto"] == counts["core"] + counts["ros"] > counts["ros"] > 0, counts
