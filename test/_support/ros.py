@@ -23,6 +23,8 @@ from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
+
+
 def _bin() -> Path:
     """Where the node executables are: the venv's scripts (pip install -e), else the
     package's ``lib/rheo_shaping`` in an ament prefix (``colcon build`` then ``colcon
