@@ -2,19 +2,25 @@
 """rheo_shaping developer entry point: set up, run, test (standard library only).
 
 commands:
-  setup                 create/refresh .venv and .venv-core (skipped while the requirement
-                        files, setup.py and setup.cfg are unchanged)
+  setup [--noble]       create/refresh .venv and .venv-core, with --noble .venv-noble too
+                        (skipped while the requirement files, setup.py and setup.cfg are
+                        unchanged)
   run [ARGS...]         `rheo-shaping ARGS` in .venv; without ARGS the main job,
                         `rheo-shaping cell` (the ROS 2 cell on the default cell)
-  test [PYTEST_ARGS...] the whole suite (what CI runs): the core stage in .venv-core (after
-                        checking that rclpy is NOT importable there), then the ros stage in
-                        .venv; a path argument goes only to its stage
+  test [PYTEST_ARGS...] the whole suite: the core stage in .venv-core (after checking that
+                        rclpy is NOT importable there), then the ros stage in .venv; a path
+                        argument goes only to its stage
+  test --noble [...]    the noble stage alone: the core tests in .venv-noble, on the versions
+                        Ubuntu 24.04 ships for Jazzy (requirements-noble.txt)
+  test --stages=LIST    the stages named (core,ros,noble); CI (.ci/run) runs all three
 
-Only what venv + pip + pytest do not do themselves: two virtualenvs, refreshed when a
+Only what venv + pip + pytest do not do themselves: three virtualenvs, refreshed when a
 stamp of their inputs' hash changes (.venv: requirements-ros.txt with the ROS 2 Jazzy
-wheels; .venv-core: requirements-core.txt, no ROS; both then `pip install -e .`); the
-suite split between them by test/_support/stages.py; a ROS_DOMAIN_ID of this run's own
-and LOCALHOST discovery for every ROS process; the time of each stage at the end.
+wheels; .venv-core: requirements-core.txt, no ROS; .venv-noble: requirements-noble.txt,
+the core pinned to Ubuntu 24.04's versions, made only for the noble stage; each then
+`pip install -e .`); the suite split between them by test/_support/stages.py; a
+ROS_DOMAIN_ID of this run's own and LOCALHOST discovery for every ROS process; the time
+of each stage at the end.
 """
 from __future__ import annotations
 
@@ -125,6 +131,13 @@ class Venv:
 
 FULL = Venv(".venv", "requirements-ros.txt")
 CORE = Venv(".venv-core", "requirements-core.txt")
+# the core on the numpy/scipy/matplotlib/numba/PyYAML that Ubuntu 24.04 ships for Jazzy,
+# under VENV_PYTHON (noble's own python3 is 3.12; the nearest test the wheels allow)
+NOBLE = Venv(".venv-noble", "requirements-noble.txt")
+
+# stage -> (its virtualenv, the test folders' stage in test/_support/stages.py)
+STAGE_VENVS = {"core": (CORE, "core"), "ros": (FULL, "ros"), "noble": (NOBLE, "core")}
+DEFAULT_STAGES = ("core", "ros")   # `dev.py test`; the README's command, under 10 minutes
 
 
 def ensure_venvs(venvs: list[Venv], verbose: bool) -> None:
@@ -153,9 +166,9 @@ def ros_env() -> dict[str, str]:
 
 
 def cmd_setup(args: list[str], verbose: bool) -> int:
-    if args:
-        raise SystemExit("usage: python3 dev.py setup   (takes no arguments)")
-    ensure_venvs([CORE, FULL], verbose)
+    if args not in ([], ["--noble"]):
+        raise SystemExit("usage: python3 dev.py setup [--noble]   (--noble: .venv-noble too)")
+    ensure_venvs([CORE, FULL, *([NOBLE] if args else [])], verbose)
     say("done: .venv/bin/rheo-shaping --help")
     return 0
 
@@ -193,25 +206,46 @@ def junit_counts(xml: Path) -> dict[str, int]:
             "failed": n["failures"] + n["errors"], "skipped": n["skipped"]}
 
 
+def pick_stages(args: list[str]) -> tuple[list[str], list[str]]:
+    """(the stages to run, the remaining arguments for pytest): ``--noble`` is the noble
+    stage alone, ``--stages=core,ros,noble`` any of them; neither, :data:`DEFAULT_STAGES`."""
+    stages, rest = None, []
+    for arg in args:
+        if arg == "--noble":
+            stages = ["noble"]
+        elif arg.startswith("--stages="):
+            stages = [s for s in arg.split("=", 1)[1].split(",") if s]
+            unknown = [s for s in stages if s not in STAGE_VENVS]
+            if unknown or not stages:
+                raise SystemExit(f"[dev] --stages takes {','.join(STAGE_VENVS)}, not "
+                                 f"{arg.split('=', 1)[1]!r}")
+        else:
+            rest.append(arg)
+    return [s for s in STAGE_VENVS if s in (stages or DEFAULT_STAGES)], rest
+
+
 def cmd_test(args: list[str], verbose: bool) -> int:
     t_all = time.monotonic()
-    ensure_venvs([CORE, FULL], verbose)
+    stages, args = pick_stages(args)
+    ensure_venvs([STAGE_VENVS[s][0] for s in stages], verbose)
     env, (opts, paths) = ros_env(), split_pytest_args(args)
     lines = [f"setup: ok ({time.monotonic() - t_all:.0f} s)"]
     totals, failed = {"passed": 0, "failed": 0, "skipped": 0}, []
-    for stage, venv in (("core", CORE), ("ros", FULL)):
-        if any(paths.values()) and not paths[stage]:
+    for stage in stages:
+        venv, tests = STAGE_VENVS[stage]
+        if any(paths.values()) and not paths[tests]:
             continue
         t0 = time.monotonic()
-        if stage == "core" and subprocess.run([str(CORE.python), "-c", "import rclpy"],
+        if tests == "core" and subprocess.run([str(venv.python), "-c", "import rclpy"],
                                               env=env, capture_output=True).returncode == 0:
             failed.append(stage)
-            lines.append("core: FAIL (`import rclpy` succeeds in .venv-core: it must not)")
+            lines.append(f"{stage}: FAIL (`import rclpy` succeeds in {venv.path.name}: it "
+                         f"must not)")
             continue
         with tempfile.TemporaryDirectory() as tmp:
             xml = Path(tmp) / "junit.xml"
-            cmd = [str(venv.python), "-m", "pytest", f"--stage={stage}", f"--junitxml={xml}",
-                   *opts, *(paths[stage] or [str(d) for d in folders(stage)])]
+            cmd = [str(venv.python), "-m", "pytest", f"--stage={tests}", f"--junitxml={xml}",
+                   *opts, *(paths[tests] or [str(d) for d in folders(tests)])]
             say(f"{stage}: ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} $ "
                 + " ".join(shlex.quote(c) for c in cmd))
             rc = subprocess.run(cmd, cwd=ROOT, env=env).returncode

@@ -117,3 +117,13 @@ def _check_cache(tmp_path: Path) -> None:
     assert third.returncode == 0, third.stderr[-3000:]
     log = third.stdout + third.stderr
     assert "data loaded from" in log and "data saved to" not in log, log[-2000:]
+
+
+def test_cache_folder_is_named_by_the_source_and_the_numba_version():
+    # numba's index keeps one numba version's entries: venvs with two numbas (.venv-core,
+    # .venv-noble) sharing a folder would recompile every run, each erasing the other's
+    import numba
+
+    from rheo_shaping.sheet import kernel
+    name = kernel.cache_folder()
+    assert name == f"rheo_shaping_{kernel.source_digest()}_numba{numba.__version__}"

@@ -22,9 +22,10 @@ Compiled code is cached on disk (``cache=True``) in a user cache directory,
 so a read-only install (colcon prefix, site-packages) compiles once per user:
 ``$NUMBA_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rheo_shaping/numba``
 (``~/.cache/rheo_shaping/numba``).  The cache is found by the content of the
-kernel's modules, not their path (:class:`_ContentCacheLocator`), so every install
-of the same source (a checkout, site-packages, a colcon prefix) shares it, and a
-change in any module (numba inlines the calls between them) compiles them all anew.
+kernel's modules and the numba version, not their path (:class:`_ContentCacheLocator`), so
+every install of the same source on the same numba (a checkout, site-packages, a colcon
+prefix) shares it, a change in any module (numba inlines the calls between them) compiles
+them all anew, and venvs with different numbas (.venv-core, .venv-noble) keep apart.
 """
 from __future__ import annotations
 
@@ -49,6 +50,21 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
 
 from numba.core import caching as _caching  # noqa: E402
 
+# the user-directory locator: UserProvidedCacheLocator in the numba of requirements-core
+# (0.68 here); numba 0.59, Ubuntu 24.04's python3-numba (what rosdep installs for Jazzy),
+# has it only as _UserProvidedCacheLocator
+_UserDirLocator = getattr(_caching, "UserProvidedCacheLocator", None) \
+    or _caching._UserProvidedCacheLocator
+
+
+def cache_folder() -> str:
+    """Name of the kernel's cache folder in ``$NUMBA_CACHE_DIR``: the source's content and
+    the numba version (numba's index holds the entries of one numba version and a
+    mismatch empties it, so two venvs with two numbas in one folder would each compile
+    anew every run, overwriting the other's)."""
+    import numba
+    return f"rheo_shaping_{source_digest()}_numba{numba.__version__}"
+
 
 def source_digest() -> str:
     """SHA-256 (20 hex digits) of the kernel's modules: names and contents."""
@@ -58,16 +74,15 @@ def source_digest() -> str:
     return h.hexdigest()[:20]
 
 
-class _ContentCacheLocator(_caching.UserProvidedCacheLocator):
+class _ContentCacheLocator(_UserDirLocator):
     """numba's user-directory cache, with the folder named by the kernel's source content
-    (:func:`source_digest`) instead of its directory: a new install of the same source
-    finds the code compiled by an earlier one (numba checks its own version and the CPU
-    in the index)."""
+    and the numba version (:func:`cache_folder`) instead of its directory: a new install
+    of the same source finds the code compiled by an earlier one (numba checks its own
+    version and the CPU in the index)."""
 
     def __init__(self, py_func, py_file):
         super().__init__(py_func, py_file)
-        self._cache_path = os.path.join(_caching.config.CACHE_DIR,
-                                        f"rheo_shaping_{source_digest()}")
+        self._cache_path = os.path.join(_caching.config.CACHE_DIR, cache_folder())
 
     @classmethod
     def from_function(cls, py_func, py_file):
@@ -93,4 +108,4 @@ __all__ = ["CAKE_KIND", "PLANE_KIND", "POLYGON_KIND", "OK", "NOT_CONVERGED", "NO
            "band_solve", "link_constants", "minimise", "newton_step", "pack_model",
            "shape_table", "bending_terms", "evaluate", "shape_eval", "shape_eval_many",
            "advance", "advance_fixed", "advance_path", "one_step", "user_cache_dir",
-           "source_digest"]
+           "source_digest", "cache_folder"]
