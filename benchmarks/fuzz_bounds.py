@@ -127,7 +127,8 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2, help="cases at once (default 2)")
     ap.add_argument("--json", type=Path, default=None, help="write every result here")
     args = ap.parse_args(argv)
-    todo = [c for c in cases() if c[1].startswith(args.only)]
+    todo = [c for c in cases() if c[1].startswith(args.only)
+            and (c[0] == "cell" or args.nodes)]
     results, failures, slow = [], [], []
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="fuzz_bounds-") as tmp:
@@ -142,6 +143,8 @@ def main(argv=None) -> int:
                     if v is None or v in ("ok", "refused"):
                         continue
                     (slow if v.startswith("timeout") else failures).append((cmd, r, v))
+                    print(f"\n{cmd} {r['name']} = {r['value']!r} ({r['bound']}): {v[:300]}",
+                          flush=True)
                 el = time.monotonic() - t0
                 eta = el / i * (len(todo) - i)
                 print(f"\r[{i}/{len(todo)}] {el:.0f} s, ETA {eta:.0f} s, failures "

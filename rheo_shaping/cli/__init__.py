@@ -59,6 +59,18 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as exc:
         print(f"rheo-shaping {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except (ArithmeticError, ValueError, RuntimeError) as exc:
+        # the model refused or could not run a cell the schema admits (a value at the edge
+        # of its range: a sheet 5e-324 m thick, a stiffness of 1e-300 N/m): a clear error,
+        # not a traceback; any other RuntimeError is a bug and keeps its traceback
+        if isinstance(exc, RuntimeError) and type(exc).__name__ != "ConvergenceError":
+            raise
+        where = getattr(args, "params", None)
+        print(f"rheo-shaping {args.command}: error: the model cannot run this cell"
+              f"{f' (--params {where})' if where else ''}: {type(exc).__name__}: {exc}. "
+              f"Parameters at the edges of their ranges can make the sheet model ill-posed "
+              f"(docs/model.md)", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
