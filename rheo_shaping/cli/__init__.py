@@ -46,6 +46,12 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Errors besides ValueError and ArithmeticError that say the model cannot run a cell (the
+#: sheet's Newton solve, ruckig's planning), reported as a user's error; anything else is a
+#: bug and keeps its traceback.
+MODEL_ERRORS = ("ConvergenceError", "RuckigError")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -59,15 +65,18 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as exc:
         print(f"rheo-shaping {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except (ArithmeticError, ValueError, RuntimeError) as exc:
+    except Exception as exc:          # noqa: BLE001 - only the model's refusals, below
         # the model refused or could not run a cell the schema admits (a value at the edge
         # of its range: a sheet 5e-324 m thick, a stiffness of 1e-300 N/m): a clear error,
-        # not a traceback; any other RuntimeError is a bug and keeps its traceback
-        if isinstance(exc, RuntimeError) and type(exc).__name__ != "ConvergenceError":
+        # not a traceback; any other exception is a bug and keeps its traceback
+        if not (isinstance(exc, (ArithmeticError, ValueError))
+                or type(exc).__name__ in MODEL_ERRORS):
             raise
         where = getattr(args, "params", None)
+        what = " ".join(str(exc).split())          # one line (ruckig dumps its input)
+        what = what if len(what) <= 300 else what[:297] + "..."
         print(f"rheo-shaping {args.command}: error: the model cannot run this cell"
-              f"{f' (--params {where})' if where else ''}: {type(exc).__name__}: {exc}. "
+              f"{f' (--params {where})' if where else ''}: {type(exc).__name__}: {what}. "
               f"Parameters at the edges of their ranges can make the sheet model ill-posed "
               f"(docs/model.md)", file=sys.stderr)
         return 2

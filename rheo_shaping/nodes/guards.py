@@ -57,13 +57,17 @@ def clock_publishers(node: Node) -> int:
 class CellCheck:
     """The simulator's cell (latched on ``/shaping/cell``) against this node's own."""
 
-    def __init__(self, node: Node, own_name: str, cell: Callable[[], CellParams]):
-        self.own_name, self._cell = own_name, cell
+    def __init__(self, node: Node, own_name: str, cell: Callable[[], CellParams],
+                 on_first: Callable[[], None] = lambda: None):
+        self.own_name, self._cell, self._on_first = own_name, cell, on_first
         self.message: str | None = None     # the simulator's cell message, once received
         node.create_subscription(T.CELL.type, T.CELL.name, self._on, T.CELL.qos)
 
     def _on(self, msg: String) -> None:
+        first = self.message is None
         self.message = msg.data
+        if first:
+            self._on_first()
 
     def mismatch(self) -> str | None:
         """None while no cell has arrived; "" when it is this node's; else the reason."""
@@ -90,6 +94,13 @@ class Presence:
         node.create_subscription(T.PRESENCE.type, T.PRESENCE.name, self._on, T.PRESENCE.qos)
         self._pub.publish(String(data=self.mine.message()))
 
+    def discovered(self) -> None:
+        """Discovery has just reached the rest of the cell (its first latched message came):
+        :data:`SETTLE_TIME` counts from now, so a twin's announcement that discovery brings
+        with the same wave arrives before this node acts."""
+        if not self._settled:
+            self._t0 = self._steady.now().nanoseconds
+
     @property
     def settled(self) -> bool:
         """Whether this node knows it is the only (or the oldest) node of its name: at least
@@ -103,6 +114,11 @@ class Presence:
         same = sum(1 for n, s in self._node.get_node_names_and_namespaces()
                    if n == name and (s.rstrip("/") or "") == ns)
         self._settled = same - 1 <= len(self._younger)
+        if not self._settled:
+            self._node.get_logger().info(
+                f"waiting: {same} nodes named {self.mine.node} in the graph and "
+                f"{len(self._younger)} announced as younger; one that was killed stays in the "
+                f"graph for up to ~20 s (its DDS lease)", throttle_duration_sec=5.0)
         return self._settled
 
     def _on(self, msg: String) -> None:

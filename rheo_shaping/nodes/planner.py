@@ -94,7 +94,8 @@ class PlannerNode(Node):
         # what this node takes from others only after its own checks (docs/safety.md)
         self.clock_guard = ClockGuard(self.settings.max_clock_jump)
         guard_clock(self, self.clock_guard, lambda why: self._abort(f"planner: {why}"))
-        self.cell_check = CellCheck(self, "the planner", lambda: self.cell)
+        self.cell_check = CellCheck(self, "the planner", lambda: self.cell,
+                                    on_first=lambda: self.presence.discovered())
         self.create_service(Trigger, '~/start', self._on_start)
         self.create_service(Trigger, '~/reset', self._on_reset)
 

@@ -12,8 +12,9 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass
 
-#: Wall-clock time [s] a node waits after its start before it acts (an older twin's latched
-#: announcement arrives within DDS discovery, well under a second on one host).
+#: Wall-clock time [s] a node waits after its start (the planner: after the simulator's
+#: first latched message, i.e. once discovery reached the cell) before it acts: an older
+#: twin's latched announcement arrives within DDS discovery, under a second on one idle host.
 SETTLE_TIME = 1.0
 
 
