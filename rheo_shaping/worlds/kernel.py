@@ -1,0 +1,502 @@
+"""The dynamic world's compiled step (numba): a linearly implicit Euler step of a
+chain of point masses with three-element links, soft penalty contact with
+Coulomb friction (elastic-plastic anchors) and every effect of the world.
+
+Written apart from :mod:`rheo_shaping.sheet.kernel` (no code in common): the
+sheet model minimises an incremental potential by Newton to a quasi-static
+equilibrium with a frictionless projection-like contact; this world takes one
+linear solve per step of ~1 ms, with inertia, air damping, a soft contact of
+finite stiffness and damping, and friction that sticks and slips.
+
+One step of length ``h`` [s] (Baraff-Witkin form, positions ``x`` [m], velocities
+``v`` [m/s], mass matrix ``M``):
+
+    (M/h^2 + K + D/h) delta = M v/h + f(x),     x' = x + delta,  v' = delta/h
+
+with ``f`` every force at the step's start (the obstacles at their END pose),
+``K`` the positive semi-definite part of -df/dx (link axial and geometric
+stiffness, contact normal and stick stiffness, bending) and ``D`` the damping
+(air, contact).  ``K`` is banded: half bandwidth 3 in the x, z unknowns (5 with
+bending); a banded Cholesky factor of our own solves it.
+
+The link law (paper Eq. 2, k1 || c1 in series with c2) is integrated by the
+backward Euler rule over the step, given the link's end length ``l'``:
+
+    e1' = ((c1 + c2) e1 + c2 D) / (c1 + c2 + k1 h),   D = l' - (L0 + e1 + p)
+    F'  = k1 e1' + c1 (e1' - e1)/h,                   p' = p + D - (e1' - e1)
+
+(affine in ``l'``: F' = A + S D), slack (F' < 0): F' = 0, p' = p,
+e1' = c1 e1/(c1 + k1 h).  First order in h: 1e-4 of the force at h = 1 ms for the
+paper's Maxwell constants (Eq. 5, 7-8 in test/worlds).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+
+# ---------------------------------------------------------------- packed parameter indices
+#: ``par`` vector of :func:`run_chain`
+(I_H, I_GRAV, I_KC, I_CN, I_KT, I_MU_MOULD, I_MU_TOOL, I_AIR, I_CAKE_H, I_FILLET, I_RADIUS,
+ I_TOOL_R, I_EI, I_PL_N, I_PL_REF, I_THIN, I_HARD, I_ADH, I_ADH_RANGE, I_OUT_EVERY) = range(20)
+N_PAR = 20
+#: obstacles
+CAKE, FLOOR, TOOL = 0, 1, 2
+
+
+# ---------------------------------------------------------------- obstacles
+@njit(**JIT)
+def cake_gap(px, pz, height, fillet):
+    """Signed distance [m] of (px, pz) to the cake x <= 0, z <= height with a rounded top
+    edge of radius ``fillet``, and the outward normal (nx, nz)."""
+    cx = -fillet
+    cz = height - fillet
+    if px > cx and pz > cz:                  # round the edge
+        dx = px - cx
+        dz = pz - cz
+        r = math.sqrt(dx * dx + dz * dz)
+        if r > 1e-15:
+            return r - fillet, dx / r, dz / r
+        return -fillet, 0.0, 1.0
+    if px > cx:                              # beside the wall
+        return px, 1.0, 0.0
+    if pz > cz:                              # above the top face
+        return pz - height, 0.0, 1.0
+    if px > pz - height:                     # deep inside: the nearer face
+        return px, 1.0, 0.0
+    return pz - height, 0.0, 1.0
+
+
+@njit(**JIT)
+def polygon_gap(px, pz, verts, radius):
+    """Signed distance [m] of (px, pz) to a convex polygon ``verts`` (K, 2) (CCW) grown by
+    ``radius`` [m], and its outward normal; K = 1 is a disc."""
+    k = verts.shape[0]
+    if k == 1:
+        dx = px - verts[0, 0]
+        dz = pz - verts[0, 1]
+        r = math.sqrt(dx * dx + dz * dz)
+        if r < 1e-15:
+            return -radius, 0.0, 1.0
+        return r - radius, dx / r, dz / r
+    # largest edge-line distance (inside: that edge), nearest boundary point (outside)
+    best_line = -1e300
+    bnx = 0.0
+    bnz = 1.0
+    for i in range(k):
+        j = (i + 1) % k
+        ex = verts[j, 0] - verts[i, 0]
+        ez = verts[j, 1] - verts[i, 1]
+        le = math.sqrt(ex * ex + ez * ez)
+        nx = ez / le
+        nz = -ex / le
+        s = (px - verts[i, 0]) * nx + (pz - verts[i, 1]) * nz
+        if s > best_line:
+            best_line = s
+            bnx = nx
+            bnz = nz
+    if best_line <= 0.0:
+        return best_line - radius, bnx, bnz
+    dmin = 1e300
+    qx = 0.0
+    qz = 0.0
+    for i in range(k):
+        j = (i + 1) % k
+        ex = verts[j, 0] - verts[i, 0]
+        ez = verts[j, 1] - verts[i, 1]
+        w = ((px - verts[i, 0]) * ex + (pz - verts[i, 1]) * ez) / (ex * ex + ez * ez)
+        w = min(max(w, 0.0), 1.0)
+        cx = verts[i, 0] + w * ex
+        cz = verts[i, 1] + w * ez
+        d = (px - cx) ** 2 + (pz - cz) ** 2
+        if d < dmin:
+            dmin = d
+            qx = cx
+            qz = cz
+    d = math.sqrt(dmin)
+    return d - radius, (px - qx) / d, (pz - qz) / d
+
+
+@njit(**JIT)
+def obstacle_gap(o, px, pz, par, verts, tx, tz):
+    """(gap to the sphere's surface [m], nx, nz) of obstacle ``o``; the tool at (tx, tz)."""
+    r = par[I_RADIUS]
+    if o == CAKE:
+        d, nx, nz = cake_gap(px, pz, par[I_CAKE_H], par[I_FILLET])
+    elif o == FLOOR:
+        d, nx, nz = pz, 0.0, 1.0
+    else:
+        d, nx, nz = polygon_gap(px - tx, pz - tz, verts, par[I_TOOL_R])
+    return d - r, nx, nz
+
+
+# ---------------------------------------------------------------- links (paper Eq. 2)
+@njit(**JIT)
+def link_affine(k1, c1, c2, e1, h):
+    """(A, S): the backward-Euler link force F' = A + S D [N] over a step ``h`` [s], D [m] the
+    end length beyond the free length L0 + e1 + p (Eq. 2 discretised)."""
+    den = c1 + c2 + k1 * h
+    g = k1 + c1 / h
+    S = g * c2 / den
+    A = g * (c1 + c2) * e1 / den - c1 / h * e1
+    return A, S
+
+
+@njit(**JIT)
+def link_update(k1, c1, c2, e1, p, D, h):
+    """(e1', p', F') of one link after a step ``h`` whose end length is D beyond the free
+    length; slack (F' < 0): no force, no flow, the Kelvin part relaxes."""
+    den = c1 + c2 + k1 * h
+    e1n = ((c1 + c2) * e1 + c2 * D) / den
+    F = k1 * e1n + c1 * (e1n - e1) / h
+    if F >= 0.0:
+        return e1n, p + D - (e1n - e1), F
+    return c1 * e1 / (c1 + k1 * h), p, 0.0
+
+
+@njit(**JIT)
+def link_constants(L0, k1, c1, c2, e1, p, tension, par, out):
+    """k1, c1, c2 of every link over this step, lagged on the state: thinning (L0/(L0+p))^b,
+    power-law c2 (F/F_ref)^(1-1/n), strain hardening k1 (1 + beta (l - L0)/L0)."""
+    b = par[I_THIN]
+    n = par[I_PL_N]
+    ref = par[I_PL_REF]
+    beta = par[I_HARD]
+    for i in range(L0.size):
+        s = 1.0
+        if b > 0.0 and p[i] > 0.0:
+            s = (L0[i] / (L0[i] + p[i])) ** b
+        kk = k1[i] * s
+        if beta != 0.0:
+            strain = (e1[i] + p[i]) / L0[i]
+            kk *= 1.0 + beta * max(strain, 0.0)
+        cc2 = c2[i] * s
+        if n != 1.0:
+            F = max(tension[i], 1e-3 * ref)
+            cc2 *= (F / ref) ** (1.0 - 1.0 / n)
+        out[0, i] = kk
+        out[1, i] = c1[i] * s
+        out[2, i] = cc2
+
+
+# ---------------------------------------------------------------- banded SPD solve
+@njit(**JIT)
+def pb_factor(ab, kd):
+    """In-place Cholesky of an SPD band matrix in LAPACK lower storage ``ab[d, j] = A[j + d,
+    j]`` (d <= kd); False when not positive definite."""
+    n = ab.shape[1]
+    for j in range(n):
+        lo = max(0, j - kd)
+        acc = ab[0, j]
+        for k in range(lo, j):
+            acc -= ab[j - k, k] ** 2
+        if acc <= 0.0:
+            return False
+        djj = math.sqrt(acc)
+        ab[0, j] = djj
+        for i in range(j + 1, min(n, j + kd + 1)):
+            acc = ab[i - j, j]
+            for k in range(max(0, i - kd), j):
+                acc -= ab[i - k, k] * ab[j - k, k]
+            ab[i - j, j] = acc / djj
+    return True
+
+
+@njit(**JIT)
+def pb_solve(ab, kd, rhs):
+    """Solve with the factor of :func:`pb_factor`, ``rhs`` overwritten by the solution."""
+    n = ab.shape[1]
+    for j in range(n):
+        acc = rhs[j]
+        for k in range(max(0, j - kd), j):
+            acc -= ab[j - k, k] * rhs[k]
+        rhs[j] = acc / ab[0, j]
+    for j in range(n - 1, -1, -1):
+        acc = rhs[j]
+        for i in range(j + 1, min(n, j + kd + 1)):
+            acc -= ab[i - j, j] * rhs[i]
+        rhs[j] = acc / ab[0, j]
+
+
+@njit(**JIT)
+def add_block(ab, a, b, kxx, kxz, kzz):
+    """Add the symmetric 2x2 block [[kxx, kxz], [kxz, kzz]] at masses (a, b) (a >= b) of the
+    band; a negative index (a bond) adds nothing."""
+    if a < 0 or b < 0:
+        return
+    ra = 2 * a
+    rb = 2 * b
+    if a == b:
+        ab[0, ra] += kxx
+        ab[1, ra] += kxz
+        ab[0, ra + 1] += kzz
+    else:
+        ab[ra - rb, rb] += kxx
+        ab[ra - rb + 1, rb] += kxz          # row ra+1 (z of a), column rb (x of b)
+        ab[ra - rb - 1, rb + 1] += kxz      # row ra (x of a), column rb+1 (z of b)
+        ab[ra - rb, rb + 1] += kzz
+
+
+# ---------------------------------------------------------------- the run
+@njit(**JIT)
+def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, n_steps,
+              e1, p):
+    """``n_steps`` steps of ``par[I_H]`` [s] from t = 0; the tool (reference point at
+    ``tool_xz`` (T, 2) [m], sampled at ``tool_t`` (T,) [s], real pose incl. any offset)
+    interpolated linearly.  ``x``, ``v`` (N, 2), ``e1``, ``p`` (N+1,) are advanced in place;
+    ``anchors`` (2, 2) are the bonds.  Every ``par[I_OUT_EVERY]`` steps a sample is kept:
+    positions, the interval's mean link tension and tool force, plastic elongation.
+
+    Returns (t (K,), x (K, N, 2), tension (K, N+1), tool force (K, 2) of the sheet on the
+    tool [N], plastic (K, N+1), mould force (K, 2) [N], status: 0 ok, 1 not positive
+    definite, 2 non-finite)."""
+    n = x.shape[0]
+    m = n + 1
+    h = par[I_H]
+    every = int(par[I_OUT_EVERY])
+    n_out = n_steps // every + 1
+    kd = 5 if par[I_EI] > 0.0 else 3
+    ndof = 2 * n
+    out_t = np.zeros(n_out)
+    out_x = np.zeros((n_out, n, 2))
+    out_F = np.zeros((n_out, m))
+    out_tool = np.zeros((n_out, 2))
+    out_p = np.zeros((n_out, m))
+    out_mould = np.zeros((n_out, 2))
+    ab = np.zeros((kd + 1, ndof))
+    rhs = np.zeros(ndof)
+    consts = np.zeros((3, m))
+    tension = np.zeros(m)
+    A = np.zeros(m)
+    S = np.zeros(m)
+    free = np.zeros(m)
+    # friction anchors per mass and obstacle: stored position (the tool's in its frame)
+    anc = np.zeros((n, 3, 2))
+    has = np.zeros((n, 3), dtype=np.bool_)
+    fsum_F = np.zeros(m)
+    fsum_tool = np.zeros(2)
+    fsum_mould = np.zeros(2)
+    nodes = np.zeros((n + 2, 2))
+    grav = par[I_GRAV]
+    kc = par[I_KC]
+    cn = par[I_CN]
+    kt = par[I_KT]
+    air = par[I_AIR]
+    EI = par[I_EI]
+    adh = par[I_ADH]
+    adh_rng = par[I_ADH_RANGE]
+    kb = np.zeros(n)
+    if EI > 0.0:
+        for i in range(n):
+            hl = 0.5 * (L0[i] + L0[i + 1])
+            kb[i] = EI / hl ** 3
+    out_x[0] = x
+    out_p[0] = p
+    k_out = 1
+    ti = 0
+    tx0, tz0 = tool_xz[0, 0], tool_xz[0, 1]
+    for step in range(n_steps):
+        t1 = (step + 1) * h
+        while ti < tool_t.size - 2 and tool_t[ti + 1] < t1:
+            ti += 1
+        w = (t1 - tool_t[ti]) / (tool_t[ti + 1] - tool_t[ti])
+        w = min(max(w, 0.0), 1.0)
+        tx = tool_xz[ti, 0] + w * (tool_xz[ti + 1, 0] - tool_xz[ti, 0])
+        tz = tool_xz[ti, 1] + w * (tool_xz[ti + 1, 1] - tool_xz[ti, 1])
+        tvx = (tx - tx0) / h
+        tvz = (tz - tz0) / h
+        link_constants(L0, k1, c1, c2, e1, p, tension, par, consts)
+        ab[:, :] = 0.0
+        # inertia, gravity, air damping
+        for i in range(n):
+            mi = mass[i]
+            diag = mi / (h * h) + air * mi / h
+            ab[0, 2 * i] += diag
+            ab[0, 2 * i + 1] += diag
+            rhs[2 * i] = mi * v[i, 0] / h
+            rhs[2 * i + 1] = mi * v[i, 1] / h - mi * grav
+        nodes[0] = anchors[0]
+        nodes[n + 1] = anchors[1]
+        nodes[1:n + 1] = x
+        # links
+        for i in range(m):
+            a, b = i - 1, i                          # mass indices of the link's ends
+            dx = nodes[i + 1, 0] - nodes[i, 0]
+            dz = nodes[i + 1, 1] - nodes[i, 1]
+            ln = math.sqrt(dx * dx + dz * dz)
+            ux = dx / ln
+            uz = dz / ln
+            free[i] = L0[i] + e1[i] + p[i]
+            Ai, Si = link_affine(consts[0, i], consts[1, i], consts[2, i], e1[i], h)
+            A[i] = Ai
+            S[i] = Si
+            F = Ai + Si * (ln - free[i])
+            # predicted length (the taut set of the linear model)
+            pvx = (v[b, 0] if b < n else 0.0) - (v[a, 0] if a >= 0 else 0.0)
+            pvz = (v[b, 1] if b < n else 0.0) - (v[a, 1] if a >= 0 else 0.0)
+            lp = math.sqrt((dx + h * pvx) ** 2 + (dz + h * pvz) ** 2)
+            if F <= 0.0 and Ai + Si * (lp - free[i]) <= 0.0:
+                continue
+            fx = F * ux
+            fz = F * uz
+            if a >= 0:
+                rhs[2 * a] += fx
+                rhs[2 * a + 1] += fz
+            if b < n:
+                rhs[2 * b] -= fx
+                rhs[2 * b + 1] -= fz
+            g = max(F, 0.0) / ln
+            kxx = Si * ux * ux + g * (1.0 - ux * ux)
+            kxz = (Si - g) * ux * uz
+            kzz = Si * uz * uz + g * (1.0 - uz * uz)
+            if a >= 0:
+                add_block(ab, a, a, kxx, kxz, kzz)
+            if b < n:
+                add_block(ab, b, b, kxx, kxz, kzz)
+            if a >= 0 and b < n:
+                add_block(ab, b, a, -kxx, -kxz, -kzz)
+        # bending: projected second difference, normal lagged (EI / h^3 per mass)
+        if EI > 0.0:
+            for i in range(n):
+                j = i + 1                            # node index
+                qx = nodes[j + 1, 0] - nodes[j - 1, 0]
+                qz = nodes[j + 1, 1] - nodes[j - 1, 1]
+                lq = math.sqrt(qx * qx + qz * qz)
+                nx = -qz / lq
+                nz = qx / lq
+                bval = nx * (nodes[j - 1, 0] - 2 * nodes[j, 0] + nodes[j + 1, 0]) + \
+                    nz * (nodes[j - 1, 1] - 2 * nodes[j, 1] + nodes[j + 1, 1])
+                k = kb[i]
+                for (mi_, c) in ((i - 1, 1.0), (i, -2.0), (i + 1, 1.0)):
+                    if 0 <= mi_ < n:
+                        rhs[2 * mi_] -= k * bval * c * nx
+                        rhs[2 * mi_ + 1] -= k * bval * c * nz
+                for (ma, ca) in ((i - 1, 1.0), (i, -2.0), (i + 1, 1.0)):
+                    for (mb, cb) in ((i - 1, 1.0), (i, -2.0), (i + 1, 1.0)):
+                        if 0 <= mb <= ma < n:
+                            f = k * ca * cb
+                            add_block(ab, ma, mb, f * nx * nx, f * nx * nz, f * nz * nz)
+        # contact: soft penalty, normal damping, stick spring / Coulomb slip, adhesion
+        for i in range(n):
+            for o in range(3):
+                ox = tx if o == TOOL else 0.0
+                oz = tz if o == TOOL else 0.0
+                gap, nx, nz = obstacle_gap(o, x[i, 0], x[i, 1], par, verts, tx, tz)
+                if o != TOOL and adh > 0.0 and gap < adh_rng:
+                    fa = adh * 0.5 * (L0[i] + L0[i + 1]) * (1.0 - max(gap, 0.0) / adh_rng)
+                    rhs[2 * i] -= fa * nx
+                    rhs[2 * i + 1] -= fa * nz
+                if gap >= 0.0:
+                    continue
+                fn = -kc * gap
+                rhs[2 * i] += fn * nx
+                rhs[2 * i + 1] += fn * nz
+                add_block(ab, i, i, kc * nx * nx, kc * nx * nz, kc * nz * nz)
+                ovx = tvx if o == TOOL else 0.0
+                ovz = tvz if o == TOOL else 0.0
+                # normal damping, implicit: -cn n n^T (v' - v_obstacle)
+                vn = nx * ovx + nz * ovz
+                rhs[2 * i] += cn * vn * nx
+                rhs[2 * i + 1] += cn * vn * nz
+                add_block(ab, i, i, cn / h * nx * nx, cn / h * nx * nz, cn / h * nz * nz)
+                mu = par[I_MU_TOOL] if o == TOOL else par[I_MU_MOULD]
+                if mu <= 0.0:
+                    continue
+                if not has[i, o]:
+                    anc[i, o, 0] = x[i, 0] - ox
+                    anc[i, o, 1] = x[i, 1] - oz
+                    has[i, o] = True
+                sx = -nz
+                sz = nx
+                s = sx * (x[i, 0] - ox - anc[i, o, 0]) + sz * (x[i, 1] - oz - anc[i, o, 1])
+                cap = mu * fn
+                if kt * abs(s) <= cap:
+                    # stick: a spring to the anchor (which moves with its obstacle)
+                    rhs[2 * i] -= kt * s * sx
+                    rhs[2 * i + 1] -= kt * s * sz
+                    add_block(ab, i, i, kt * sx * sx, kt * sx * sz, kt * sz * sz)
+                else:
+                    sg = 1.0 if s > 0.0 else -1.0
+                    rhs[2 * i] -= cap * sg * sx
+                    rhs[2 * i + 1] -= cap * sg * sz
+        if not pb_factor(ab, kd):
+            return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
+                out_p[:k_out], out_mould[:k_out], 1
+        pb_solve(ab, kd, rhs)
+        for i in range(n):
+            dxi = rhs[2 * i]
+            dzi = rhs[2 * i + 1]
+            v[i, 0] = dxi / h
+            v[i, 1] = dzi / h
+            x[i, 0] += dxi
+            x[i, 1] += dzi
+        if not np.all(np.isfinite(x)):
+            return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
+                out_p[:k_out], out_mould[:k_out], 2
+        # the links' state at the step's end
+        nodes[1:n + 1] = x
+        for i in range(m):
+            dx = nodes[i + 1, 0] - nodes[i, 0]
+            dz = nodes[i + 1, 1] - nodes[i, 1]
+            ln = math.sqrt(dx * dx + dz * dz)
+            e1n, pn, F = link_update(consts[0, i], consts[1, i], consts[2, i], e1[i], p[i],
+                                     ln - free[i], h)
+            e1[i] = e1n
+            p[i] = pn
+            tension[i] = F
+            fsum_F[i] += F
+        # contact forces at the step's end (the load cell, the mould) and the anchors' slip
+        for i in range(n):
+            for o in range(3):
+                ox = tx if o == TOOL else 0.0
+                oz = tz if o == TOOL else 0.0
+                gap, nx, nz = obstacle_gap(o, x[i, 0], x[i, 1], par, verts, tx, tz)
+                if gap >= 0.0:
+                    has[i, o] = False
+                    continue
+                fn = -kc * gap
+                ovx = tvx if o == TOOL else 0.0
+                ovz = tvz if o == TOOL else 0.0
+                fn -= cn * (nx * (v[i, 0] - ovx) + nz * (v[i, 1] - ovz))
+                fn = max(fn, 0.0)
+                fx = fn * nx
+                fz = fn * nz
+                mu = par[I_MU_TOOL] if o == TOOL else par[I_MU_MOULD]
+                if mu > 0.0 and has[i, o]:
+                    sx = -nz
+                    sz = nx
+                    s = sx * (x[i, 0] - ox - anc[i, o, 0]) + sz * (x[i, 1] - oz - anc[i, o, 1])
+                    cap = mu * fn
+                    if kt * abs(s) > cap:              # slip: the anchor follows
+                        sg = 1.0 if s > 0.0 else -1.0
+                        shift = s - sg * cap / kt
+                        anc[i, o, 0] += shift * sx
+                        anc[i, o, 1] += shift * sz
+                        s = sg * cap / kt
+                    fx -= kt * s * sx
+                    fz -= kt * s * sz
+                if o == TOOL:
+                    fsum_tool[0] -= fx
+                    fsum_tool[1] -= fz
+                else:
+                    fsum_mould[0] -= fx
+                    fsum_mould[1] -= fz
+        tx0, tz0 = tx, tz
+        if (step + 1) % every == 0 and k_out < n_out:
+            out_t[k_out] = t1
+            out_x[k_out] = x
+            out_p[k_out] = p
+            for i in range(m):
+                out_F[k_out, i] = fsum_F[i] / every
+                fsum_F[i] = 0.0
+            for c in range(2):
+                out_tool[k_out, c] = fsum_tool[c] / every
+                out_mould[k_out, c] = fsum_mould[c] / every
+                fsum_tool[c] = 0.0
+                fsum_mould[c] = 0.0
+            k_out += 1
+    return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], out_p[:k_out], \
+        out_mould[:k_out], 0
