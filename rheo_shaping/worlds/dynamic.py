@@ -54,9 +54,13 @@ def scenario_length(p: CellParams) -> float:
                  + np.hypot(*(bottom - leave)) + s.excess_length)
 
 
-def laid_shape(p: CellParams, lay: LayParams, n_fine: int = 4000) -> np.ndarray:
+def laid_shape(p: CellParams, lay: LayParams, tool=None, tilt: float = 0.0,
+               n_fine: int = 1500) -> np.ndarray:
     """The laid centreline (M, 2) [m] from the top bond to the workplane bond, of the
-    scenario's length (:func:`scenario_length`)."""
+    scenario's length (:func:`scenario_length`): flat on the top (raised by ``lay.lift``
+    after a short ramp), round the edge, and the free part sagging under its chord by
+    w(u) = A (sin(pi u) + mode2 sin(2 pi u)) (downward, A solved for the length), kept out
+    of cake, workplane and the tool (reference point at ``tool`` [m], or no tool)."""
     s, c = p.sheet, p.cake
     r = 0.5 * s.thickness
     rho = c.fillet_radius + r + lay.lift
@@ -68,30 +72,34 @@ def laid_shape(p: CellParams, lay: LayParams, n_fine: int = 4000) -> np.ndarray:
     if dist <= rho:
         raise ValueError(f"workplane bond {bottom.tolist()} lies inside the rounded edge")
     theta = min(math.atan2(q[1], q[0]) + math.acos(rho / dist), 0.5 * math.pi)
-    # flat (raised by lift after a short ramp from the bond), round the edge, free part
     ramp = min(5e-3, 0.5 * (-c.fillet_radius - top[0]))
-    flat = np.array([top, [top[0] + ramp, top[1] + lay.lift], [-c.fillet_radius, top[1] + lay.lift]])
+    flat = np.array([top, [top[0] + ramp, top[1] + lay.lift],
+                     [-c.fillet_radius, top[1] + lay.lift]])
     th = np.linspace(0.5 * math.pi, theta, 200)
     arc = centre + rho * np.c_[np.cos(th), np.sin(th)]
     p0 = arc[-1]
     head = np.vstack((flat, arc[1:]))
     target = scenario_length(p) - _polyline_length(head)
     chord = bottom - p0
-    lc = float(np.hypot(*chord))
-    if target < lc - 1e-12:
-        raise ValueError(f"the laid sheet is {lc - target:.3g} m too short to reach the bond")
-    normal = np.array([-chord[1], chord[0]]) / lc      # left of the chord ...
-    if normal[1] > 0.0:                                # ... turned toward gravity
-        normal = -normal
+    if target < float(np.hypot(*chord)) - 1e-12:
+        raise ValueError("the scenario's sheet is too short to reach the workplane bond")
     u = np.linspace(0.0, 1.0, n_fine)
     shape = np.sin(np.pi * u) + lay.mode2 * np.sin(2.0 * np.pi * u)
     base = p0 + u[:, None] * chord
+    par = np.zeros(K.N_PAR)
+    par[K.I_CAKE_H], par[K.I_FILLET], par[K.I_RADIUS] = c.height, c.fillet_radius, r
+    verts, rad = tool_vertices(p, tilt)
+    par[K.I_TOOL_R] = rad
 
     def free(a: float) -> np.ndarray:
-        return base + (a * shape)[:, None] * normal
+        pts = base.copy()
+        pts[:, 1] -= a * shape
+        if tool is None:
+            return K.push_out(pts, par, verts, 0.0, 0.0, False)
+        return K.push_out(pts, par, verts, float(tool[0]), float(tool[1]), True)
 
-    lo, hi = 0.0, lc
-    for _ in range(100):                               # length rises with A: bisection
+    lo, hi = 0.0, 2.0 * float(np.hypot(*chord))
+    for _ in range(40):                                # length rises with A: bisection
         mid = 0.5 * (lo + hi)
         if _polyline_length(free(mid)) < target:
             lo = mid
@@ -146,6 +154,26 @@ class WorldRun:
         return np.hypot(*self.tool_force.T) > threshold
 
 
+def step_schedule(nm: WorldNumerics, t_end: float, pitch: float) -> tuple[np.ndarray, np.ndarray]:
+    """The steps (S,) [s] of a run to ``t_end`` [s] and which of them end a sample (S,) bool.
+
+    Steps of ``dt`` (``dt_release`` for the first ``release_time``), both scaled by
+    pitch / ``reference_pitch`` when the chain is finer than the reference (the links'
+    vibration period falls with the pitch); whole steps per sample interval."""
+    shrink = min(1.0, pitch / nm.reference_pitch)
+    interval = 1.0 / nm.output_rate
+    n_out = int(math.ceil(t_end * nm.output_rate - 1e-9))
+    hs, keep = [], []
+    for k in range(n_out):
+        fine = k * interval < nm.release_time
+        n = max(1, int(math.ceil(interval / ((nm.dt_release if fine else nm.dt) * shrink) - 1e-9)))
+        hs.append(np.full(n, interval / n))
+        kk = np.zeros(n, dtype=bool)
+        kk[-1] = True
+        keep.append(kk)
+    return np.concatenate(hs), np.concatenate(keep)
+
+
 def run_world(params: CellParams, path, t_end: float | None = None,
               lay: LayParams = LayParams(), extra: WorldEffects = WorldEffects(),
               numerics: WorldNumerics = WorldNumerics()) -> WorldRun:
@@ -156,7 +184,8 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     t_end = params.movement.process_time if t_end is None else float(t_end)
     nm = numerics
     s, mat, eff = params.sheet, params.material, params.effects
-    line = laid_shape(params, lay)
+    line = laid_shape(params, lay, np.asarray(path.position(0.0), float)
+                      + np.asarray(eff.tool_offset, float), extra.tool_tilt)
     total = _polyline_length(line)
     nodes = _at_arc(line, np.linspace(0.0, total, nm.n_masses + 2))
     nodes[0], nodes[-1] = line[0], line[-1]
@@ -171,11 +200,8 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     pitch = float(L0.mean())
     kc = nm.contact_modulus * pitch
     cn = 2.0 * nm.contact_damping * math.sqrt(kc * float(mass.mean()))
-    every = max(1, int(round(1.0 / (nm.dt * nm.output_rate))))
-    n_steps = int(math.ceil(t_end / nm.dt - 1e-9))
-    n_steps = every * int(math.ceil(n_steps / every))
+    hs, keep = step_schedule(nm, t_end, pitch)
     par = np.zeros(K.N_PAR)
-    par[K.I_H] = nm.dt
     par[K.I_GRAV] = params.solver.gravity
     par[K.I_KC] = kc
     par[K.I_CN] = cn
@@ -195,9 +221,9 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     par[K.I_HARD] = extra.strain_hardening
     par[K.I_ADH] = extra.adhesion
     par[K.I_ADH_RANGE] = extra.adhesion_range
-    par[K.I_OUT_EVERY] = every
     # the tool path sampled at 100 Hz; the real tool is off the commanded by tool_offset
-    tool_t = np.linspace(0.0, n_steps * nm.dt, int(math.ceil(n_steps * nm.dt * 100.0)) + 1)
+    span = float(hs.sum())
+    tool_t = np.linspace(0.0, span, int(math.ceil(span * 100.0)) + 1)
     commanded = np.array([path.position(t) for t in tool_t], dtype=float)
     real = commanded + np.asarray(eff.tool_offset, float)
     x = np.ascontiguousarray(nodes[1:-1].copy())
@@ -208,7 +234,7 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     wall = time.perf_counter()
     t, xs, F, ftool, pl, fmould, status = K.run_chain(
         x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, np.ascontiguousarray(real),
-        n_steps, e1, p)
+        hs, keep, e1, p)
     wall = time.perf_counter() - wall
     if status:
         why = "the step matrix is not positive definite" if status == 1 else "non-finite state"

@@ -40,9 +40,9 @@ JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 
 # ---------------------------------------------------------------- packed parameter indices
 #: ``par`` vector of :func:`run_chain`
-(I_H, I_GRAV, I_KC, I_CN, I_KT, I_MU_MOULD, I_MU_TOOL, I_AIR, I_CAKE_H, I_FILLET, I_RADIUS,
- I_TOOL_R, I_EI, I_PL_N, I_PL_REF, I_THIN, I_HARD, I_ADH, I_ADH_RANGE, I_OUT_EVERY) = range(20)
-N_PAR = 20
+(I_GRAV, I_KC, I_CN, I_KT, I_MU_MOULD, I_MU_TOOL, I_AIR, I_CAKE_H, I_FILLET, I_RADIUS,
+ I_TOOL_R, I_EI, I_PL_N, I_PL_REF, I_THIN, I_HARD, I_ADH, I_ADH_RANGE) = range(18)
+N_PAR = 18
 #: obstacles
 CAKE, FLOOR, TOOL = 0, 1, 2
 
@@ -82,24 +82,11 @@ def polygon_gap(px, pz, verts, radius):
         if r < 1e-15:
             return -radius, 0.0, 1.0
         return r - radius, dx / r, dz / r
-    # largest edge-line distance (inside: that edge), nearest boundary point (outside)
+    # one pass over the edges: the largest edge-line distance (inside: that edge) and the
+    # nearest boundary point (outside)
     best_line = -1e300
     bnx = 0.0
     bnz = 1.0
-    for i in range(k):
-        j = (i + 1) % k
-        ex = verts[j, 0] - verts[i, 0]
-        ez = verts[j, 1] - verts[i, 1]
-        le = math.sqrt(ex * ex + ez * ez)
-        nx = ez / le
-        nz = -ex / le
-        s = (px - verts[i, 0]) * nx + (pz - verts[i, 1]) * nz
-        if s > best_line:
-            best_line = s
-            bnx = nx
-            bnz = nz
-    if best_line <= 0.0:
-        return best_line - radius, bnx, bnz
     dmin = 1e300
     qx = 0.0
     qz = 0.0
@@ -107,15 +94,23 @@ def polygon_gap(px, pz, verts, radius):
         j = (i + 1) % k
         ex = verts[j, 0] - verts[i, 0]
         ez = verts[j, 1] - verts[i, 1]
-        w = ((px - verts[i, 0]) * ex + (pz - verts[i, 1]) * ez) / (ex * ex + ez * ez)
-        w = min(max(w, 0.0), 1.0)
-        cx = verts[i, 0] + w * ex
-        cz = verts[i, 1] + w * ez
-        d = (px - cx) ** 2 + (pz - cz) ** 2
+        le2 = ex * ex + ez * ez
+        le = math.sqrt(le2)
+        rx = px - verts[i, 0]
+        rz = pz - verts[i, 1]
+        s = (rx * ez - rz * ex) / le
+        if s > best_line:
+            best_line = s
+            bnx = ez / le
+            bnz = -ex / le
+        w = min(max((rx * ex + rz * ez) / le2, 0.0), 1.0)
+        d = (rx - w * ex) ** 2 + (rz - w * ez) ** 2
         if d < dmin:
             dmin = d
-            qx = cx
-            qz = cz
+            qx = verts[i, 0] + w * ex
+            qz = verts[i, 1] + w * ez
+    if best_line <= 0.0:
+        return best_line - radius, bnx, bnz
     d = math.sqrt(dmin)
     return d - radius, (px - qx) / d, (pz - qz) / d
 
@@ -131,6 +126,21 @@ def obstacle_gap(o, px, pz, par, verts, tx, tz):
     else:
         d, nx, nz = polygon_gap(px - tx, pz - tz, verts, par[I_TOOL_R])
     return d - r, nx, nz
+
+
+@njit(**JIT)
+def push_out(pts, par, verts, tx, tz, with_tool):
+    """``pts`` (M, 2) [m] moved out of cake, workplane and (``with_tool``) the tool at (tx, tz)
+    to touching distance, in place (three passes, for corners); returns ``pts``."""
+    n_obst = 3 if with_tool else 2
+    for _ in range(3):
+        for j in range(pts.shape[0]):
+            for o in range(n_obst):
+                g, nx, nz = obstacle_gap(o, pts[j, 0], pts[j, 1], par, verts, tx, tz)
+                if g < 0.0:
+                    pts[j, 0] -= g * nx
+                    pts[j, 1] -= g * nz
+    return pts
 
 
 # ---------------------------------------------------------------- links (paper Eq. 2)
@@ -240,24 +250,65 @@ def add_block(ab, a, b, kxx, kxz, kzz):
         ab[ra - rb, rb + 1] += kzz
 
 
+@njit(**JIT)
+def add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h):
+    """Add the contact of mass ``i`` on obstacle ``o`` to the step's system: the penalty
+    kc (-gap) along the normal (linearised, so a contact that starts this step acts),
+    the normal damping cn on the velocity relative to the obstacle (implicit), and
+    Coulomb friction: a stick spring kt to an anchor fixed on the obstacle while
+    kt |s| <= mu F_n, else the slip force mu F_n."""
+    kc = par[I_KC]
+    cn = par[I_CN]
+    nx = n0[i, o, 0]
+    nz = n0[i, o, 1]
+    gap = g0[i, o]
+    rhs[2 * i] -= kc * gap * nx
+    rhs[2 * i + 1] -= kc * gap * nz
+    add_block(ab, i, i, kc * nx * nx, kc * nx * nz, kc * nz * nz)
+    vn = nx * ovel[o, 0] + nz * ovel[o, 1]
+    rhs[2 * i] += cn * vn * nx
+    rhs[2 * i + 1] += cn * vn * nz
+    add_block(ab, i, i, cn / h * nx * nx, cn / h * nx * nz, cn / h * nz * nz)
+    mu = par[I_MU_TOOL] if o == TOOL else par[I_MU_MOULD]
+    if mu <= 0.0:
+        return
+    if not has[i, o]:
+        anc[i, o, 0] = x[i, 0] - opos[o, 0]
+        anc[i, o, 1] = x[i, 1] - opos[o, 1]
+        has[i, o] = True
+    kt = par[I_KT]
+    sx = -nz
+    sz = nx
+    s = sx * (x[i, 0] - opos[o, 0] - anc[i, o, 0]) + sz * (x[i, 1] - opos[o, 1] - anc[i, o, 1])
+    cap = mu * max(-kc * gap, 0.0)
+    if kt * abs(s) <= cap:
+        rhs[2 * i] -= kt * s * sx
+        rhs[2 * i + 1] -= kt * s * sz
+        add_block(ab, i, i, kt * sx * sx, kt * sx * sz, kt * sz * sz)
+    else:
+        sg = 1.0 if s > 0.0 else -1.0
+        rhs[2 * i] -= cap * sg * sx
+        rhs[2 * i + 1] -= cap * sg * sz
+
+
 # ---------------------------------------------------------------- the run
 @njit(**JIT)
-def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, n_steps,
+def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, hs, keep,
               e1, p):
-    """``n_steps`` steps of ``par[I_H]`` [s] from t = 0; the tool (reference point at
+    """Steps of ``hs`` (S,) [s] from t = 0; the tool (reference point at
     ``tool_xz`` (T, 2) [m], sampled at ``tool_t`` (T,) [s], real pose incl. any offset)
     interpolated linearly.  ``x``, ``v`` (N, 2), ``e1``, ``p`` (N+1,) are advanced in place;
-    ``anchors`` (2, 2) are the bonds.  Every ``par[I_OUT_EVERY]`` steps a sample is kept:
-    positions, the interval's mean link tension and tool force, plastic elongation.
+    ``anchors`` (2, 2) are the bonds.  After each step with ``keep`` (S,) true a sample is
+    kept: positions, plastic elongation, the time means of link tension and tool force
+    since the last sample.
 
     Returns (t (K,), x (K, N, 2), tension (K, N+1), tool force (K, 2) of the sheet on the
     tool [N], plastic (K, N+1), mould force (K, 2) [N], status: 0 ok, 1 not positive
     definite, 2 non-finite)."""
     n = x.shape[0]
     m = n + 1
-    h = par[I_H]
-    every = int(par[I_OUT_EVERY])
-    n_out = n_steps // every + 1
+    n_steps = hs.size
+    n_out = int(keep.sum()) + 1
     kd = 5 if par[I_EI] > 0.0 else 3
     ndof = 2 * n
     out_t = np.zeros(n_out)
@@ -280,6 +331,13 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
     fsum_tool = np.zeros(2)
     fsum_mould = np.zeros(2)
     nodes = np.zeros((n + 2, 2))
+    ab0 = np.zeros((kd + 1, ndof))
+    rhs0 = np.zeros(ndof)
+    g0 = np.zeros((n, 3))
+    n0 = np.zeros((n, 3, 2))
+    act = np.zeros((n, 3), dtype=np.bool_)
+    ovel = np.zeros((3, 2))        # obstacles' velocity and position (only the tool moves)
+    opos = np.zeros((3, 2))
     grav = par[I_GRAV]
     kc = par[I_KC]
     cn = par[I_CN]
@@ -298,8 +356,12 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
     k_out = 1
     ti = 0
     tx0, tz0 = tool_xz[0, 0], tool_xz[0, 1]
+    t1 = 0.0
+    span = 0.0
     for step in range(n_steps):
-        t1 = (step + 1) * h
+        h = hs[step]
+        t1 += h
+        span += h
         while ti < tool_t.size - 2 and tool_t[ti + 1] < t1:
             ti += 1
         w = (t1 - tool_t[ti]) / (tool_t[ti + 1] - tool_t[ti])
@@ -308,6 +370,10 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
         tz = tool_xz[ti, 1] + w * (tool_xz[ti + 1, 1] - tool_xz[ti, 1])
         tvx = (tx - tx0) / h
         tvz = (tz - tz0) / h
+        ovel[TOOL, 0] = tvx
+        ovel[TOOL, 1] = tvz
+        opos[TOOL, 0] = tx
+        opos[TOOL, 1] = tz
         link_constants(L0, k1, c1, c2, e1, p, tension, par, consts)
         ab[:, :] = 0.0
         # inertia, gravity, air damping
@@ -379,53 +445,49 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                         if 0 <= mb <= ma < n:
                             f = k * ca * cb
                             add_block(ab, ma, mb, f * nx * nx, f * nx * nz, f * nz * nz)
-        # contact: soft penalty, normal damping, stick spring / Coulomb slip, adhesion
+        # contact: the pairs (mass, obstacle) that act, from the step's start (obstacles at
+        # their end pose), then corrected on the solution (an active set, at most 4 solves)
         for i in range(n):
             for o in range(3):
-                ox = tx if o == TOOL else 0.0
-                oz = tz if o == TOOL else 0.0
                 gap, nx, nz = obstacle_gap(o, x[i, 0], x[i, 1], par, verts, tx, tz)
+                g0[i, o] = gap
+                n0[i, o, 0] = nx
+                n0[i, o, 1] = nz
                 if o != TOOL and adh > 0.0 and gap < adh_rng:
                     fa = adh * 0.5 * (L0[i] + L0[i + 1]) * (1.0 - max(gap, 0.0) / adh_rng)
                     rhs[2 * i] -= fa * nx
                     rhs[2 * i + 1] -= fa * nz
-                if gap >= 0.0:
-                    continue
-                fn = -kc * gap
-                rhs[2 * i] += fn * nx
-                rhs[2 * i + 1] += fn * nz
-                add_block(ab, i, i, kc * nx * nx, kc * nx * nz, kc * nz * nz)
-                ovx = tvx if o == TOOL else 0.0
-                ovz = tvz if o == TOOL else 0.0
-                # normal damping, implicit: -cn n n^T (v' - v_obstacle)
-                vn = nx * ovx + nz * ovz
-                rhs[2 * i] += cn * vn * nx
-                rhs[2 * i + 1] += cn * vn * nz
-                add_block(ab, i, i, cn / h * nx * nx, cn / h * nx * nz, cn / h * nz * nz)
-                mu = par[I_MU_TOOL] if o == TOOL else par[I_MU_MOULD]
-                if mu <= 0.0:
-                    continue
-                if not has[i, o]:
-                    anc[i, o, 0] = x[i, 0] - ox
-                    anc[i, o, 1] = x[i, 1] - oz
-                    has[i, o] = True
-                sx = -nz
-                sz = nx
-                s = sx * (x[i, 0] - ox - anc[i, o, 0]) + sz * (x[i, 1] - oz - anc[i, o, 1])
-                cap = mu * fn
-                if kt * abs(s) <= cap:
-                    # stick: a spring to the anchor (which moves with its obstacle)
-                    rhs[2 * i] -= kt * s * sx
-                    rhs[2 * i + 1] -= kt * s * sz
-                    add_block(ab, i, i, kt * sx * sx, kt * sx * sz, kt * sz * sz)
-                else:
-                    sg = 1.0 if s > 0.0 else -1.0
-                    rhs[2 * i] -= cap * sg * sx
-                    rhs[2 * i + 1] -= cap * sg * sz
-        if not pb_factor(ab, kd):
-            return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
-                out_p[:k_out], out_mould[:k_out], 1
-        pb_solve(ab, kd, rhs)
+                vrel = nx * (v[i, 0] - ovel[o, 0]) + nz * (v[i, 1] - ovel[o, 1])
+                act[i, o] = gap < 0.0 or gap + h * vrel < 0.0
+        ab0[:, :] = ab
+        rhs0[:] = rhs
+        for _it in range(4):
+            ab[:, :] = ab0
+            rhs[:] = rhs0
+            for i in range(n):
+                for o in range(3):
+                    if act[i, o]:
+                        add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h)
+            if not pb_factor(ab, kd):
+                return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
+                    out_p[:k_out], out_mould[:k_out], 1
+            pb_solve(ab, kd, rhs)
+            changed = False
+            for i in range(n):
+                for o in range(3):
+                    nx = n0[i, o, 0]
+                    nz = n0[i, o, 1]
+                    dn = nx * rhs[2 * i] + nz * rhs[2 * i + 1]
+                    if act[i, o]:
+                        ovn = nx * ovel[o, 0] + nz * ovel[o, 1]
+                        if -kc * (g0[i, o] + dn) - cn * (dn / h - ovn) < 0.0:
+                            act[i, o] = False           # it would pull: let go
+                            changed = True
+                    elif g0[i, o] + dn < 0.0:
+                        act[i, o] = True                # it would pass through: hold it
+                        changed = True
+            if not changed:
+                break
         for i in range(n):
             dxi = rhs[2 * i]
             dzi = rhs[2 * i + 1]
@@ -447,7 +509,7 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
             e1[i] = e1n
             p[i] = pn
             tension[i] = F
-            fsum_F[i] += F
+            fsum_F[i] += F * h
         # contact forces at the step's end (the load cell, the mould) and the anchors' slip
         for i in range(n):
             for o in range(3):
@@ -479,24 +541,25 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                     fx -= kt * s * sx
                     fz -= kt * s * sz
                 if o == TOOL:
-                    fsum_tool[0] -= fx
-                    fsum_tool[1] -= fz
+                    fsum_tool[0] -= fx * h
+                    fsum_tool[1] -= fz * h
                 else:
-                    fsum_mould[0] -= fx
-                    fsum_mould[1] -= fz
+                    fsum_mould[0] -= fx * h
+                    fsum_mould[1] -= fz * h
         tx0, tz0 = tx, tz
-        if (step + 1) % every == 0 and k_out < n_out:
+        if keep[step] and k_out < n_out:
             out_t[k_out] = t1
             out_x[k_out] = x
             out_p[k_out] = p
             for i in range(m):
-                out_F[k_out, i] = fsum_F[i] / every
+                out_F[k_out, i] = fsum_F[i] / span
                 fsum_F[i] = 0.0
             for c in range(2):
-                out_tool[k_out, c] = fsum_tool[c] / every
-                out_mould[k_out, c] = fsum_mould[c] / every
+                out_tool[k_out, c] = fsum_tool[c] / span
+                out_mould[k_out, c] = fsum_mould[c] / span
                 fsum_tool[c] = 0.0
                 fsum_mould[c] = 0.0
             k_out += 1
+            span = 0.0
     return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], out_p[:k_out], \
         out_mould[:k_out], 0

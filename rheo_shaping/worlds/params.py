@@ -19,6 +19,9 @@ class WorldNumerics:
 
     n_masses: int = 63                 # point masses of the chain (links: n_masses + 1)
     dt: float = 1e-3                   # s, the linearly implicit Euler step
+    dt_release: float = 2.5e-4         # s, the step while the released sheet falls
+    release_time: float = 1.0          # s, how long the release's finer steps last
+    reference_pitch: float = 1.65e-3   # m, finer chains scale both steps by pitch / this
     contact_modulus: float = 5e7       # N/m per m of sheet: penalty stiffness = modulus x pitch
     contact_damping: float = 0.5       # damping ratio of a mass on its contact spring
     stick_ratio: float = 1.0           # tangential (stick) stiffness / normal stiffness
@@ -28,11 +31,11 @@ class WorldNumerics:
     def __post_init__(self) -> None:
         if self.n_masses < 3:
             raise ValueError(f"n_masses = {self.n_masses!r}: expected at least 3")
-        for name in ("dt", "contact_modulus", "output_rate"):
+        for name in ("dt", "dt_release", "contact_modulus", "output_rate", "reference_pitch"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0.0):
                 raise ValueError(f"{name} = {v!r}: expected a finite number > 0")
-        if round(1.0 / (self.dt * self.output_rate)) < 1:
+        if self.output_rate * max(self.dt, self.dt_release) > 1.0 + 1e-9:
             raise ValueError(f"output_rate = {self.output_rate!r} Hz is above 1/dt")
 
 
