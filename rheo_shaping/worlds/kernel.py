@@ -251,12 +251,13 @@ def add_block(ab, a, b, kxx, kxz, kzz):
 
 
 @njit(**JIT)
-def add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h):
+def add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h, fad):
     """Add the contact of mass ``i`` on obstacle ``o`` to the step's system: the penalty
     kc (-gap) along the normal (linearised, so a contact that starts this step acts),
     the normal damping cn on the velocity relative to the obstacle (implicit), and
     Coulomb friction: a stick spring kt to an anchor fixed on the obstacle while
-    kt |s| <= mu F_n, else the slip force mu F_n."""
+    kt |s| <= mu F_n + fad, else the slip force mu F_n + fad (``fad`` [N]: a sticky
+    mould's shear strength at this mass, 0 on the tool)."""
     kc = par[I_KC]
     cn = par[I_CN]
     nx = n0[i, o, 0]
@@ -270,7 +271,7 @@ def add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h):
     rhs[2 * i + 1] += cn * vn * nz
     add_block(ab, i, i, cn / h * nx * nx, cn / h * nx * nz, cn / h * nz * nz)
     mu = par[I_MU_TOOL] if o == TOOL else par[I_MU_MOULD]
-    if mu <= 0.0:
+    if mu <= 0.0 and fad <= 0.0:
         return
     if not has[i, o]:
         anc[i, o, 0] = x[i, 0] - opos[o, 0]
@@ -280,7 +281,7 @@ def add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h):
     sx = -nz
     sz = nx
     s = sx * (x[i, 0] - opos[o, 0] - anc[i, o, 0]) + sz * (x[i, 1] - opos[o, 1] - anc[i, o, 1])
-    cap = mu * max(-kc * gap, 0.0)
+    cap = mu * max(-kc * gap, 0.0) + fad
     if kt * abs(s) <= cap:
         rhs[2 * i] -= kt * s * sx
         rhs[2 * i + 1] -= kt * s * sz
@@ -467,7 +468,9 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
             for i in range(n):
                 for o in range(3):
                     if act[i, o]:
-                        add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h)
+                        fad = 0.0 if o == TOOL else adh * 0.5 * (L0[i] + L0[i + 1])
+                        add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h,
+                                    fad)
             if not pb_factor(ab, kd):
                 return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
                     out_p[:k_out], out_mould[:k_out], 1
@@ -527,11 +530,11 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                 fx = fn * nx
                 fz = fn * nz
                 mu = par[I_MU_TOOL] if o == TOOL else par[I_MU_MOULD]
-                if mu > 0.0 and has[i, o]:
+                if has[i, o]:
                     sx = -nz
                     sz = nx
                     s = sx * (x[i, 0] - ox - anc[i, o, 0]) + sz * (x[i, 1] - oz - anc[i, o, 1])
-                    cap = mu * fn
+                    cap = mu * fn + (0.0 if o == TOOL else adh * 0.5 * (L0[i] + L0[i + 1]))
                     if kt * abs(s) > cap:              # slip: the anchor follows
                         sg = 1.0 if s > 0.0 else -1.0
                         shift = s - sg * cap / kt

@@ -72,7 +72,8 @@ class WorldEffects:
       strain, k1 (1 + beta max(strain, 0)) (material);
     * ``adhesion`` [N/m]: a sticky mould pulls the sheet with this force per unit
       length while it is within ``adhesion_range`` of cake or workplane, falling
-      linearly to 0 at the range (boundary);
+      linearly to 0 at the range, and where it touches holds it against sliding with
+      the same force per length on top of any Coulomb friction (boundary);
     * ``tool_tilt`` [rad]: the tool's cross-section is rotated about its reference
       point (boundary);
     * ``camera_scale`` [-]: the vision system's scale is off: measured points are
@@ -115,7 +116,7 @@ class WorldEffect:
 
 WORLD_EFFECTS: dict[str, WorldEffect] = {e.name: e for e in (
     WorldEffect("strain_hardening", "material", "", (1.0, 3.0), False),
-    WorldEffect("adhesion", "boundary", "N/m", (0.5, 2.0), False),
+    WorldEffect("adhesion", "boundary", "N/m", (1.0, 4.0), False),
     WorldEffect("tool_tilt", "boundary", "rad", (0.03, 0.08), True),
     WorldEffect("camera_scale", "sensor", "", (0.01, 0.03), True),
     WorldEffect("load_cell_drift", "sensor", "N/s", (3e-4, 1e-3), True),
