@@ -112,14 +112,21 @@ class WorldEffect:
     unit: str
     realistic: tuple[float, float]          # |value| range of real cells (benchmark draws)
     signed: bool                            # the benchmark draws a random sign
+    cause: str                              # its kind in the diagnosis signature's causes
+
+    def draw(self, rng) -> float:
+        """A realistic value (``rng``: a ``random.Random``)."""
+        v = rng.uniform(*self.realistic)
+        return v * rng.choice((-1.0, 1.0)) if self.signed else v
 
 
 WORLD_EFFECTS: dict[str, WorldEffect] = {e.name: e for e in (
-    WorldEffect("strain_hardening", "material", "", (1.0, 3.0), False),
-    WorldEffect("adhesion", "boundary", "N/m", (1.0, 4.0), False),
-    WorldEffect("tool_tilt", "boundary", "rad", (0.03, 0.08), True),
-    WorldEffect("camera_scale", "sensor", "", (0.01, 0.03), True),
-    WorldEffect("load_cell_drift", "sensor", "N/s", (3e-4, 1e-3), True),
+    WorldEffect("strain_hardening", "material", "", (1.0, 3.0), False,
+                "strain-dependent material"),
+    WorldEffect("adhesion", "boundary", "N/m", (1.0, 4.0), False, "contact friction"),
+    WorldEffect("tool_tilt", "boundary", "rad", (0.03, 0.08), True, "tool position calibration"),
+    WorldEffect("camera_scale", "sensor", "", (0.01, 0.03), True, "measurement chain"),
+    WorldEffect("load_cell_drift", "sensor", "N/s", (3e-4, 1e-3), True, "measurement chain"),
 )}
 WORLD_EFFECT_NAMES: tuple[str, ...] = tuple(WORLD_EFFECTS)
 
