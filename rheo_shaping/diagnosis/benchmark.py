@@ -155,7 +155,7 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
                 truth = EFFECTS[n].apply(truth, v)
         lay = None
         if dynamic:
-            lay = draw_lay((rng.random(), rng.random(), rng.random()))
+            lay = draw_lay((rng.random(), rng.random(), rng.random(), rng.random()))
         else:
             truth = true_numerics(truth)
         movements = rng.sample((1, 2, 3, 4), 3)

@@ -221,6 +221,7 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     par[K.I_HARD] = extra.strain_hardening
     par[K.I_ADH] = extra.adhesion
     par[K.I_ADH_RANGE] = extra.adhesion_range
+    par[K.I_LET_GO] = lay.let_go
     # the tool path sampled at 100 Hz; the real tool is off the commanded by tool_offset
     span = float(hs.sum())
     tool_t = np.linspace(0.0, span, int(math.ceil(span * 100.0)) + 1)

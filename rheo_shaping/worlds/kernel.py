@@ -41,10 +41,14 @@ JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 # ---------------------------------------------------------------- packed parameter indices
 #: ``par`` vector of :func:`run_chain`
 (I_GRAV, I_KC, I_CN, I_KT, I_MU_MOULD, I_MU_TOOL, I_AIR, I_CAKE_H, I_FILLET, I_RADIUS,
- I_TOOL_R, I_EI, I_PL_N, I_PL_REF, I_THIN, I_HARD, I_ADH, I_ADH_RANGE) = range(18)
-N_PAR = 18
+ I_TOOL_R, I_EI, I_PL_N, I_PL_REF, I_THIN, I_HARD, I_ADH, I_ADH_RANGE, I_LET_GO) = range(19)
+N_PAR = 19
 #: obstacles
 CAKE, FLOOR, TOOL = 0, 1, 2
+#: Newton solves per step at most, and the link-force mismatch [N] (law against its linear
+#: model at the solution) below which a step is converged
+MAX_NEWTON = 6
+FORCE_TOL = 1e-4
 
 
 # ---------------------------------------------------------------- obstacles
@@ -251,13 +255,14 @@ def add_block(ab, a, b, kxx, kxz, kzz):
 
 
 @njit(**JIT)
-def add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h, fad):
-    """Add the contact of mass ``i`` on obstacle ``o`` to the step's system: the penalty
-    kc (-gap) along the normal (linearised, so a contact that starts this step acts),
-    the normal damping cn on the velocity relative to the obstacle (implicit), and
-    Coulomb friction: a stick spring kt to an anchor fixed on the obstacle while
-    kt |s| <= mu F_n + fad, else the slip force mu F_n + fad (``fad`` [N]: a sticky
-    mould's shear strength at this mass, 0 on the tool)."""
+def add_contact(ab, rhs, i, o, xk, dlt, x, g0, n0, ovel, opos, anc, has, par, h, fad):
+    """Add the contact of mass ``i`` on obstacle ``o`` at the iterate ``xk`` = ``x`` +
+    ``dlt`` to the step's Newton system: the penalty kc (-gap) along the normal
+    (linearised, so a contact that starts this step acts), the normal damping cn on the
+    velocity dlt/h relative to the obstacle, and Coulomb friction: a stick spring kt to an
+    anchor fixed on the obstacle while kt |s| <= mu F_n + fad, else the slip force
+    mu F_n + fad (``fad`` [N]: a sticky mould's shear strength at this mass, 0 on the
+    tool)."""
     kc = par[I_KC]
     cn = par[I_CN]
     nx = n0[i, o, 0]
@@ -266,9 +271,9 @@ def add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h, fad):
     rhs[2 * i] -= kc * gap * nx
     rhs[2 * i + 1] -= kc * gap * nz
     add_block(ab, i, i, kc * nx * nx, kc * nx * nz, kc * nz * nz)
-    vn = nx * ovel[o, 0] + nz * ovel[o, 1]
-    rhs[2 * i] += cn * vn * nx
-    rhs[2 * i + 1] += cn * vn * nz
+    vn = (nx * dlt[i, 0] + nz * dlt[i, 1]) / h - (nx * ovel[o, 0] + nz * ovel[o, 1])
+    rhs[2 * i] -= cn * vn * nx
+    rhs[2 * i + 1] -= cn * vn * nz
     add_block(ab, i, i, cn / h * nx * nx, cn / h * nx * nz, cn / h * nz * nz)
     mu = par[I_MU_TOOL] if o == TOOL else par[I_MU_MOULD]
     if mu <= 0.0 and fad <= 0.0:
@@ -280,7 +285,7 @@ def add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h, fad):
     kt = par[I_KT]
     sx = -nz
     sz = nx
-    s = sx * (x[i, 0] - opos[o, 0] - anc[i, o, 0]) + sz * (x[i, 1] - opos[o, 1] - anc[i, o, 1])
+    s = sx * (xk[i, 0] - opos[o, 0] - anc[i, o, 0]) + sz * (xk[i, 1] - opos[o, 1] - anc[i, o, 1])
     cap = mu * max(-kc * gap, 0.0) + fad
     if kt * abs(s) <= cap:
         rhs[2 * i] -= kt * s * sx
@@ -292,16 +297,98 @@ def add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h, fad):
         rhs[2 * i + 1] -= cap * sg * sz
 
 
+@njit(**JIT)
+def assemble(ab, rhs, xk, dlt, v, mass, nodes, L0, consts, free, A, S, taut, bend_n, kb,
+             fadh, par, h, first, grav):
+    """The step's Newton system at the iterate ``xk`` (= x + ``dlt``) without the contacts:
+    rhs = -R with R = M (dlt - h v)/h^2 + air M dlt/h - f(xk) (gravity ``grav``, links at their
+    end-of-step law F = A + S (l - free), bending on the step-start normals ``bend_n``,
+    adhesion ``fadh``), ``ab`` = dR/d(dlt) in band form.  On the ``first`` iterate a link
+    is taut if it is now or would be at the predicted length, later if it is now."""
+    n = xk.shape[0]
+    m = n + 1
+    air = par[I_AIR]
+    ab[:, :] = 0.0
+    for i in range(n):
+        mi = mass[i]
+        diag = mi / (h * h) + air * mi / h
+        ab[0, 2 * i] += diag
+        ab[0, 2 * i + 1] += diag
+        for c in range(2):
+            rhs[2 * i + c] = -mi * (dlt[i, c] - h * v[i, c]) / (h * h) - air * mi * dlt[i, c] / h \
+                + fadh[i, c]
+        rhs[2 * i + 1] -= mi * grav
+    nodes[1:n + 1] = xk
+    for i in range(m):
+        a, b = i - 1, i                          # mass indices of the link's ends
+        dx = nodes[i + 1, 0] - nodes[i, 0]
+        dz = nodes[i + 1, 1] - nodes[i, 1]
+        ln = math.sqrt(dx * dx + dz * dz)
+        ux = dx / ln
+        uz = dz / ln
+        F = A[i] + S[i] * (ln - free[i])
+        if first:
+            pvx = (v[b, 0] if b < n else 0.0) - (v[a, 0] if a >= 0 else 0.0)
+            pvz = (v[b, 1] if b < n else 0.0) - (v[a, 1] if a >= 0 else 0.0)
+            lp = math.sqrt((dx + h * pvx) ** 2 + (dz + h * pvz) ** 2)
+            taut[i] = F > 0.0 or A[i] + S[i] * (lp - free[i]) > 0.0
+        else:
+            taut[i] = F > 0.0
+        if not taut[i]:
+            continue
+        Si = S[i]
+        if a >= 0:
+            rhs[2 * a] += F * ux
+            rhs[2 * a + 1] += F * uz
+        if b < n:
+            rhs[2 * b] -= F * ux
+            rhs[2 * b + 1] -= F * uz
+        g = max(F, 0.0) / ln
+        kxx = Si * ux * ux + g * (1.0 - ux * ux)
+        kxz = (Si - g) * ux * uz
+        kzz = Si * uz * uz + g * (1.0 - uz * uz)
+        if a >= 0:
+            add_block(ab, a, a, kxx, kxz, kzz)
+        if b < n:
+            add_block(ab, b, b, kxx, kxz, kzz)
+        if a >= 0 and b < n:
+            add_block(ab, b, a, -kxx, -kxz, -kzz)
+    if par[I_EI] > 0.0:
+        # bending: E = kb/2 (n . (x_{j-1} - 2 x_j + x_{j+1}))^2 per mass, kb = EI / h^3
+        for i in range(n):
+            j = i + 1                                # node index
+            nx = bend_n[i, 0]
+            nz = bend_n[i, 1]
+            bval = nx * (nodes[j - 1, 0] - 2 * nodes[j, 0] + nodes[j + 1, 0]) + \
+                nz * (nodes[j - 1, 1] - 2 * nodes[j, 1] + nodes[j + 1, 1])
+            k = kb[i]
+            for (ma, ca) in ((i - 1, 1.0), (i, -2.0), (i + 1, 1.0)):
+                if not 0 <= ma < n:
+                    continue
+                rhs[2 * ma] -= k * bval * ca * nx
+                rhs[2 * ma + 1] -= k * bval * ca * nz
+                for (mb, cb) in ((i - 1, 1.0), (i, -2.0), (i + 1, 1.0)):
+                    if 0 <= mb <= ma:
+                        f = k * ca * cb
+                        add_block(ab, ma, mb, f * nx * nx, f * nx * nz, f * nz * nz)
+
+
 # ---------------------------------------------------------------- the run
 @njit(**JIT)
 def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, hs, keep,
               e1, p):
-    """Steps of ``hs`` (S,) [s] from t = 0; the tool (reference point at
-    ``tool_xz`` (T, 2) [m], sampled at ``tool_t`` (T,) [s], real pose incl. any offset)
-    interpolated linearly.  ``x``, ``v`` (N, 2), ``e1``, ``p`` (N+1,) are advanced in place;
-    ``anchors`` (2, 2) are the bonds.  After each step with ``keep`` (S,) true a sample is
-    kept: positions, plastic elongation, the time means of link tension and tool force
-    since the last sample.
+    """Steps of ``hs`` (S,) [s] from t = 0; the tool (reference point at ``tool_xz`` (T, 2)
+    [m], sampled at ``tool_t`` (T,) [s], the real pose incl. any offset) interpolated
+    linearly.  ``x``, ``v`` (N, 2), ``e1``, ``p`` (N+1,) are advanced in place; ``anchors``
+    (2, 2) are the bonds.  After each step with ``keep`` (S,) true a sample is kept:
+    positions, plastic elongation, the time means of link tension and tool force since the
+    last sample.
+
+    Each step solves the backward-Euler equations by Newton's method (at most
+    ``MAX_NEWTON`` solves; it stops when no link's law is off its linear model by more
+    than ``FORCE_TOL`` and the contact set holds), each solve on an active set of
+    contacts (a contact that would pull is let go, one that would be passed through is
+    held).
 
     Returns (t (K,), x (K, N, 2), tension (K, N+1), tool force (K, 2) of the sheet on the
     tool [N], plastic (K, N+1), mould force (K, 2) [N], status: 0 ok, 1 not positive
@@ -319,39 +406,40 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
     out_p = np.zeros((n_out, m))
     out_mould = np.zeros((n_out, 2))
     ab = np.zeros((kd + 1, ndof))
+    ab0 = np.zeros((kd + 1, ndof))
     rhs = np.zeros(ndof)
+    rhs0 = np.zeros(ndof)
     consts = np.zeros((3, m))
     tension = np.zeros(m)
     A = np.zeros(m)
     S = np.zeros(m)
     free = np.zeros(m)
-    # friction anchors per mass and obstacle: stored position (the tool's in its frame)
-    anc = np.zeros((n, 3, 2))
+    taut = np.zeros(m, dtype=np.bool_)
+    anc = np.zeros((n, 3, 2))      # friction anchors per mass and obstacle (tool: its frame)
     has = np.zeros((n, 3), dtype=np.bool_)
-    fsum_F = np.zeros(m)
-    fsum_tool = np.zeros(2)
-    fsum_mould = np.zeros(2)
-    nodes = np.zeros((n + 2, 2))
-    ab0 = np.zeros((kd + 1, ndof))
-    rhs0 = np.zeros(ndof)
     g0 = np.zeros((n, 3))
     n0 = np.zeros((n, 3, 2))
     act = np.zeros((n, 3), dtype=np.bool_)
     ovel = np.zeros((3, 2))        # obstacles' velocity and position (only the tool moves)
     opos = np.zeros((3, 2))
-    grav = par[I_GRAV]
+    fsum_F = np.zeros(m)
+    fsum_tool = np.zeros(2)
+    fsum_mould = np.zeros(2)
+    nodes = np.zeros((n + 2, 2))
+    nodes[0] = anchors[0]
+    nodes[n + 1] = anchors[1]
+    dlt = np.zeros((n, 2))
+    xk = np.zeros((n, 2))
+    fadh = np.zeros((n, 2))
+    bend_n = np.zeros((n, 2))
     kc = par[I_KC]
     cn = par[I_CN]
     kt = par[I_KT]
-    air = par[I_AIR]
-    EI = par[I_EI]
     adh = par[I_ADH]
     adh_rng = par[I_ADH_RANGE]
     kb = np.zeros(n)
-    if EI > 0.0:
-        for i in range(n):
-            hl = 0.5 * (L0[i] + L0[i + 1])
-            kb[i] = EI / hl ** 3
+    for i in range(n):
+        kb[i] = par[I_EI] / (0.5 * (L0[i] + L0[i + 1])) ** 3
     out_x[0] = x
     out_p[0] = p
     k_out = 1
@@ -365,139 +453,115 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
         span += h
         while ti < tool_t.size - 2 and tool_t[ti + 1] < t1:
             ti += 1
-        w = (t1 - tool_t[ti]) / (tool_t[ti + 1] - tool_t[ti])
-        w = min(max(w, 0.0), 1.0)
+        w = min(max((t1 - tool_t[ti]) / (tool_t[ti + 1] - tool_t[ti]), 0.0), 1.0)
         tx = tool_xz[ti, 0] + w * (tool_xz[ti + 1, 0] - tool_xz[ti, 0])
         tz = tool_xz[ti, 1] + w * (tool_xz[ti + 1, 1] - tool_xz[ti, 1])
-        tvx = (tx - tx0) / h
-        tvz = (tz - tz0) / h
-        ovel[TOOL, 0] = tvx
-        ovel[TOOL, 1] = tvz
+        ovel[TOOL, 0] = (tx - tx0) / h
+        ovel[TOOL, 1] = (tz - tz0) / h
         opos[TOOL, 0] = tx
         opos[TOOL, 1] = tz
+        # the hands let go: the sheet's weight comes on over par[I_LET_GO] seconds
+        grav = par[I_GRAV] * (min(1.0, t1 / par[I_LET_GO]) if par[I_LET_GO] > 0.0 else 1.0)
+        # the links' law over this step (constants lagged on the state), bending normals,
+        # adhesion: all from the step's start
         link_constants(L0, k1, c1, c2, e1, p, tension, par, consts)
-        ab[:, :] = 0.0
-        # inertia, gravity, air damping
-        for i in range(n):
-            mi = mass[i]
-            diag = mi / (h * h) + air * mi / h
-            ab[0, 2 * i] += diag
-            ab[0, 2 * i + 1] += diag
-            rhs[2 * i] = mi * v[i, 0] / h
-            rhs[2 * i + 1] = mi * v[i, 1] / h - mi * grav
-        nodes[0] = anchors[0]
-        nodes[n + 1] = anchors[1]
-        nodes[1:n + 1] = x
-        # links
         for i in range(m):
-            a, b = i - 1, i                          # mass indices of the link's ends
-            dx = nodes[i + 1, 0] - nodes[i, 0]
-            dz = nodes[i + 1, 1] - nodes[i, 1]
-            ln = math.sqrt(dx * dx + dz * dz)
-            ux = dx / ln
-            uz = dz / ln
             free[i] = L0[i] + e1[i] + p[i]
-            Ai, Si = link_affine(consts[0, i], consts[1, i], consts[2, i], e1[i], h)
-            A[i] = Ai
-            S[i] = Si
-            F = Ai + Si * (ln - free[i])
-            # predicted length (the taut set of the linear model)
-            pvx = (v[b, 0] if b < n else 0.0) - (v[a, 0] if a >= 0 else 0.0)
-            pvz = (v[b, 1] if b < n else 0.0) - (v[a, 1] if a >= 0 else 0.0)
-            lp = math.sqrt((dx + h * pvx) ** 2 + (dz + h * pvz) ** 2)
-            if F <= 0.0 and Ai + Si * (lp - free[i]) <= 0.0:
-                continue
-            fx = F * ux
-            fz = F * uz
-            if a >= 0:
-                rhs[2 * a] += fx
-                rhs[2 * a + 1] += fz
-            if b < n:
-                rhs[2 * b] -= fx
-                rhs[2 * b + 1] -= fz
-            g = max(F, 0.0) / ln
-            kxx = Si * ux * ux + g * (1.0 - ux * ux)
-            kxz = (Si - g) * ux * uz
-            kzz = Si * uz * uz + g * (1.0 - uz * uz)
-            if a >= 0:
-                add_block(ab, a, a, kxx, kxz, kzz)
-            if b < n:
-                add_block(ab, b, b, kxx, kxz, kzz)
-            if a >= 0 and b < n:
-                add_block(ab, b, a, -kxx, -kxz, -kzz)
-        # bending: projected second difference, normal lagged (EI / h^3 per mass)
-        if EI > 0.0:
-            for i in range(n):
-                j = i + 1                            # node index
-                qx = nodes[j + 1, 0] - nodes[j - 1, 0]
-                qz = nodes[j + 1, 1] - nodes[j - 1, 1]
-                lq = math.sqrt(qx * qx + qz * qz)
-                nx = -qz / lq
-                nz = qx / lq
-                bval = nx * (nodes[j - 1, 0] - 2 * nodes[j, 0] + nodes[j + 1, 0]) + \
-                    nz * (nodes[j - 1, 1] - 2 * nodes[j, 1] + nodes[j + 1, 1])
-                k = kb[i]
-                for (mi_, c) in ((i - 1, 1.0), (i, -2.0), (i + 1, 1.0)):
-                    if 0 <= mi_ < n:
-                        rhs[2 * mi_] -= k * bval * c * nx
-                        rhs[2 * mi_ + 1] -= k * bval * c * nz
-                for (ma, ca) in ((i - 1, 1.0), (i, -2.0), (i + 1, 1.0)):
-                    for (mb, cb) in ((i - 1, 1.0), (i, -2.0), (i + 1, 1.0)):
-                        if 0 <= mb <= ma < n:
-                            f = k * ca * cb
-                            add_block(ab, ma, mb, f * nx * nx, f * nx * nz, f * nz * nz)
-        # contact: the pairs (mass, obstacle) that act, from the step's start (obstacles at
-        # their end pose), then corrected on the solution (an active set, at most 4 solves)
+            A[i], S[i] = link_affine(consts[0, i], consts[1, i], consts[2, i], e1[i], h)
+        nodes[1:n + 1] = x
         for i in range(n):
-            for o in range(3):
-                gap, nx, nz = obstacle_gap(o, x[i, 0], x[i, 1], par, verts, tx, tz)
-                g0[i, o] = gap
-                n0[i, o, 0] = nx
-                n0[i, o, 1] = nz
-                if o != TOOL and adh > 0.0 and gap < adh_rng:
-                    fa = adh * 0.5 * (L0[i] + L0[i + 1]) * (1.0 - max(gap, 0.0) / adh_rng)
-                    rhs[2 * i] -= fa * nx
-                    rhs[2 * i + 1] -= fa * nz
-                vrel = nx * (v[i, 0] - ovel[o, 0]) + nz * (v[i, 1] - ovel[o, 1])
-                act[i, o] = gap < 0.0 or gap + h * vrel < 0.0
-        ab0[:, :] = ab
-        rhs0[:] = rhs
-        for _it in range(4):
-            ab[:, :] = ab0
-            rhs[:] = rhs0
+            qx = nodes[i + 2, 0] - nodes[i, 0]
+            qz = nodes[i + 2, 1] - nodes[i, 1]
+            lq = math.sqrt(qx * qx + qz * qz)
+            bend_n[i, 0] = -qz / lq
+            bend_n[i, 1] = qx / lq
+            fadh[i, 0] = 0.0
+            fadh[i, 1] = 0.0
+            if adh > 0.0:
+                for o in range(2):
+                    gap, nx, nz = obstacle_gap(o, x[i, 0], x[i, 1], par, verts, tx, tz)
+                    if gap < adh_rng:
+                        fa = adh * 0.5 * (L0[i] + L0[i + 1]) * (1.0 - max(gap, 0.0) / adh_rng)
+                        fadh[i, 0] -= fa * nx
+                        fadh[i, 1] -= fa * nz
+        dlt[:, :] = 0.0
+        for newton in range(MAX_NEWTON):
+            for i in range(n):
+                xk[i, 0] = x[i, 0] + dlt[i, 0]
+                xk[i, 1] = x[i, 1] + dlt[i, 1]
+            assemble(ab0, rhs0, xk, dlt, v, mass, nodes, L0, consts, free, A, S, taut,
+                     bend_n, kb, fadh, par, h, newton == 0, grav)
             for i in range(n):
                 for o in range(3):
-                    if act[i, o]:
-                        fad = 0.0 if o == TOOL else adh * 0.5 * (L0[i] + L0[i + 1])
-                        add_contact(ab, rhs, i, o, x, g0, n0, ovel, opos, anc, has, par, h,
-                                    fad)
-            if not pb_factor(ab, kd):
-                return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
-                    out_p[:k_out], out_mould[:k_out], 1
-            pb_solve(ab, kd, rhs)
-            changed = False
-            for i in range(n):
-                for o in range(3):
-                    nx = n0[i, o, 0]
-                    nz = n0[i, o, 1]
-                    dn = nx * rhs[2 * i] + nz * rhs[2 * i + 1]
-                    if act[i, o]:
-                        ovn = nx * ovel[o, 0] + nz * ovel[o, 1]
-                        if -kc * (g0[i, o] + dn) - cn * (dn / h - ovn) < 0.0:
-                            act[i, o] = False           # it would pull: let go
+                    gap, nx, nz = obstacle_gap(o, xk[i, 0], xk[i, 1], par, verts, tx, tz)
+                    g0[i, o] = gap
+                    n0[i, o, 0] = nx
+                    n0[i, o, 1] = nz
+                    vrel = nx * (v[i, 0] - ovel[o, 0]) + nz * (v[i, 1] - ovel[o, 1])
+                    act[i, o] = gap < 0.0 or (newton == 0 and gap + h * vrel < 0.0)
+            set_changed = False
+            for _it in range(4):
+                ab[:, :] = ab0
+                rhs[:] = rhs0
+                for i in range(n):
+                    for o in range(3):
+                        if act[i, o]:
+                            fad = 0.0 if o == TOOL else adh * 0.5 * (L0[i] + L0[i + 1])
+                            add_contact(ab, rhs, i, o, xk, dlt, x, g0, n0, ovel, opos, anc,
+                                        has, par, h, fad)
+                if not pb_factor(ab, kd):
+                    return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
+                        out_p[:k_out], out_mould[:k_out], 1
+                pb_solve(ab, kd, rhs)
+                changed = False
+                for i in range(n):
+                    for o in range(3):
+                        nx = n0[i, o, 0]
+                        nz = n0[i, o, 1]
+                        dn = nx * rhs[2 * i] + nz * rhs[2 * i + 1]
+                        if act[i, o]:
+                            vn = (nx * (dlt[i, 0] + rhs[2 * i]) + nz * (dlt[i, 1] + rhs[2 * i + 1])
+                                  ) / h - (nx * ovel[o, 0] + nz * ovel[o, 1])
+                            if -kc * (g0[i, o] + dn) - cn * vn < 0.0:
+                                act[i, o] = False           # it would pull: let go
+                                changed = True
+                        elif g0[i, o] + dn < 0.0:
+                            act[i, o] = True                # it would pass through: hold it
                             changed = True
-                    elif g0[i, o] + dn < 0.0:
-                        act[i, o] = True                # it would pass through: hold it
-                        changed = True
-            if not changed:
+                if not changed:
+                    break
+                set_changed = True
+            # the Newton update; converged when every taut link's law is on its linear model
+            worst = 0.0
+            for i in range(n):
+                dlt[i, 0] += rhs[2 * i]
+                dlt[i, 1] += rhs[2 * i + 1]
+            for i in range(m):
+                if not taut[i]:
+                    continue
+                a, b = i - 1, i
+                dax = rhs[2 * a] if a >= 0 else 0.0
+                daz = rhs[2 * a + 1] if a >= 0 else 0.0
+                dbx = rhs[2 * b] if b < n else 0.0
+                dbz = rhs[2 * b + 1] if b < n else 0.0
+                ax = nodes[i, 0] + (dax if a >= 0 else 0.0)
+                az = nodes[i, 1] + (daz if a >= 0 else 0.0)
+                bx = nodes[i + 1, 0] + (dbx if b < n else 0.0)
+                bz = nodes[i + 1, 1] + (dbz if b < n else 0.0)
+                l_old = math.sqrt((nodes[i + 1, 0] - nodes[i, 0]) ** 2
+                                  + (nodes[i + 1, 1] - nodes[i, 1]) ** 2)
+                ux = (nodes[i + 1, 0] - nodes[i, 0]) / l_old
+                uz = (nodes[i + 1, 1] - nodes[i, 1]) / l_old
+                l_lin = l_old + ux * (dbx - dax) + uz * (dbz - daz)
+                l_new = math.sqrt((bx - ax) ** 2 + (bz - az) ** 2)
+                worst = max(worst, S[i] * abs(l_new - l_lin))
+            if worst < FORCE_TOL and not set_changed:
                 break
         for i in range(n):
-            dxi = rhs[2 * i]
-            dzi = rhs[2 * i + 1]
-            v[i, 0] = dxi / h
-            v[i, 1] = dzi / h
-            x[i, 0] += dxi
-            x[i, 1] += dzi
+            v[i, 0] = dlt[i, 0] / h
+            v[i, 1] = dlt[i, 1] / h
+            x[i, 0] += dlt[i, 0]
+            x[i, 1] += dlt[i, 1]
         if not np.all(np.isfinite(x)):
             return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
                 out_p[:k_out], out_mould[:k_out], 2
@@ -516,16 +580,11 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
         # contact forces at the step's end (the load cell, the mould) and the anchors' slip
         for i in range(n):
             for o in range(3):
-                ox = tx if o == TOOL else 0.0
-                oz = tz if o == TOOL else 0.0
                 gap, nx, nz = obstacle_gap(o, x[i, 0], x[i, 1], par, verts, tx, tz)
                 if gap >= 0.0:
                     has[i, o] = False
                     continue
-                fn = -kc * gap
-                ovx = tvx if o == TOOL else 0.0
-                ovz = tvz if o == TOOL else 0.0
-                fn -= cn * (nx * (v[i, 0] - ovx) + nz * (v[i, 1] - ovz))
+                fn = -kc * gap - cn * (nx * (v[i, 0] - ovel[o, 0]) + nz * (v[i, 1] - ovel[o, 1]))
                 fn = max(fn, 0.0)
                 fx = fn * nx
                 fz = fn * nz
@@ -533,7 +592,8 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                 if has[i, o]:
                     sx = -nz
                     sz = nx
-                    s = sx * (x[i, 0] - ox - anc[i, o, 0]) + sz * (x[i, 1] - oz - anc[i, o, 1])
+                    s = sx * (x[i, 0] - opos[o, 0] - anc[i, o, 0]) + \
+                        sz * (x[i, 1] - opos[o, 1] - anc[i, o, 1])
                     cap = mu * fn + (0.0 if o == TOOL else adh * 0.5 * (L0[i] + L0[i + 1]))
                     if kt * abs(s) > cap:              # slip: the anchor follows
                         sg = 1.0 if s > 0.0 else -1.0

@@ -48,12 +48,14 @@ class LayParams:
     shape w(u) = A (sin(pi u) + mode2 sin(2 pi u)) off its chord (u in 0-1 from the
     edge to the workplane bond, A > 0 toward gravity, solved for the length), raised
     by ``lift`` [m] off the cake (top and edge), and laid with a ``prestrain``
-    (links' rest length = laid length / (1 + prestrain)).  Released from rest.
+    (links' rest length = laid length / (1 + prestrain)).  Released from rest at t = 0:
+    the hands let go over ``let_go`` [s] (the sheet's weight comes on linearly).
     """
 
     mode2: float = 0.0        # second sine mode of the free part's shape, relative to the first
     lift: float = 0.0         # m, height the sheet is held above the cake top and edge
     prestrain: float = 0.0    # strain the sheet was laid with (negative: laid loose)
+    let_go: float = 0.3       # s, how long the release takes
 
     def __post_init__(self) -> None:
         if not -1.0 <= self.mode2 <= 1.0:
@@ -62,6 +64,8 @@ class LayParams:
             raise ValueError(f"lift = {self.lift!r} m: expected 0 to 5e-3 m")
         if not -0.02 <= self.prestrain <= 0.02:
             raise ValueError(f"prestrain = {self.prestrain!r}: expected -0.02 to 0.02")
+        if not 0.0 <= self.let_go <= 1.0:
+            raise ValueError(f"let_go = {self.let_go!r} s: expected 0 to 1 s")
 
 
 @dataclass(frozen=True)
@@ -123,7 +127,7 @@ class WorldEffect:
 WORLD_EFFECTS: dict[str, WorldEffect] = {e.name: e for e in (
     WorldEffect("strain_hardening", "material", "", (1.0, 3.0), False,
                 "strain-dependent material"),
-    WorldEffect("adhesion", "boundary", "N/m", (1.0, 4.0), False, "contact friction"),
+    WorldEffect("adhesion", "boundary", "N/m", (2.0, 6.0), False, "contact friction"),
     WorldEffect("tool_tilt", "boundary", "rad", (0.03, 0.08), True, "tool position calibration"),
     WorldEffect("camera_scale", "sensor", "", (0.01, 0.03), True, "measurement chain"),
     WorldEffect("load_cell_drift", "sensor", "N/s", (3e-4, 1e-3), True, "measurement chain"),
@@ -132,7 +136,8 @@ WORLD_EFFECT_NAMES: tuple[str, ...] = tuple(WORLD_EFFECTS)
 
 
 def draw_lay(u: Sequence[float]) -> LayParams:
-    """A laying from three uniform numbers in [0, 1): mode2 in +-0.5, lift 0-1.5 mm,
-    prestrain +-0.3 %."""
-    a, b, c = (float(x) for x in u)
-    return LayParams(mode2=-0.5 + a, lift=1.5e-3 * b, prestrain=-3e-3 + 6e-3 * c)
+    """A laying from four uniform numbers in [0, 1): mode2 in +-0.5, lift 0-1.5 mm,
+    prestrain +-0.3 %, let go over 0.2-0.6 s."""
+    a, b, c, d = (float(x) for x in u)
+    return LayParams(mode2=-0.5 + a, lift=1.5e-3 * b, prestrain=-3e-3 + 6e-3 * c,
+                     let_go=0.2 + 0.4 * d)
