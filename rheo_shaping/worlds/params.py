@@ -125,10 +125,10 @@ class WorldEffect:
 
 
 WORLD_EFFECTS: dict[str, WorldEffect] = {e.name: e for e in (
-    WorldEffect("strain_hardening", "material", "", (1.0, 3.0), False,
+    WorldEffect("strain_hardening", "material", "", (0.5, 2.0), False,
                 "strain-dependent material"),
     WorldEffect("adhesion", "boundary", "N/m", (2.0, 6.0), False, "contact friction"),
-    WorldEffect("tool_tilt", "boundary", "rad", (0.03, 0.08), True, "tool position calibration"),
+    WorldEffect("tool_tilt", "boundary", "rad", (0.01, 0.025), True, "tool position calibration"),
     WorldEffect("camera_scale", "sensor", "", (0.01, 0.03), True, "measurement chain"),
     WorldEffect("load_cell_drift", "sensor", "N/s", (3e-4, 1e-3), True, "measurement chain"),
 )}
