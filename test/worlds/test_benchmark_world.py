@@ -73,3 +73,17 @@ def test_the_world_runs_without_the_sheet_model():
             "'rheo_shaping.records.measurement', 'rheo_shaping.diagnosis'))]\n"
             "assert not bad, bad\n")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_a_world_record_round_trips_as_a_record_directory(tmp_path):
+    """What a user diagnoses: a world record written as a rosbag2 directory with its
+    scenario.yaml reads back with the same samples."""
+    pytest.importorskip("rosbags")
+    from rheo_shaping.records.records import read_record, write_record
+    case = make_case(1, "none", 4, base_cell(31, 20.0), world="dynamic")
+    rec = case["records"][0]
+    back = read_record(write_record(rec, tmp_path / "r0"))
+    assert back.scenario == rec.scenario
+    assert np.allclose(back.pose_xz, rec.pose_xz) and np.allclose(back.wrench_xz, rec.wrench_xz)
+    assert len(back.profiles) == len(rec.profiles)
+    assert all(np.allclose(a, b) for a, b in zip(back.profiles, rec.profiles))
