@@ -139,6 +139,8 @@ class WorldRun:
     anchors: tuple           # the bonds, (2,) m each
     wall_time_s: float
     params: CellParams = field(repr=False)
+    steps: int = 0               # time steps taken
+    unconverged_steps: int = 0   # steps that used every Newton solve (kernel.MAX_NEWTON)
 
     def nodes(self, k: int = -1) -> np.ndarray:
         """Bond, masses, bond (N+2, 2) [m] at sample ``k``."""
@@ -233,7 +235,7 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     p = np.zeros(L0.size)
     anchors = np.ascontiguousarray(np.vstack((nodes[0], nodes[-1])))
     wall = time.perf_counter()
-    t, xs, F, ftool, pl, fmould, status = K.run_chain(
+    t, xs, F, ftool, pl, fmould, status, unconverged = K.run_chain(
         x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, np.ascontiguousarray(real),
         hs, keep, e1, p)
     wall = time.perf_counter() - wall
@@ -244,4 +246,4 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     return WorldRun(t=t, x=xs, tension=F, plastic=pl, tool=tool, tool_force=ftool,
                     mould_force=fmould, rest_length=L0,
                     anchors=(anchors[0].copy(), anchors[1].copy()), wall_time_s=wall,
-                    params=params)
+                    params=params, steps=int(hs.size), unconverged_steps=int(unconverged))

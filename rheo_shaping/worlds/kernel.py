@@ -392,7 +392,7 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
 
     Returns (t (K,), x (K, N, 2), tension (K, N+1), tool force (K, 2) of the sheet on the
     tool [N], plastic (K, N+1), mould force (K, 2) [N], status: 0 ok, 1 not positive
-    definite, 2 non-finite)."""
+    definite, 2 non-finite, steps that used every Newton solve without converging)."""
     n = x.shape[0]
     m = n + 1
     n_steps = hs.size
@@ -447,6 +447,7 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
     tx0, tz0 = tool_xz[0, 0], tool_xz[0, 1]
     t1 = 0.0
     span = 0.0
+    n_unconv = 0
     for step in range(n_steps):
         h = hs[step]
         t1 += h
@@ -497,8 +498,9 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                     g0[i, o] = gap
                     n0[i, o, 0] = nx
                     n0[i, o, 1] = nz
-                    vrel = nx * (v[i, 0] - ovel[o, 0]) + nz * (v[i, 1] - ovel[o, 1])
-                    act[i, o] = gap < 0.0 or (newton == 0 and gap + h * vrel < 0.0)
+                    if newton == 0:         # later solves start from the last active set
+                        vrel = nx * (v[i, 0] - ovel[o, 0]) + nz * (v[i, 1] - ovel[o, 1])
+                        act[i, o] = gap < 0.0 or gap + h * vrel < 0.0
             set_changed = False
             for _it in range(4):
                 ab[:, :] = ab0
@@ -511,7 +513,7 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                                         has, par, h, fad)
                 if not pb_factor(ab, kd):
                     return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
-                        out_p[:k_out], out_mould[:k_out], 1
+                        out_p[:k_out], out_mould[:k_out], 1, n_unconv
                 pb_solve(ab, kd, rhs)
                 changed = False
                 for i in range(n):
@@ -557,6 +559,8 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                 worst = max(worst, S[i] * abs(l_new - l_lin))
             if worst < FORCE_TOL and not set_changed:
                 break
+            if newton == MAX_NEWTON - 1:
+                n_unconv += 1
         for i in range(n):
             v[i, 0] = dlt[i, 0] / h
             v[i, 1] = dlt[i, 1] / h
@@ -564,7 +568,7 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
             x[i, 1] += dlt[i, 1]
         if not np.all(np.isfinite(x)):
             return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], \
-                out_p[:k_out], out_mould[:k_out], 2
+                out_p[:k_out], out_mould[:k_out], 2, n_unconv
         # the links' state at the step's end
         nodes[1:n + 1] = x
         for i in range(m):
@@ -625,4 +629,4 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
             k_out += 1
             span = 0.0
     return out_t[:k_out], out_x[:k_out], out_F[:k_out], out_tool[:k_out], out_p[:k_out], \
-        out_mould[:k_out], 0
+        out_mould[:k_out], 0, n_unconv
