@@ -228,7 +228,8 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     span = float(hs.sum())
     tool_t = np.linspace(0.0, span, int(math.ceil(span * 100.0)) + 1)
     commanded = np.array([path.position(t) for t in tool_t], dtype=float)
-    real = commanded + np.asarray(eff.tool_offset, float)
+    lagged = np.array([path.position(max(t - extra.tool_lag, 0.0)) for t in tool_t], dtype=float)
+    real = lagged + np.asarray(eff.tool_offset, float)          # the tool's real pose
     x = np.ascontiguousarray(nodes[1:-1].copy())
     v = np.zeros_like(x)
     e1 = np.zeros(L0.size)

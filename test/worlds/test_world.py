@@ -135,3 +135,14 @@ def test_sensors_and_their_errors():
                   np.interp(on.wrench_t, run.t, run.tool_force[:, 1])]
     assert np.allclose(drift[:, 0], 0.1 * force[:, 0])
     assert np.allclose(drift[:, 1], 0.1 * force[:, 1] + 0.05 + 1e-3 * on.wrench_t)
+
+
+def test_tool_tilt_rotates_the_cross_section_about_the_reference_point():
+    from rheo_shaping.worlds.dynamic import tool_vertices
+    p = cell(1)
+    v0, r0 = tool_vertices(p)
+    v1, r1 = tool_vertices(p, 0.01)
+    assert r1 == r0 == p.tool.corner_radius
+    assert np.allclose(np.hypot(*v1.T), np.hypot(*v0.T))
+    ang = np.arctan2(v1[:, 1], v1[:, 0]) - np.arctan2(v0[:, 1], v0[:, 0])
+    assert np.allclose((ang + np.pi) % (2 * np.pi) - np.pi, 0.01)
