@@ -85,7 +85,8 @@ def main() -> None:
           "[mm], F_max change)")
     for r in out["convergence"]:
         print(f"  {r['movement']} {r['lay']:8s} {r['refinement']:12s} {r['force_rms_mN']:6.2f} / "
-              f"{r['force_max_mN']:6.1f}  {r['profile_rms_mm']:.3f}  {100 * r['F_max_change']:+.2f} %")
+              f"{r['force_max_mN']:6.1f}  {r['profile_rms_mm']:.3f}  "
+              f"{100 * r['F_max_change']:+.2f} %")
     print("Table 2 (63 masses): F_max [N] world / paper")
     for k, r in out["table2"].items():
         print(f"  {k}: {r['F_max']:.3f} / {r['paper']:.3f} ({100 * r['rel']:+.1f} %), "

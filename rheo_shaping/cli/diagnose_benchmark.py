@@ -71,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, default=float))
         return 0
-    print(f"world {out['world']}: {out['cases']} cases ({out['single_cases']} single, {out['none_cases']} none, "
+    print(f"world {out['world']}: {out['cases']} cases ({out['single_cases']} single, "
+          f"{out['none_cases']} none, "
           f"{out['sensor_cases']} sensor, {out['out_of_library_cases']} out of library), "
           f"{out['wall_time_s']:.0f} s")
     for key, target in (("top1_accuracy", ">= 0.90"), ("top1_accuracy_beyond_noise", ">= 0.90"),

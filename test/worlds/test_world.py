@@ -31,8 +31,8 @@ def test_laid_sheet_has_the_scenarios_length_and_stays_out_of_the_mould():
     p = cell(1)
     for lay in (LayParams(), LAID, draw_lay((0.9, 0.1, 0.5, 0.5))):
         line = laid_shape(p, lay, tool=movement_plan(p).position(0.0))
-        assert np.hypot(*np.diff(line, axis=0).T).sum() == pytest.approx(scenario_length(p),
-                                                                          rel=1e-6)
+        length = np.hypot(*np.diff(line, axis=0).T).sum()
+        assert length == pytest.approx(scenario_length(p), rel=1e-6)
         assert line[:, 1].min() >= 0.5 * p.sheet.thickness - 1e-9
         assert np.all((line[:, 0] >= 0.5 * p.sheet.thickness - 1e-9)
                       | (line[:, 1] >= p.cake.height - 1e-9)
