@@ -11,4 +11,6 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'params': ['WorldNumerics', 'LayParams', 'WorldEffects', 'WORLD_EFFECTS',
                'WORLD_EFFECT_NAMES', 'draw_lay'],
     'dynamic': ['WorldRun', 'run_world', 'laid_shape', 'scenario_length'],
+    'sensors': ['SensorParams', 'measure_world', 'world_record'],
+    'verify': ['RunGap', 'run_gap'],
 })
