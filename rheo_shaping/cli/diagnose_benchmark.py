@@ -28,6 +28,11 @@ def add_parser(sub) -> None:
     p.add_argument("--process-time", type=float, default=70.0,
                    help="length of each record [s] (default 70)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--world", default="finer-chain", metavar="NAME",
+                   help="what makes the records: finer-chain (the sheet model on finer numerics, "
+                        "the default) or dynamic (an independent simulator of another form: "
+                        "inertia, soft contact with friction, the sheet laid and released, its "
+                        "own effects and sensors; docs/diagnosis.md)")
     add_executor_arguments(p)
     p.add_argument("--save", metavar="FILE",
                    help="also write the summary with every case to FILE (JSON)")
@@ -41,10 +46,13 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.n < 1:
         raise UserError(f"--n = {args.n} is invalid: expected at least 1 case")
+    from ..diagnosis.benchmark import WORLDS, run_benchmark
+    if args.world not in WORLDS:
+        raise UserError(f"--world = {args.world!r} is unknown: expected one of "
+                        f"{', '.join(WORLDS)}")
     save = output_path(args.save, args.force, "file")
     from tqdm import tqdm
 
-    from ..diagnosis.benchmark import run_benchmark
     bar = tqdm(total=args.n, desc="diagnose-benchmark", unit="case", file=sys.stderr,
                disable=args.quiet)
 
@@ -54,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--process-time = {args.process_time} s is invalid: expected > 10 s")
     with executor_from_args(args) as executor:
         out = run_benchmark(args.n, args.seed, args.jobs, bar.update, n_masses=args.n_masses,
-                            process_time=args.process_time, executor=executor)
+                            process_time=args.process_time, executor=executor,
+                            world=args.world)
     bar.close()
     if save is not None:
         save.write_text(json.dumps(out, indent=1, default=float))
@@ -62,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, default=float))
         return 0
-    print(f"{out['cases']} cases ({out['single_cases']} single, {out['none_cases']} none, "
+    print(f"world {out['world']}: {out['cases']} cases ({out['single_cases']} single, "
+          f"{out['none_cases']} none, "
           f"{out['sensor_cases']} sensor, {out['out_of_library_cases']} out of library), "
           f"{out['wall_time_s']:.0f} s")
     for key, target in (("top1_accuracy", ">= 0.90"), ("top1_accuracy_beyond_noise", ">= 0.90"),

@@ -21,6 +21,14 @@ the measurement side flagged) and ``out_of_library`` (one effect removed from
 the diagnosis's library).  Three records per case on movements drawn from
 1-4; two fitted, one held out.  A draw whose true run tears the sheet or
 fails is redrawn.
+
+The WORLD that makes the records (:data:`WORLDS`): ``finer-chain`` (the default)
+is the sheet model itself on the finer numerics above, so its null measures
+numerics only; ``dynamic`` is :mod:`rheo_shaping.worlds`, a simulator of another
+form (inertia, soft contact with friction, the sheet laid in a drawn shape and
+released at t = 0, its own sensors: camera 0.2 mm, load cell 5 mN, pose 0.05 mm),
+whose ``out_of_library`` cases carry one of its own effects
+(:data:`~rheo_shaping.worlds.params.WORLD_EFFECTS`) with the whole library fitted.
 """
 from __future__ import annotations
 
@@ -43,7 +51,13 @@ from ..sheet.simulation import run_scenario
 from .baseline import CHAIN, SHEET, with_sheet
 from .check import REFINEMENT
 from .signature import KIND_OF_EFFECT
+from ..worlds.dynamic import run_world
+from ..worlds.params import (WORLD_EFFECTS, WORLD_EFFECT_NAMES, WorldEffects, WorldNumerics,
+                             draw_lay)
+from ..worlds.sensors import SensorParams, measure_world
 
+#: The worlds that make a benchmark's records (``diagnose-benchmark --world``).
+WORLDS = ("finer-chain", "dynamic")
 KINDS_PATTERN = ("single", "none", "single", "out_of_library", "single", "none", "single",
                  "sensor", "single", "out_of_library")
 #: How the true cell's numerics differ from the scenario's (factor on the scenario's values).
@@ -97,13 +111,28 @@ def measure_chain(run, path, truth: CellParams, ms: MeasurementParams, rng: np.r
     return replace(rec, profiles=profiles, wrench_xz=wrench)
 
 
+def check_world(world: str) -> str:
+    """``world`` if it is one of :data:`WORLDS`, else ValueError naming them."""
+    if world not in WORLDS:
+        raise ValueError(f"unknown world {world!r}: expected one of {', '.join(WORLDS)}")
+    return world
+
+
 def make_case(index: int, kind: str, seed: int, base: CellParams,
-              measurement: MeasurementParams = MeasurementParams()) -> dict:
-    """Draw a case (its own seed) and record its three runs."""
+              measurement: MeasurementParams = MeasurementParams(),
+              world: str = "finer-chain") -> dict:
+    """Draw a case (its own seed) and record its three runs in ``world`` (:data:`WORLDS`)."""
+    dynamic = check_world(world) == "dynamic"
     rng = random.Random(seed * 1000 + index)
     for _attempt in range(20):
         truth_effects: tuple = ()
-        if kind in ("single", "out_of_library"):
+        extra = WorldEffects()
+        if kind == "out_of_library" and dynamic:           # one of the world's own effects
+            name = WORLD_EFFECT_NAMES[rng.randrange(len(WORLD_EFFECT_NAMES))]
+            value = WORLD_EFFECTS[name].draw(rng)
+            extra = extra.with_value(name, value)
+            truth_effects = ((name, (value,)),)
+        elif kind in ("single", "out_of_library"):
             name = EFFECT_NAMES[(index // 2 + (kind == "out_of_library") * 3 + rng.randrange(2))
                                 % len(EFFECT_NAMES)] if kind == "out_of_library" else \
                 EFFECT_NAMES[(index // 2 + index) % len(EFFECT_NAMES)]
@@ -122,8 +151,13 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
         except ValueError:
             continue
         for n, v in truth_effects:
-            truth = EFFECTS[n].apply(truth, v)
-        truth = true_numerics(truth)
+            if n in EFFECTS:
+                truth = EFFECTS[n].apply(truth, v)
+        lay = None
+        if dynamic:
+            lay = draw_lay((rng.random(), rng.random(), rng.random(), rng.random()))
+        else:
+            truth = true_numerics(truth)
         movements = rng.sample((1, 2, 3, 4), 3)
         records, ok = [], True
         nrng = np.random.default_rng(rng.randrange(2 ** 31))
@@ -132,20 +166,24 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
             w_cell = replace(written, movement=replace(written.movement, number=mv))
             try:
                 path = movement_plan(t_cell)
-                run = run_scenario(t_cell, path)
+                run = (run_world(t_cell, path, lay=lay, extra=extra) if dynamic
+                       else run_scenario(t_cell, path))
             except (RuntimeError, ValueError):
                 ok = False
                 break
             if run.F_max >= t_cell.material.F_break:
                 ok = False
                 break
-            rec = measure_chain(run, path, t_cell, measurement, nrng, chain, f"case{index}-m{mv}")
+            label = f"case{index}-m{mv}"
+            rec = (measure_world(run, path, SensorParams(), nrng, chain, extra, label) if dynamic
+                   else measure_chain(run, path, t_cell, measurement, nrng, chain, label))
             records.append(replace(rec, scenario=w_cell))
         if ok:
             true_u = {k: -v for k, v in perturb.items()}
             true_u.update({k.name: chain[k.name] / k.tolerance for k in CHAIN})
             return {"index": index, "kind": kind, "truth": truth_effects, "movements": movements,
-                    "records": records, "true_u": true_u, "sensor": sensor}
+                    "records": records, "true_u": true_u, "sensor": sensor, "world": world,
+                    "lay": None if lay is None else vars(lay)}
     raise RuntimeError(f"case {index}: no valid {kind} case in 20 draws")
 
 
@@ -187,7 +225,8 @@ def score_case(case: dict, diag) -> dict:
         sig = diag.signature
         if sig and verdict == "unexplained":
             row["top_cause"] = sig["causes"][0]["kind"]
-            row["cause_right"] = row["top_cause"] == KIND_OF_EFFECT[names[0]]
+            kind_of = KIND_OF_EFFECT.get(names[0]) or WORLD_EFFECTS[names[0]].cause
+            row["cause_right"] = row["top_cause"] == kind_of
     # the fitted baseline against the truth (in tolerances)
     errs = {k: diag.baseline[k]["u"] - case["true_u"][k] for k in case["true_u"]
             if k in diag.baseline}
@@ -256,21 +295,24 @@ def summarise(rows: list[dict], wall: float) -> dict:
 def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
                   progress: Callable[[int], None] | None = None, n_masses: int = 31,
                   process_time: float = 70.0, kinds: tuple[str, ...] | None = None,
-                  executor: Executor | None = None) -> dict:
+                  executor: Executor | None = None, world: str = "finer-chain") -> dict:
     """Run ``n`` cases; returns the summary with every case under ``case_results``.
 
     The cases go to ``executor`` (:mod:`rheo_shaping.parallel`: a local pool, a Dask
     cluster), each with its own seed (case i of seed s is the same wherever it runs);
     with no executor they run here, each diagnosis on ``jobs`` local processes.
-    ``progress(k)``: k more cases done."""
+    ``progress(k)``: k more cases done.  ``world``: which of :data:`WORLDS` makes the
+    records."""
+    check_world(world)
     base = base_cell(n_masses, process_time)
     t0 = time.monotonic()
     shared = {"seed": seed, "base": base, "pattern": kinds or KINDS_PATTERN,
-              "jobs": jobs if executor is None else 1}
+              "jobs": jobs if executor is None else 1, "world": world}
     rows = run_tasks(executor, _case_task, shared, list(range(n)), progress,
                      chunks_per_worker=1 if executor is None else 2)
     out = summarise(rows, time.monotonic() - t0)
-    out.update({"seed": seed, "n_masses": n_masses, "true_n_masses": 2 * n_masses + 1,
+    true_n = WorldNumerics().n_masses if world == "dynamic" else 2 * n_masses + 1
+    out.update({"seed": seed, "world": world, "n_masses": n_masses, "true_n_masses": true_n,
                 "process_time_s": process_time, "case_results": rows})
     return out
 
@@ -281,9 +323,10 @@ def _case_task(shared: dict, i: int) -> dict:
     from .engine import diagnose
     pattern = shared["pattern"]
     kind = pattern[i % len(pattern)]
-    case = make_case(i, kind, shared["seed"], shared["base"])
+    case = make_case(i, kind, shared["seed"], shared["base"],
+                     world=shared.get("world", "finer-chain"))
     library = EFFECT_NAMES
-    if kind == "out_of_library":
+    if kind == "out_of_library":           # a library effect withheld (a world's own: none)
         library = tuple(x for x in EFFECT_NAMES if x != case["truth"][0][0])
     t1 = time.monotonic()
     diag = diagnose(case["records"][:2], case["records"][2:], library=library,

@@ -1,0 +1,89 @@
+"""The dynamic world as the diagnosis benchmark's record maker (issue 26): its cases, the
+``--world`` option, and one case diagnosed end to end."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rheo_shaping.cli import main
+from rheo_shaping.diagnosis.benchmark import WORLDS, base_cell, make_case, run_benchmark
+from rheo_shaping.params.params import EffectsParams
+from rheo_shaping.sheet.effects import EFFECTS
+from rheo_shaping.worlds.params import WORLD_EFFECTS
+
+
+def test_unknown_world_is_a_one_line_error(capsys):
+    assert main(["diagnose-benchmark", "--world", "flat-earth", "--n", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0
+    assert "flat-earth" in err and all(w in err for w in WORLDS)
+    with pytest.raises(ValueError, match="finer-chain, dynamic"):
+        make_case(0, "none", 1, base_cell(), world="flat-earth")
+
+
+@pytest.mark.parametrize("index, kind", [(3, "out_of_library"), (0, "single")])
+def test_dynamic_case_records(index, kind):
+    """Three records on three movements, the written scenario (effects off) as their
+    scenario, a world effect (out of library) or a library effect (single) as the truth, a
+    laying drawn per case."""
+    case = make_case(index, kind, 7, base_cell(31, 40.0), world="dynamic")
+    assert case["world"] == "dynamic" and len(case["records"]) == 3
+    assert len(set(case["movements"])) == 3 and case["lay"] is not None
+    (name, value), = case["truth"]
+    assert name in (WORLD_EFFECTS if kind == "out_of_library" else EFFECTS)
+    for rec in case["records"]:
+        assert rec.scenario.effects == EffectsParams()
+        assert rec.scenario.sheet.n_masses == 31
+        assert rec.duration == pytest.approx(40.0, abs=0.05)
+        assert rec.has_wrench and np.all(np.isfinite(rec.wrench_xz))
+        assert len(rec.profiles) > 60
+
+
+def test_same_seed_same_case_and_lays_differ_between_cases():
+    a = make_case(5, "none", 2, base_cell(31, 20.0), world="dynamic")
+    b = make_case(5, "none", 2, base_cell(31, 20.0), world="dynamic")
+    c = make_case(6, "none", 2, base_cell(31, 20.0), world="dynamic")
+    assert a["lay"] == b["lay"] != c["lay"]
+    assert np.array_equal(a["records"][0].wrench_xz, b["records"][0].wrench_xz)
+
+
+def test_one_dynamic_case_is_diagnosed_and_scored():
+    out = run_benchmark(n=1, seed=3, jobs=1, n_masses=15, process_time=40.0, kinds=("none",),
+                        world="dynamic")
+    assert out["world"] == "dynamic" and out["cases"] == 1
+    row = out["case_results"][0]
+    assert row["verdict"] and row["kind"] == "none"
+
+
+def test_the_world_runs_without_the_sheet_model():
+    """The world is written apart from the sheet model: running and measuring it imports
+    nothing of rheo_shaping.sheet nor the sheet-based measurement model."""
+    import subprocess
+    import sys
+    code = ("import sys, numpy as np\n"
+            "from rheo_shaping.params.params import CellParams\n"
+            "from rheo_shaping.worlds.dynamic import run_world\n"
+            "from rheo_shaping.worlds.sensors import measure_world\n"
+            "class Still:\n"
+            "    def position(self, t): return np.array([0.0345, 0.0595])\n"
+            "run = run_world(CellParams(), Still(), t_end=0.5)\n"
+            "from rheo_shaping.worlds.sensors import SensorParams\n"
+            "measure_world(run, Still(), SensorParams(), np.random.default_rng(0))\n"
+            "bad = [m for m in sys.modules if m.startswith(('rheo_shaping.sheet', "
+            "'rheo_shaping.records.measurement', 'rheo_shaping.diagnosis'))]\n"
+            "assert not bad, bad\n")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_a_world_record_round_trips_as_a_record_directory(tmp_path):
+    """What a user diagnoses: a world record written as a rosbag2 directory with its
+    scenario.yaml reads back with the same samples."""
+    pytest.importorskip("rosbags")
+    from rheo_shaping.records.records import read_record, write_record
+    case = make_case(1, "none", 4, base_cell(31, 20.0), world="dynamic")
+    rec = case["records"][0]
+    back = read_record(write_record(rec, tmp_path / "r0"))
+    assert back.scenario == rec.scenario
+    assert np.allclose(back.pose_xz, rec.pose_xz) and np.allclose(back.wrench_xz, rec.wrench_xz)
+    assert len(back.profiles) == len(rec.profiles)
+    assert all(np.allclose(a, b) for a, b in zip(back.profiles, rec.profiles))
