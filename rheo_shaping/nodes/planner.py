@@ -71,6 +71,13 @@ class PlannerNode(Node):
 
     def __init__(self, **node_kwargs):
         super().__init__('planner', **node_kwargs)
+        try:
+            self._build(node_kwargs)
+        except BaseException:
+            self.destroy_node()        # a node refused at start leaves the graph at once
+            raise
+
+    def _build(self, node_kwargs: dict) -> None:
         self.get_logger().info('starting: parameters, then the plan')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": PlannerNodeParams},
                                        on_change=self._on_parameters,

@@ -78,6 +78,13 @@ class SimulatorNode(Node):
         EventsExecutor, which the one-process cell uses, does not): the publication sequence
         number of each set-point is then checked too (:class:`CommandGate`)."""
         super().__init__('simulator', **node_kwargs)
+        try:
+            self._build(node_kwargs, message_info)
+        except BaseException:
+            self.destroy_node()        # a node refused at start leaves the graph at once
+            raise
+
+    def _build(self, node_kwargs: dict, message_info: bool) -> None:
         self.get_logger().info('starting: parameters, then the settled sheet')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": SimulatorNodeParams},
                                        on_change=self._on_parameters,
