@@ -181,6 +181,11 @@ class EffectsParams:
              "0: off", "", -0.9, 10.0)
 
 
+#: Most time steps one phase of a run may need (a step of 5e-324 s is inside its range but
+#: would never end): beyond, the cell is refused with the figures.
+MAX_STEPS = 10_000_000
+
+
 @dataclass(frozen=True)
 class CellParams:
     """Everything that shapes a run of the cell."""
@@ -193,8 +198,28 @@ class CellParams:
     solver: SolverParams = field(default_factory=SolverParams)
     effects: EffectsParams = field(default_factory=EffectsParams)
 
+    def _check_step_counts(self) -> None:
+        """Refuse solver steps so small that a run would not end (:data:`MAX_STEPS`)."""
+        sp, mv = self.solver, self.movement
+        for name, count, what in (
+                ("solver.dt_settle", sp.settle_time / sp.dt_settle, "settle_time"),
+                ("solver.dt_still", mv.process_time / sp.dt_still, "movement.process_time"),
+                ("solver.dt", mv.process_time / sp.dt, "movement.process_time"),
+                ("solver.max_tool_step", max(mv.speed, mv.retract_speed) * mv.process_time
+                 / sp.max_tool_step, "the tool's travel at its speed over process_time")):
+            if count > MAX_STEPS:
+                value = getattr(sp, name.split(".")[1])
+                raise ParameterError(
+                    f"parameter '{name}' = {value!r} is invalid: {what} would take {count:.3g} "
+                    f"steps; expected at most {MAX_STEPS:g} (a larger step)")
+
     def __post_init__(self) -> None:
         s, c = self.sheet, self.cake
+        if not s.thickness / 2 > 0.0:
+            raise ParameterError(
+                f"parameter 'sheet.thickness' = {s.thickness!r} is invalid: expected a value "
+                "whose half (the masses' contact radius) is > 0 m")
+        self._check_step_counts()
         if s.top_bond_x > -c.fillet_radius:
             raise ParameterError(
                 f"parameter 'sheet.top_bond_x' = {s.top_bond_x!r} is invalid: expected a value "

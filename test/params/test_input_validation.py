@@ -101,3 +101,23 @@ def test_malformed_params_file_is_one_line_and_writes_nothing(tmp_path, capsys, 
     assert re.search(message, err), err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert not plot.exists()
+
+
+@pytest.mark.parametrize("section, name, value, why", [
+    ("solver", "dt_still", 5e-324, "movement.process_time would take inf steps"),
+    ("solver", "max_tool_step", 1e-12, "would take 1.2e+11 steps"),
+    ("solver", "dt_settle", 1e-9, "settle_time would take 1e+09 steps"),
+    ("sheet", "thickness", 5e-324, "whose half (the masses' contact radius) is > 0 m"),
+])
+def test_values_inside_their_range_that_no_run_could_finish_are_refused(section, name, value,
+                                                                        why):
+    """benchmarks/fuzz_bounds.py: a step of 5e-324 s lies inside (0, 100] s but a run
+    would never end; a sheet 5e-324 m thick has masses of radius 0 m."""
+    from dataclasses import replace as _replace
+
+    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.schema import ParameterError
+    cell = CellParams()
+    with pytest.raises(ParameterError, match=f"parameter '{section}.{name}'") as exc:
+        _replace(cell, **{section: _replace(getattr(cell, section), **{name: value})})
+    assert why in str(exc.value)
