@@ -49,7 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
 #: Errors besides ValueError and ArithmeticError that say the model cannot run a cell (the
 #: sheet's Newton solve, ruckig's planning), reported as a user's error; anything else is a
 #: bug and keeps its traceback.
-MODEL_ERRORS = ("ConvergenceError", "RuckigError")
+MODEL_ERRORS = ("ConvergenceError", "RuckigError",
+                "BrokenProcessPool")      # a worker that died running the model
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -220,6 +220,12 @@ class CellParams:
                 f"parameter 'sheet.thickness' = {s.thickness!r} is invalid: expected a value "
                 "whose half (the masses' contact radius) is > 0 m")
         self._check_step_counts()
+        for name in ("k1", "c2"):
+            value = getattr(self.material, name)
+            if value > 0 and not math.isfinite(1.0 / value):
+                raise ParameterError(
+                    f"parameter 'material.{name}' = {value!r} is invalid: expected a value whose "
+                    f"inverse is finite (the link's compliance)")
         if s.top_bond_x > -c.fillet_radius:
             raise ParameterError(
                 f"parameter 'sheet.top_bond_x' = {s.top_bond_x!r} is invalid: expected a value "
