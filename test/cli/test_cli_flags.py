@@ -37,18 +37,18 @@ def test_quiet_prints_nothing_and_json_still_prints(tmp_path, capsys):
 
 
 def test_a_cell_the_model_cannot_run_is_a_clear_error_not_a_traceback(tmp_path, capsys):
-    """A value inside its range that makes the model ill-posed (benchmarks/fuzz_bounds.py
-    found sheet.thickness 5e-324 m: a mass radius of 0 m) ends with exit 2 and the reason,
-    naming the params file."""
+    """A value inside its range that the model cannot run (benchmarks/fuzz_bounds.py found
+    movement.accel 5e-324 m/s^2: ruckig cannot plan it) ends with exit 2 and the reason on
+    one line, naming the params file."""
     import yaml
 
     from rheo_shaping.params.config import dump_cell
     from rheo_shaping.params.params import CellParams
     tree = yaml.safe_load(dump_cell(CellParams()))
-    tree["/**"]["ros__parameters"]["sheet"]["thickness"] = 5e-324
-    path = tmp_path / "thin.yaml"
+    tree["/**"]["ros__parameters"]["movement"]["accel"] = 5e-324
+    path = tmp_path / "slow.yaml"
     path.write_text(yaml.safe_dump(tree))
     assert main(["simulate", "--params", str(path), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("rheo-shaping simulate: error: the model cannot run this cell")
-    assert str(path) in err and "radius = 0.0 m is invalid" in err
+    assert str(path) in err and "RuckigError" in err and err.count("\n") == 1
