@@ -61,6 +61,7 @@ class CellCheck:
                  on_first: Callable[[], None] = lambda: None):
         self.own_name, self._cell, self._on_first = own_name, cell, on_first
         self.message: str | None = None     # the simulator's cell message, once received
+        self._judged: tuple = (None, None, None)   # (message, cell, mismatch) last judged
         node.create_subscription(T.CELL.type, T.CELL.name, self._on, T.CELL.qos)
 
     def _on(self, msg: String) -> None:
@@ -73,7 +74,12 @@ class CellCheck:
         """None while no cell has arrived; "" when it is this node's; else the reason."""
         if self.message is None:
             return None
-        return cell_mismatch(self._cell(), self.message, self.own_name, "the simulator")
+        cell = self._cell()
+        message, judged, why = self._judged
+        if message is not self.message or judged is not cell:    # asked at every tick
+            why = cell_mismatch(cell, self.message, self.own_name, "the simulator")
+            self._judged = (self.message, cell, why)
+        return why
 
 
 class Presence:

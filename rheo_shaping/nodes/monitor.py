@@ -55,7 +55,7 @@ from . import messages as m
 from . import topics as T
 from .guards import CellCheck, Presence, clock_publishers, guard_clock
 from .ros_params import SchemaParameters
-from .spin import Yielded, run_node
+from .spin import Yielded, build_or_destroy, run_node
 from ..units import NS
 
 TENSION_TOPICS = (T.TENSIONS.contract, T.CONTACT_TENSION.contract)
@@ -67,11 +67,7 @@ class MonitorNode(Node):
 
     def __init__(self, **node_kwargs):
         super().__init__('monitor', **node_kwargs)
-        try:
-            self._build(node_kwargs)
-        except BaseException:
-            self.destroy_node()        # a node refused at start leaves the graph at once
-            raise
+        build_or_destroy(self, self._build, node_kwargs)
 
     def _build(self, node_kwargs: dict) -> None:
         self.get_logger().info('starting')

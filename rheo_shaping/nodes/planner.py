@@ -60,7 +60,7 @@ from . import messages as m
 from . import topics as T
 from .guards import CellCheck, Presence, clock_publishers, guard_clock
 from .ros_params import SchemaParameters
-from .spin import Yielded, run_node
+from .spin import Yielded, build_or_destroy, run_node
 from ..units import NS
 
 MOVING = ("running", "stopping", "retracting")
@@ -71,11 +71,7 @@ class PlannerNode(Node):
 
     def __init__(self, **node_kwargs):
         super().__init__('planner', **node_kwargs)
-        try:
-            self._build(node_kwargs)
-        except BaseException:
-            self.destroy_node()        # a node refused at start leaves the graph at once
-            raise
+        build_or_destroy(self, self._build, node_kwargs)
 
     def _build(self, node_kwargs: dict) -> None:
         self.get_logger().info('starting: parameters, then the plan')
@@ -253,7 +249,7 @@ class PlannerNode(Node):
         raise Yielded(reason)
 
     def _refusal(self) -> str:
-        """Why the plan may not start now (cell, clocks, heartbeats, twins); "" if it may."""
+        """Why the plan may not start now (twins, cell, clocks); "" if it may."""
         if not self.presence.settled:
             return "starting up: checking that no other planner of this name runs"
         if self.settings.check_cell:
@@ -267,11 +263,7 @@ class PlannerNode(Node):
         clocks = clock_publishers(self)
         if clocks > 1:
             return f"{clocks} publishers of /clock: one simulator is the cell's clock"
-        beats = self.count_publishers(self._ready_topic)
-        if self.settings.wait_for_monitor and beats > 1:
-            return (f"{beats} publishers of {self._ready_topic}: the interlock takes the "
-                    f"heartbeat of one monitor only")
-        return ""
+        return ""           # (a second /shaping/ready publisher: _monitor_ok, the interlock)
 
     def _tool_away(self) -> str:
         """Why autostart is unsafe (:func:`~rheo_shaping.planning.movement.autostart_refusal`)."""
@@ -374,16 +366,18 @@ class PlannerNode(Node):
         stalled = guard.check(self._steady.now().nanoseconds)
         if self.streamer is None:
             now = self._now_ns()
+            wants = self.settings.autostart or self._start_requested
+            # the graph queries and checks only when a start is wanted (else idle/holding)
+            active = wants and not self.aborted
             state, why_not = start_decision(StartInputs(
-                aborted=self.aborted,
-                wants_start=self.settings.autostart or self._start_requested,
+                aborted=self.aborted, wants_start=wants,
                 start_requested=self._start_requested,
-                pose_unknown=(self._tool_pose is None and self._hold is None
+                pose_unknown=(active and self._tool_pose is None and self._hold is None
                               and self.count_publishers(T.TOOL_POSE.name) > 0),
-                tool_away=self._tool_away(), monitor_ok=ok,
-                refusal=self._refusal() if ok else "",
-                lead=self._start_lead(now) if ok and now > 0 else "", now_ns=now,
-                subscribers=self.pub_command.get_subscription_count()))
+                tool_away=self._tool_away() if active else "", monitor_ok=ok,
+                refusal=self._refusal() if active and ok else "",
+                lead=self._start_lead(now) if active and ok and now > 0 else "", now_ns=now,
+                subscribers=self.pub_command.get_subscription_count() if active else 0))
             if state == "start":
                 self._start(now)
             elif state in ("idle", "holding"):

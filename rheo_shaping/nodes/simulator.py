@@ -59,7 +59,7 @@ from . import messages as m
 from . import topics as T
 from .guards import Presence
 from .ros_params import SchemaParameters
-from .spin import Yielded, run_node
+from .spin import Yielded, build_or_destroy, run_node
 
 from ..units import NS
 
@@ -78,11 +78,7 @@ class SimulatorNode(Node):
         EventsExecutor, which the one-process cell uses, does not): the publication sequence
         number of each set-point is then checked too (:class:`CommandGate`)."""
         super().__init__('simulator', **node_kwargs)
-        try:
-            self._build(node_kwargs, message_info)
-        except BaseException:
-            self.destroy_node()        # a node refused at start leaves the graph at once
-            raise
+        build_or_destroy(self, self._build, node_kwargs, message_info)
 
     def _build(self, node_kwargs: dict, message_info: bool) -> None:
         self.get_logger().info('starting: parameters, then the settled sheet')

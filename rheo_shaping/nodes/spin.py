@@ -66,6 +66,17 @@ class Yielded(Exception):
     with the reason (exit code 2), the older node runs on (docs/safety.md, "One of each")."""
 
 
+def build_or_destroy(node: Node, build: Callable[..., None], *args) -> None:
+    """Run ``build(*args)``, the rest of a node's construction; a node refused there (a
+    parameter error) is destroyed at once, so it does not linger in the graph, where a new
+    node of its name would wait for it (nodes.guards.Presence)."""
+    try:
+        build(*args)
+    except BaseException:
+        node.destroy_node()
+        raise
+
+
 def _fatal(name: str, message: str) -> int:
     print(f"[FATAL] [{name}]: {message}", file=sys.stderr, flush=True)
     return 2

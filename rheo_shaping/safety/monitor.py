@@ -250,7 +250,7 @@ class TensionMonitor:
         if self._future and self.state != "aborted":
             self._check_future(steady, clock)
         ages = {t: self.age(t, steady) for t in self.tension_topics}
-        stale = [t for t, a in ages.items() if a > s.max_data_age]
+        stale = self._stale(steady)
         if stalled and stale:
             # excused only where the stream was fresh at the previous tick
             stale = [t for t in stale if previous is not None and (
@@ -282,9 +282,13 @@ class TensionMonitor:
             return self.blocked
         if clock <= 0:
             return "no clock yet (use_sim_time: /clock)"
-        stale = [t for t in self.tension_topics
-                 if self.age(t, steady) > self.settings.max_data_age]
+        stale = self._stale(steady)
         return ("no fresh sample on " + ", ".join(stale)) if stale else ""
+
+    def _stale(self, steady: int) -> list[str]:
+        """The tension topics whose newest sample is older than ``max_data_age``."""
+        return [t for t in self.tension_topics
+                if self.age(t, steady) > self.settings.max_data_age]
 
     def diagnostics(self, steady: int) -> tuple[str, str, dict]:
         """(level OK/WARN/ERROR/STALE, message, key values) of the present state."""
