@@ -171,6 +171,7 @@ class SimulatorNode(Node):
         the reason goes out on /shaping/abort (the planner stops, the monitor sees it)."""
         if not self.gate.hold(reason):
             return
+        self._unbound.clear()                           # nothing buffered is followed now
         tool = self.sim.state.tool
         self.run.cmds = [(self._t_ns, float(tool[0]), float(tool[1]))]
         self.get_logger().error(f"the tool holds at ({tool[0] * 1e3:.3f}, {tool[1] * 1e3:.3f}) mm"
@@ -284,6 +285,7 @@ class SimulatorNode(Node):
             self.destroy_publisher(self.pub_abort)     # drops its latched abort sample
             self.pub_abort = self._latched(T.ABORT)
         self.gate.reset()
+        self._unbound.clear()
         self._new_run()
         response.success = True
         response.message = "run restarted: settled sheet at process time 0"
@@ -297,6 +299,12 @@ class SimulatorNode(Node):
             if self.gate.report_once("held"):
                 self.get_logger().warning(f"ignoring /tool/command while the tool holds "
                                           f"({self.gate.held}); ~/reset to re-arm")
+            return
+        if self._unbound:
+            # earlier samples still wait for the graph: this one is judged after them, in
+            # order (the writer's sequence numbers must rise)
+            self._unbound.append((msg, seq, self._steady.now().nanoseconds))
+            self._bind_waiting()
             return
         pubs = self._command_publishers()
         if self.gate.bound is None and not pubs:
