@@ -3,7 +3,8 @@
 The cell runs a "tear plan": movement 3 at 2 mm/s, which reaches 1.25 N without the monitor
 (F_break 1.04 N; the monitor alone stops it at about 0.98 N).  Each test attacks the running
 cell as an outsider could on the same ROS domain (a second commander, a forged /clock, a
-frozen monitor, a twin node, lying tension data, a parameter slip, a spoofed heartbeat) and
+frozen monitor, a twin node, lying tension data, a parameter slip, a spoofed heartbeat, the
+planner killed with SIGKILL and restarted) and
 checks what matters: the largest tension the simulator computed (its own F_max on
 /diagnostics, every step counted, not only what reached the test) stays below the abort
 threshold plus what the stopping budget allows and below F_break, the reason is named, and
@@ -24,7 +25,7 @@ pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import PoseStamped  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import Bool, Float64MultiArray  # noqa: E402
+from std_msgs.msg import Bool, Float64MultiArray, String  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
@@ -338,4 +339,44 @@ def test_a_spoofed_ready_heartbeat_does_not_open_the_interlock(ros, procs, tmp_p
     assert a.c.state() in ("waiting_for_monitor", "idle", "holding"), a.c.state()
     assert "publishers of /shaping/ready" in log or a.c.state() == "waiting_for_monitor"
     a.check(a.peak_after_hold())
+    a.stop()
+
+
+def test_a_planner_killed_and_restarted_does_not_move_the_tool(ros, procs, tmp_path):
+    """kill -9 of the planner mid-run, then a new planner with autostart on: the simulator
+    holds the tool at its last set-point, and the new planner refuses to move a tool that
+    is neither at home nor at the plan's start (or holds on an abort the cell latched)."""
+    a = Attacked(ros, procs, tmp_path)
+    a.run_to(ATTACK_AT)
+    a.c.planner.proc.send_signal(signal.SIGKILL)
+    a.c.planner.proc.wait()
+    procs.all.remove(a.c.planner)
+    # what the killed planner sent may still be in flight: set-points and states are told
+    # apart by their source timestamps, never counted
+    t_dead_ns = time.time_ns()
+    seen = Recorder(ros.node("restart_observer"),
+                    {"/tool/command": PoseStamped, "/shaping/planner_state": (String, True)})
+    restart = write_params(tmp_path / "restart.yaml", a.cell, planner={"autostart": True})
+    again = procs("planner", "--ros-args", "--params-file", str(restart),
+                  "-p", "use_sim_time:=true")
+
+    def decided():
+        mine = seen.published_after("/shaping/planner_state", t_dead_ns)
+        return mine[-1].data if mine and mine[-1].data in ("tool_away", "holding") else None
+    a.c.wait(decided, 60.0, "the new planner to refuse the autostart")
+    # the new planner has decided; a set-point it sent would reach us within this window
+    n = len(a.diag["/diagnostics"])
+    t_end = time.monotonic() + 2.0
+    a.c.wait(lambda: time.monotonic() > t_end and len(a.diag["/diagnostics"]) > n, 20.0,
+             "2 s more of the simulator's diagnostics")
+    assert seen.published_after("/tool/command", t_dead_ns) == []
+    text = again.text()
+    if decided() == "holding":     # the cell latched an abort meanwhile: a refusal too
+        reasons = a.aborts()
+        print(f"\nrestarted planner holds on a latched abort: {reasons}")
+        assert reasons, text[-3000:]
+    else:
+        assert "neither at home nor at the plan's start" in text, text[-3000:]
+    assert "starting the plan" not in text
+    a.check(float(a.sim_values()["F_max"]))
     a.stop()
