@@ -139,3 +139,32 @@ def test_docs_architecture_lists_every_import_between_subpackages():
         used = {d for d in graph.get(src, {}) if d not in ROS_ROOTS and d not in ("_lazy",)}
         missing += [f"{src} -> {d}" for d in sorted(used - allowed[src])]
     assert not missing, "imports docs/architecture.md does not list: " + ", ".join(missing)
+
+
+def _lazy_packages() -> list[str]:
+    """Every package of rheo_shaping whose ``__init__`` declares a lazy public API."""
+    return sorted(".".join(p.parent.relative_to(PKG.parent).parts)
+                  for p in PKG.rglob("__init__.py") if "lazy_api(" in p.read_text())
+
+
+def test_every_lazy_public_name_resolves_to_its_definition():
+    """Each name a package's ``__all__`` lists resolves, and is defined where the package
+    says (a re-export from another module would be a second home for it)."""
+    import importlib
+    pkgs = _lazy_packages()
+    assert {"rheo_shaping", "rheo_shaping.sheet", "rheo_shaping.planning",
+            "rheo_shaping.safety"} <= set(pkgs)                   # sees the tree
+    bad = []
+    for name in pkgs:
+        pkg = importlib.import_module(name)
+        assert pkg.__all__, f"{name} lists no public name"
+        for attr in pkg.__all__:
+            try:
+                obj = getattr(pkg, attr)
+            except (AttributeError, ImportError) as exc:
+                bad.append(f"{name}.{attr}: {exc}")
+                continue
+            home = getattr(obj, "__module__", None)
+            if home is not None and not home.startswith(name):
+                bad.append(f"{name}.{attr} is defined in {home}")
+    assert not bad, "lazy public names that do not resolve: " + "; ".join(bad)
