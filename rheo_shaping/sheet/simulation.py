@@ -96,8 +96,7 @@ class Simulation:
         self.params = params
         self.constants, self.x0 = build_chain(params)
         obstacles = [
-            Obstacle("cake",
-                     Cake(params.cake.height, params.cake.fillet_radius, params.cake.radius)),
+            Obstacle("cake", Cake.of(params.cake)),
             Obstacle("workplane", Workplane()),
             Obstacle("tool", tool_shape(params.tool), moving=True),
         ]
