@@ -141,7 +141,7 @@ def outside(u_chain: np.ndarray) -> list[str]:
 def sensor_stage(ctx: FitContext, base: Baseline) -> Explanation:
     """Stage 4, which side: the measurement chain's hypothesis (chain beyond its tolerance,
     the sheet knobs refitted; linear, no simulation) and its likelihood ratio against the
-    baseline.  Checked by simulation with the effects (:func:`effects.candidates_stage`)."""
+    baseline.  Checked by simulation with the effects (:func:`verdict.candidates_stage`)."""
     n_s = ctx.n_s
     free = ctx.chain_free
     u_ch, J_ch = base.solver.solve(base.z_raw, np.r_[-1 - base.u_s, -free],
