@@ -59,12 +59,6 @@ from .result import Diagnosis, as_residuals, baseline_table, chain_correct
 from .stages import Nominal, baseline_stage, gap_stage, nominal_stage, sensor_stage
 from .verdict import After, Candidates, Verdict, after_stage, candidates_stage, verdict_stage
 
-#: The diagnosis's stages, in order (a progress display shows "stage k of n"); a stage
-#: that has nothing to run (the replay misfit of a Maxwell cell, the effects when no gap
-#: is left) is passed over.
-STAGES = ("nominal models", "baseline Jacobian", "baseline fit",
-          "replay misfit (Kelvin cell)", "effect probes", "candidate checks", "verdict runs")
-
 
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
              library: Sequence[str] = EFFECT_NAMES, jobs: int | None = None,

@@ -108,6 +108,31 @@ def test_subpackage_graph_is_acyclic():
     assert cycle is None, "import cycle between subpackages: " + " -> ".join(cycle)
 
 
+def _module_graph() -> dict[str, set[str]]:
+    """module -> the package's modules it imports (dotted names; a package is its
+    ``__init__``).  An import of a module's own enclosing package is left out: that is how
+    a module reaches its package's lazy API, which imports nothing until a name is used."""
+    mods = {".".join(p.relative_to(PKG.parent).with_suffix("").parts).removesuffix(".__init__")
+            for p in PKG.rglob("*.py")}
+    graph = {}
+    for path in sorted(PKG.rglob("*.py")):
+        src = ".".join(path.relative_to(PKG.parent).with_suffix("").parts).removesuffix(
+            ".__init__")
+        graph[src] = {d for d in _imports(path)
+                      if d in mods and d != src and not src.startswith(d + ".")}
+    return graph
+
+
+def test_module_graph_is_acyclic():
+    """No two modules import each other, directly or round a loop (imports inside
+    functions count: they are dependencies too, only later)."""
+    graph = _module_graph()
+    assert graph["rheo_shaping.planning.pieces"] >= {"rheo_shaping.planning.limits"}
+    assert len(graph) > 100                                     # sees the whole tree
+    cycle = _cycle(graph)
+    assert cycle is None, "import cycle between modules: " + " -> ".join(cycle)
+
+
 def test_the_cycle_check_finds_a_cycle():
     """The walk is not vacuous: a cycle is reported, a chain is not."""
     assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
