@@ -10,6 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from ..params.params import CellParams
+from ..sheet.metrics import safety_factor
 from .baseline import CHAIN, SHEET, values as knob_values
 from .candidates import Explanation, rank_key
 from .compare import RecordData
@@ -172,7 +173,7 @@ def process_figures(nominal: CellParams, corrected: CellParams,
         best = min(ok, key=lambda r: (r.F_max, r.d)) if ok else None
         F = rs[0].F_max
         p = (nominal, corrected)[i]
-        out[key] = {"F_max": F, "SF": p.material.F_break / F if F > 0 else math.inf,
+        out[key] = {"F_max": F, "SF": safety_factor(p.material.F_break, F),
                     "delta": rs[0].delta, "d_opt": best.d if best else None}
     return out
 
