@@ -153,11 +153,11 @@ def process_figures(nominal: CellParams, corrected: CellParams,
                     executor: Executor | None = None) -> dict:
     """Movement 4 of the nominal and the corrected cell: F_max [N], SF, Delta [m], d_opt [m].
 
-    d_opt is the planner's choice (:func:`rheo_shaping.study.optimise.best_d`: smallest
+    d_opt is the planner's choice (:func:`rheo_shaping.planning.choose_d.best_d`: smallest
     F_max with Delta <= ``delta_limit``) over ``d_candidates`` (default: the
     cell's d +- 3 mm in 1 mm steps); None when no candidate meets the limit.
     """
-    from ..study.optimise import run_d
+    from ..planning.choose_d import run_d
     d0 = nominal.movement.d
     ds = list(d_candidates) if d_candidates is not None else [d0 + k * 1e-3 for k in range(-3, 4)]
     jobs = [(p, d) for p in (nominal, corrected) for d in [d0] + ds]
@@ -179,5 +179,5 @@ def process_figures(nominal: CellParams, corrected: CellParams,
 
 
 def _run_d(args):
-    from ..study.optimise import run_d
+    from ..planning.choose_d import run_d
     return run_d(*args)
