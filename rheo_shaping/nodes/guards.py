@@ -19,9 +19,12 @@ from std_msgs.msg import String
 from ..params.fingerprint import cell_mismatch
 from ..params.params import CellParams
 from ..safety.clock_guard import ClockGuard
-from ..safety.one_of_each import Announcement, settle_time, twin_reason
+from ..safety.one_of_each import Announcement, settle_refusal, settle_time, twin_reason
 from ..units import NS
 from . import topics as T
+
+#: The node name the graph gives an endpoint whose node it does not know yet.
+UNNAMED = "_NODE_NAME_UNKNOWN_"
 
 
 def guard_clock(node: Node, guard: ClockGuard, on_fault: Callable[[str], None]) -> None:
@@ -136,14 +139,19 @@ class Presence:
         if self.twin or (self._steady.now().nanoseconds - self._t0) / NS < self._settle_s:
             return False
         ns, _, name = self.mine.node.rpartition("/")
-        same = sum(1 for n, s in self._node.get_node_names_and_namespaces()
-                   if n == name and (s.rstrip("/") or "") == ns)
-        self._settled = same - 1 <= len(self._younger)
-        if not self._settled:
-            self._node.get_logger().info(
-                f"waiting: {same} nodes named {self.mine.node} in the graph and "
-                f"{len(self._younger)} announced as younger; one that was killed stays in the "
-                f"graph for up to ~20 s (its DDS lease)", throttle_duration_sec=5.0)
+
+        def is_mine(n: str, s: str) -> bool:
+            return n == name and (s.rstrip("/") or "") == ns
+        writers = self._node.get_publishers_info_by_topic(self._pub.topic_name)
+        why = settle_refusal(
+            same_nodes=sum(is_mine(n, s) for n, s in self._node.get_node_names_and_namespaces()),
+            same_writers=sum(is_mine(w.node_name, w.node_namespace) for w in writers),
+            unnamed_writers=sum(w.node_name == UNNAMED for w in writers),
+            younger=len(self._younger),
+            past_settle_s=(self._steady.now().nanoseconds - self._t0) / NS - self._settle_s)
+        self._settled = not why
+        if why:
+            self._node.get_logger().info(f"waiting: {why}", throttle_duration_sec=5.0)
         return self._settled
 
     def _on(self, msg: String) -> None:

@@ -60,3 +60,30 @@ def twin_reason(mine: Announcement, other: Announcement) -> str:
         return ""
     return (f"a second {mine.node} in this namespace: the one of pid {other.pid} on "
             f"{other.host} started first and runs; this one (pid {mine.pid}) yields")
+
+
+#: How long [s] past its settle time a node waits for the names of endpoints on
+#: ``/shaping/presence`` that the graph shows without a node name yet (ROS 2 learns an
+#: endpoint from DDS before it learns its node's name); a writer whose name never comes
+#: (not a ROS node) is then disregarded.
+UNNAMED_WAIT = 10.0
+
+
+def settle_refusal(same_nodes: int, same_writers: int, unnamed_writers: int, younger: int,
+                   past_settle_s: float) -> str:
+    """Why a node may not act yet ("" if it may), past its settle time: ``same_nodes``
+    nodes of its name in the graph and ``same_writers`` writers on ``/shaping/presence``
+    of a node of its name (itself included in both), ``unnamed_writers`` writers there whose
+    node name the graph does not know yet, ``younger`` same-named nodes that announced
+    themselves as younger, ``past_settle_s`` [s] since the settle time ran out.  The
+    writers are known before the node names (seen: a twin planner's command writer in the
+    simulator's graph as ``_NODE_NAME_UNKNOWN_`` while the twin had not yet seen the older
+    planner's name), so both counts are asked."""
+    same = max(same_nodes, same_writers)
+    if same - 1 > younger:
+        return (f"{same} nodes of this name in the graph and {younger} announced as younger; "
+                f"one that was killed stays in the graph for up to ~20 s (its DDS lease)")
+    if unnamed_writers and past_settle_s < UNNAMED_WAIT:
+        return (f"{unnamed_writers} writers on /shaping/presence whose node name the graph "
+                f"does not show yet (a twin may be among them)")
+    return ""

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from rheo_shaping.safety.one_of_each import (SETTLE_TIME, Announcement, settle_time,
-                                             twin_reason)
+from rheo_shaping.safety.one_of_each import (SETTLE_TIME, UNNAMED_WAIT, Announcement,
+                                             settle_refusal, settle_time, twin_reason)
 
 
 def test_the_younger_of_two_same_named_nodes_yields_and_the_older_runs():
@@ -34,3 +34,18 @@ def test_an_announcement_round_trips_and_anything_else_is_ignored():
     (3.5, 3.5), (12.0, 12.0), (math.nan, SETTLE_TIME)])
 def test_the_settle_time_grows_with_a_slow_discovery(discovery_s, wait_s):
     assert settle_time(discovery_s) == wait_s
+
+
+def test_a_node_alone_acts_and_one_that_sees_an_unannounced_twin_waits():
+    assert settle_refusal(1, 1, 0, 0, 0.0) == ""                     # alone
+    assert settle_refusal(2, 2, 0, 1, 0.0) == ""                     # the other is younger
+    # the graph shows a second writer of this name before it shows the node's name
+    assert "2 nodes of this name" in settle_refusal(1, 2, 0, 0, 0.0)
+    assert "2 nodes of this name" in settle_refusal(2, 1, 0, 0, 0.0)
+    assert "~20 s" in settle_refusal(2, 2, 0, 0, 60.0)                # a killed twin's ghost
+
+
+def test_writers_without_a_node_name_hold_a_node_back_for_a_bounded_time():
+    assert "node name" in settle_refusal(1, 1, 1, 0, 0.0)
+    assert "node name" in settle_refusal(1, 1, 2, 0, UNNAMED_WAIT - 0.1)
+    assert settle_refusal(1, 1, 1, 0, UNNAMED_WAIT) == ""            # not a ROS node
