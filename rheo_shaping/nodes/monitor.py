@@ -45,7 +45,7 @@ from std_srvs.srv import Trigger
 
 from ..params.node_params import MonitorNodeParams
 from ..params.params import CellParams
-from ..safety.abort_budget import abort_horizon, configured_speed_threshold
+from ..safety.abort_budget import abort_horizon, monitor_abort_ratio
 from ..params.schema import ParameterError
 from ..safety.acknowledge import Acknowledgements
 from ..safety.clock_guard import ClockGuard
@@ -125,31 +125,13 @@ class MonitorNode(Node):
         return abort_horizon(self.cell, self.settings.detect_time, self.settings.stop_time)
 
     def _set_ratio(self) -> None:
-        """``abort_ratio``, or with 0 the principle-4 bound at the configured speed (core runs)."""
+        """``abort_ratio``, or with 0 the principle-4 bound at the configured speed (core runs:
+        :func:`~rheo_shaping.safety.abort_budget.monitor_abort_ratio`)."""
         s = self.settings
-        if s.abort_ratio > 0:
-            self.ratio, self.budget = s.abort_ratio, None
-            return
-        cell = self.cell
-        try:
-            F_abort, r, rows = configured_speed_threshold(cell, self.horizon, s.noise_sigma)
-        except (RuntimeError, ValueError) as exc:
-            raise ParameterError(f"abort_ratio 0: the core could not compute the tension rates "
-                                 f"({exc}); set abort_ratio") from None
-        Fb = cell.material.F_break
-        if F_abort <= 0:
-            raise ParameterError(
-                f"abort_ratio 0: no threshold meets safety principle 4 at movement.speed "
-                f"{cell.movement.speed:g} m/s (r = {r:.3f} N/s, detect_time + stop_time = "
-                f"{self.horizon:.3f} s): lower the speed or set abort_ratio")
-        self.ratio = F_abort / Fb
-        self.budget = {"r": r, "horizon": self.horizon, "sigma": s.noise_sigma,
-                       "rows": [(row.movement, row.F_max, row.r) for row in rows]}
-        self.get_logger().info(
-            f"abort_ratio 0: safety principle 4 at {cell.movement.speed * 1e3:g} mm/s: r = "
-            f"{r:.3f} N/s "
-            f"(movements 1-4, core), F_abort = {Fb:g} - {r:.3f} x {self.horizon:.3f} - "
-            f"3 x {s.noise_sigma:g} = {F_abort:.4f} N, ratio {self.ratio:.3f}")
+        choice = monitor_abort_ratio(self.cell, s.abort_ratio, self.horizon, s.noise_sigma)
+        self.ratio, self.budget = choice.ratio, choice.budget
+        if choice.note:
+            self.get_logger().info(choice.note)
 
     def _on_parameters(self, names: set[str]) -> None:
         if names & {"max_data_age", "acknowledge"}:

@@ -27,6 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from ..params.params import CellParams
+from ..params.schema import ParameterError
 from ..planning.planning import MotionLimits
 from ..planning.movement import run_movement
 from ..planning.stopping import stopping_time
@@ -153,6 +154,42 @@ def configured_speed_threshold(cell: CellParams, horizon: float,
     rows = tension_rates(cell, speed_factors=(1.0,))
     r = max(row.r for row in rows)
     return cell.material.F_break - r * horizon - 3.0 * sigma, r, rows
+
+
+@dataclass(frozen=True)
+class AbortRatio:
+    """The monitor's abort threshold as a share of F_break, and how it was chosen."""
+
+    ratio: float                  # F_abort / F_break [-]
+    budget: dict | None           # principle 4's figures (r [N/s], horizon [s], sigma [N])
+    note: str                     # what to tell the user ("" for a configured abort_ratio)
+
+
+def monitor_abort_ratio(cell: CellParams, abort_ratio: float, horizon: float,
+                        noise_sigma: float) -> AbortRatio:
+    """``abort_ratio`` [-] when > 0; with 0, safety principle 4 at the cell's configured
+    speed (:func:`configured_speed_threshold`, core runs of movements 1-4) over ``horizon``
+    [s] = t_detect + t_stop with tension noise ``noise_sigma`` [N].  Raises ParameterError
+    naming abort_ratio when the core cannot run or no threshold meets the principle."""
+    if abort_ratio > 0:
+        return AbortRatio(abort_ratio, None, "")
+    try:
+        F_abort, r, rows = configured_speed_threshold(cell, horizon, noise_sigma)
+    except (RuntimeError, ValueError) as exc:
+        raise ParameterError(f"abort_ratio 0: the core could not compute the tension rates "
+                             f"({exc}); set abort_ratio") from None
+    Fb = cell.material.F_break
+    if F_abort <= 0:
+        raise ParameterError(
+            f"abort_ratio 0: no threshold meets safety principle 4 at movement.speed "
+            f"{cell.movement.speed:g} m/s (r = {r:.3f} N/s, detect_time + stop_time = "
+            f"{horizon:.3f} s): lower the speed or set abort_ratio")
+    ratio = F_abort / Fb
+    return AbortRatio(ratio, {"r": r, "horizon": horizon, "sigma": noise_sigma,
+                              "rows": [(row.movement, row.F_max, row.r) for row in rows]},
+                      f"abort_ratio 0: safety principle 4 at {cell.movement.speed * 1e3:g} mm/s: "
+                      f"r = {r:.3f} N/s (movements 1-4, core), F_abort = {Fb:g} - {r:.3f} x "
+                      f"{horizon:.3f} - 3 x {noise_sigma:g} = {F_abort:.4f} N, ratio {ratio:.3f}")
 
 
 def abort_budget(params: CellParams | None = None, t_detect: float = DEFAULT_T_DETECT,
