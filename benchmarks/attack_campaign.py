@@ -13,6 +13,9 @@ simulator's own F_max (every step, from its /diagnostics) reached F_break, as a
     .venv/bin/python benchmarks/attack_campaign.py [--runs 50] [--rates 1,10] [--seed 1]
         [-k ATTACK] [--jobs 1] [--json OUT]
 
+The full output of every failed run (each node's log) goes to OUT's name with ``.logs``
+(``attack_campaign.logs/`` without ``--json``), one file per run.
+
 ``--jobs`` runs that many attacks at once, each in a ROS domain of its own (claimed like the
 test suite's, so concurrent runs on the machine never see each other): a busier machine
 than one run at a time, which is reported with the figures (the load average).
@@ -76,6 +79,7 @@ def one_run(attack: str, rtf: float, seed: int, domain: int) -> dict:
     if p.returncode != 0:
         fail = [ln for ln in out.splitlines() if ln.startswith("E ")][:6]
         res["failure"] = "\n".join(fail)[-800:]
+        res["output"] = out             # every node's log: a failure is read in full
     return res
 
 
@@ -114,6 +118,11 @@ def main(argv=None) -> int:
             loads.append(os.getloadavg()[0])
             if args.json:                   # what ran so far, should the campaign be cut short
                 args.json.write_text(json.dumps({"partial": True, "runs": results}, indent=1))
+            if "output" in res:
+                logs = (args.json or Path("attack_campaign.json")).with_suffix(".logs")
+                logs.mkdir(exist_ok=True)
+                (logs / f"{i:04d}_{res['attack'][:60]}_x{res['rtf']:g}.log").write_text(
+                    res.pop("output"))
             el = time.monotonic() - t0
             print(f"\r[{i}/{len(todo)}] {el:.0f} s, ETA {el / i * (len(todo) - i):.0f} s, "
                   f"failed {sum(not r['passed'] for r in results)}, "

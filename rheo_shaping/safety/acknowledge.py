@@ -17,6 +17,13 @@ from .watchdog import Freshness
 #: The planner state in which it streams its plan (any other: stopped, stopping or
 #: not started).
 RUNNING = "running"
+#: States of a planner that is moving the tool: it leaves them only through a stop
+#: (stopping, retracting, holding, done, error), never back to a state before a run.
+MOVING = ("running", "stopping", "retracting")
+#: States of a planner that has not started a plan.  Reported while another planner moves
+#: the tool, they are that other planner's (a twin starting up, which then yields): the
+#: one that moves cannot have gone there, so they do not change what the monitor knows.
+BEFORE_RUN = ("starting", "idle", "waiting", "waiting_for_monitor", "tool_away")
 
 
 class Acknowledgements:
@@ -47,7 +54,14 @@ class Acknowledgements:
             self._held_since = steady_ns
 
     def on_planner_state(self, state: str) -> int | None:
-        """The planner reported ``state``; the number to acknowledge now, or None."""
+        """The planner reported ``state``; the number to acknowledge now, or None.  A state
+        before a run while the known planner moves the tool is another planner's (a twin
+        that starts and yields): ignored, so it cannot lift the hold of an abort (seen in
+        the attack campaign at x10: a twin's "starting" made the monitor believe no plan
+        ran, the abort withheld nothing, and the sheet was stretched past F_break before
+        the simulator held)."""
+        if self.planner_state in MOVING and state in BEFORE_RUN:
+            return None
         self.planner_state = state
         if state != RUNNING and self._held_since is not None:
             self._held_since = None

@@ -26,6 +26,23 @@ def test_an_abort_holds_until_the_planner_is_off_its_plan():
     assert a.on_judged(9) == 9
 
 
+def test_a_twin_planners_state_neither_lifts_nor_prevents_the_hold():
+    """A second planner starting (then yielding) reports states before a run while the first
+    one runs its plan: they are not the running planner's, so they change nothing."""
+    for twin_first in (True, False):
+        a = Acknowledgements(hold=10.0)
+        a.on_planner_state("running")
+        a.on_judged(3)
+        if twin_first:                              # the twin's state came before the abort
+            assert a.on_planner_state("starting") is None
+        a.on_abort(0)
+        assert a.holding
+        for state in ("starting", "idle", "waiting", "waiting_for_monitor", "tool_away"):
+            assert a.on_planner_state(state) is None and a.holding, state
+        assert a.on_judged(4) is None
+        assert a.on_planner_state("stopping") == 4 and not a.holding   # the real reaction
+
+
 def test_the_hold_ends_after_its_limit_without_a_planner_reaction():
     a = Acknowledgements(hold=0.5)
     a.on_planner_state("running")
