@@ -198,8 +198,11 @@ def test_a_second_commander_is_refused_and_the_tool_holds(ros, procs, tmp_path, 
         # reached after the rogue began, never on the way to the rogue's set-point
         off = _off_plan(a, held_at, t_rogue)
         assert off < 1e-4, f"held {off * 1e3:.3f} mm off the planned path: {held_at}"
+        # the reason is the rogue's, unless the cell held already (a busy machine's stale
+        # data came first: seen at x1 under load 15) and the simulator ignored the rogue
         assert ("a second publisher of /tool/command" in reasons
-                or "out of the bound planner's sequence" in reasons), reasons
+                or "out of the bound planner's sequence" in reasons
+                or "ignoring /tool/command while the tool holds" in log), reasons
     a.check(F_max)
     a.stop()
 
