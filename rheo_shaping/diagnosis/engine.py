@@ -99,14 +99,18 @@ STAGES = ("nominal models", "baseline Jacobian", "baseline fit",
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
              library: Sequence[str] = EFFECT_NAMES, jobs: int | None = None,
              progress: Callable[[int], None] | None = None,
-             executor: Executor | None = None) -> Diagnosis:
-    """Diagnose the gap between ``records`` (fitted) and their scenario; check on ``holdout``."""
+             executor: Executor | None = None, initial_state: str = "settled") -> Diagnosis:
+    """Diagnose the gap between ``records`` (fitted) and their scenario; check on ``holdout``.
+
+    ``initial_state``: how each record's model starts (:mod:`.initial_state`: ``settled``,
+    the scenario's drape settled before t = 0; ``laid``, the first frame's sheet released;
+    ``auto``, laid when the records show the sheet moving before the tool touches)."""
     from . import gap, where as where_mod
     from .signature import describe, partial_shares
     if not records:
         raise ValueError("diagnose needs at least one record to fit")
     library = tuple(library)
-    data = [RecordData.of(r) for r in list(records) + list(holdout)]
+    data = [RecordData.of(r, initial_state) for r in list(records) + list(holdout)]
     nf = len(records)
     fit_d, hold_d = data[:nf], data[nf:]
     with Runner(executor, jobs, progress) as run:
