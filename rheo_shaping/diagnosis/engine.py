@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import Executor
+from dataclasses import replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -51,6 +52,7 @@ from ..params.params import CellParams
 from ..records.record import Record
 from ..params.schema import ParameterError
 from . import replay, stats
+from .initial_state import pool
 from .baseline import CHAIN, SHEET, with_sheet
 from .candidates import (CHECKED, PAIRED, PROBES, REFINE_STEPS, Explanation, fit_pair,
                          fit_single, rank_key)
@@ -111,6 +113,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         raise ValueError("diagnose needs at least one record to fit")
     library = tuple(library)
     data = [RecordData.of(r, initial_state) for r in list(records) + list(holdout)]
+    data = [replace(d, initial=s) for d, s in zip(data, pool([d.initial for d in data]))]
     nf = len(records)
     fit_d, hold_d = data[:nf], data[nf:]
     with Runner(executor, jobs, progress) as run:

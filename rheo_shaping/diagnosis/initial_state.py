@@ -13,12 +13,15 @@ This module reads, from a record alone:
   the laid sheet;
 * its length bond to bond (the links' rest length when the sheet was laid
   without strain), with its standard error from the profile noise (a
-  parametric bootstrap of the smoothing) and the noise's bias removed;
+  parametric bootstrap of the smoothing; measured on the dynamic world's
+  camera, 0.2 mm every 3 mm: bias -0.04 to -0.10 mm, spread 0.15-0.19 mm);
 * when the tool first comes within ``CONTACT_GAP`` of the measured sheet
   (pose and tool outline against the frames): the frames before it are the
   approach, which no tool effect touches;
 * how far the sheet moves between its first frame and the last frame before
-  contact, in units of the profile noise (``motion``).
+  contact (or, when the tool touches sooner, the first frame ``COMPARE_AFTER``
+  later), in units of the profile noise (``motion``: the median distance, so
+  that a tool touching one place does not count).
 
 ``mode`` is ``laid`` when the sheet moves beyond ``MOVING`` noise units before
 the tool touches (it was released when the records begin) and ``settled``
@@ -31,12 +34,13 @@ steps for the first ``RELEASE_TIME`` (:class:`~rheo_shaping.sheet.simulation.Lai
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..params.params import CellParams
 from ..records.record import Record
+from ..sheet.drape import make_drape
 from ..sheet.geometry import Cake, Workplane
 from ..sheet.simulation import LaidSheet
 from ..sheet.tools import tool_shape
@@ -44,13 +48,16 @@ from ..sheet.tools import tool_shape
 #: How a record's initial state is taken (``diagnose --initial-state``).
 MODES = ("auto", "laid", "settled")
 #: Half width [m] of the local quadratic that smooths the first frame along its arc length.
-SMOOTH_HALF_WIDTH = 6e-3
-#: Motion [profile noise units] of the sheet before the tool touches beyond which it was
-#: released when the records begin (``auto``).
-MOVING = 2.0
+SMOOTH_HALF_WIDTH = 9e-3
+#: Motion [profile noise units: median distance of the first frame's points from a later
+#: frame's smoothed line] beyond which the sheet was released when the records begin
+#: (``auto``).  Noise alone gives about 0.7-0.9.
+MOVING = 2.5
 #: Distance [m] of the tool's outline from the measured centreline, beyond the sheet's
 #: half thickness, below which the tool counts as touching.
 CONTACT_GAP = 1e-3
+#: The first frame is compared with a frame at least this much later [s].
+COMPARE_AFTER = 1.5
 #: Inertial steps [s] after the release (the fall and its ringing; docs/diagnosis.md).
 RELEASE_TIME = 1.5
 #: Bootstrap replicates of the smoothing for the length's standard error.
@@ -63,14 +70,17 @@ class InitialState:
 
     mode: str                   # "laid" (released when the records begin) or "settled"
     t0: float                   # s, time of the first frame (the release, for a laid sheet)
-    shape: np.ndarray = field(repr=False)   # (M, 2) m, first frame smoothed, top to bottom
+    shape: np.ndarray = field(repr=False, compare=False)   # (M, 2) m, first frame smoothed, top to bottom
     length: float = math.nan    # m, laid length bond to bond (written bonds), bias removed
     length_sd: float = math.nan  # m, its standard error from the profile noise
     noise: float = math.nan     # m, the profile noise of the frames before contact
-    motion: float = 0.0         # noise units: systematic RMS change, first frame to last
-    #                             frame before the tool touches
+    motion: float = 0.0         # noise units: median change from the first frame to a later
+    #                             one (_comparison_frame)
     contact_time: float = math.nan   # s, first frame in which the tool touches the sheet
     written_excess: float = 0.0      # m, the scenario's sheet.excess_length
+    pooled_from: tuple = ()     # m, the records' own laid lengths when pooled
+    ends: float = 0.0           # m, the pieces of ``length`` from the written bonds to the
+    #                             first and last point
 
     def laid(self, params: CellParams) -> LaidSheet | None:
         """The model's laid sheet for cell ``params`` (bonds, cake, the sag knob's offset from
@@ -83,14 +93,33 @@ class InitialState:
         bottom = np.array([s.bottom_bond_x, r])
         nodes = push_out(np.vstack((top, self.shape, bottom)), params)
         nodes[0], nodes[-1] = top, bottom
-        rest = self.length + (s.excess_length - self.written_excess)
+        rest = self.rest(params)
         return LaidSheet(nodes, rest, self.t0, RELEASE_TIME)
+
+    def rest(self, params: CellParams) -> float:
+        """The links' total rest length [m] for cell ``params``: the laid length (pooled over
+        the records, :func:`pool`) with the cell's bonds (the pieces from each bond to the
+        first and last measured point follow the bond knobs), plus the sag knob's offset
+        from its written value (the strain the sheet was laid with)."""
+        s, c = params.sheet, params.cake
+        r = 0.5 * s.thickness
+        ends = (float(np.hypot(*(self.shape[0] - [s.top_bond_x, c.height + r])))
+                + float(np.hypot(*(self.shape[-1] - [s.bottom_bond_x, r]))))
+        return self.length - self.ends + ends + (s.excess_length - self.written_excess)
 
     def as_dict(self) -> dict:
         """Plain numbers for the report and JSON (SI units)."""
         return {"mode": self.mode, "t0_s": self.t0, "laid_length_m": self.length,
                 "laid_length_sd_m": self.length_sd, "motion_noise_units": self.motion,
                 "contact_time_s": self.contact_time, "profile_noise_m": self.noise}
+
+
+def rest_length(params: CellParams) -> float:
+    """The sheet's rest length [m] as the scenario gives it (the drape's length with
+    ``sheet.excess_length``: the baseline's knobs move it, one value for every record)."""
+    s, c = params.sheet, params.cake
+    return float(make_drape(c.height, c.fillet_radius, 0.5 * s.thickness, s.top_bond_x,
+                            s.bottom_bond_x, s.excess_length).length)
 
 
 def push_out(nodes: np.ndarray, params: CellParams) -> np.ndarray:
@@ -169,6 +198,35 @@ def contact_time(record: Record) -> float:
     return math.inf
 
 
+def pool(states: list[InitialState | None]) -> list[InitialState | None]:
+    """The laid records' lengths pooled (inverse-variance mean; its standard error): the
+    same sheet's rest length, read once from every record's first frame (each alone is off
+    by its own noise, which no common knob could fit)."""
+    laid = [s for s in states if s is not None and s.mode == "laid" and math.isfinite(s.length)]
+    if len(laid) < 2:
+        return states
+    lengths = np.array([s.length for s in laid])
+    L = float(np.median(lengths))
+    # the median's standard error: the records' own spread (a tool that starts against the
+    # sheet stretches it in the first instant) or their noise, whichever is larger
+    sd = float(max(1.2533 * np.std(lengths, ddof=1) / math.sqrt(len(laid)),
+                   np.median([s.length_sd for s in laid]) / math.sqrt(len(laid))))
+    ids = {id(s) for s in laid}
+    return [replace(s, length=L, length_sd=sd, pooled_from=tuple(lengths))
+            if id(s) in ids else s for s in states]
+
+
+def _comparison_frame(usable: list[int], times: np.ndarray, before: list[int],
+                      i0: int) -> int | None:
+    """The frame the first one is compared with: the last before the tool touches when that
+    is ``COMPARE_AFTER`` or more after the first, else the first that late (the tool may
+    start against the sheet; the fall moves all of it, the tool only where it touches)."""
+    if before and times[before[-1]] >= times[i0] + COMPARE_AFTER:
+        return before[-1]
+    late = [i for i in usable if times[i] >= times[i0] + COMPARE_AFTER]
+    return late[0] if late else None
+
+
 def estimate(record: Record, mode: str = "auto", seed: int = 0) -> InitialState:
     """The initial state of ``record``'s sheet (see the module's docstring); ``mode``:
     ``auto`` (laid when the sheet moves before contact), ``laid`` or ``settled``."""
@@ -190,16 +248,16 @@ def estimate(record: Record, mode: str = "auto", seed: int = 0) -> InitialState:
     bottom = np.array([sc.sheet.bottom_bond_x, r])
     shape = smooth(frames[i0])
     length = laid_length(shape, top, bottom)
-    # the noise's share of the length and its spread: a parametric bootstrap of the smoothing
+    # the length's spread under the profile noise: a parametric bootstrap of the smoothing
     rng = np.random.default_rng(seed)
     boot = np.array([laid_length(smooth(shape + rng.normal(0.0, noise, shape.shape)), top, bottom)
                      for _ in range(BOOT)]) if noise > 0 else np.array([length])
-    bias = float(np.mean(boot) - length)
     motion = 0.0
-    if len(before) >= 2 and noise > 0:
-        last = frames[before[-1]]
-        d = _distance_to(frames[i0], smooth(last))
-        motion = math.sqrt(max(float(np.mean(d ** 2)) - noise ** 2, 0.0)) / noise
+    later = _comparison_frame(usable, times, before, i0)
+    if later is not None and noise > 0:
+        d = _distance_to(frames[i0], smooth(frames[later]))
+        motion = float(np.median(d)) / noise
     chosen = mode if mode != "auto" else ("laid" if motion > MOVING else "settled")
-    return InitialState(chosen, float(times[i0]), shape, length - bias, float(np.std(boot)),
-                        noise, motion, t_c, float(sc.sheet.excess_length))
+    ends = (float(np.hypot(*(shape[0] - top))) + float(np.hypot(*(shape[-1] - bottom))))
+    return InitialState(chosen, float(times[i0]), shape, length, float(np.std(boot)),
+                        noise, motion, t_c, float(sc.sheet.excess_length), ends=ends)
