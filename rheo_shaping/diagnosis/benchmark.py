@@ -120,8 +120,9 @@ def check_world(world: str) -> str:
 
 def make_case(index: int, kind: str, seed: int, base: CellParams,
               measurement: MeasurementParams = MeasurementParams(),
-              world: str = "finer-chain") -> dict:
-    """Draw a case (its own seed) and record its three runs in ``world`` (:data:`WORLDS`)."""
+              world: str = "finer-chain", n_records: int = 3) -> dict:
+    """Draw a case (its own seed) and record its ``n_records`` runs (movements drawn from 1-4
+    without repeats) in ``world`` (:data:`WORLDS`)."""
     dynamic = check_world(world) == "dynamic"
     rng = random.Random(seed * 1000 + index)
     for _attempt in range(20):
@@ -158,7 +159,7 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
             lay = draw_lay((rng.random(), rng.random(), rng.random(), rng.random()))
         else:
             truth = true_numerics(truth)
-        movements = rng.sample((1, 2, 3, 4), 3)
+        movements = rng.sample((1, 2, 3, 4), n_records)
         records, ok = [], True
         nrng = np.random.default_rng(rng.randrange(2 ** 31))
         for mv in movements:

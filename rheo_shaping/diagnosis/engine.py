@@ -52,7 +52,7 @@ from ..params.params import CellParams
 from ..records.record import Record
 from ..params.schema import ParameterError
 from . import replay, stats
-from .initial_state import pool
+from .initial_state import initial_summary, pool
 from .baseline import CHAIN, SHEET, with_sheet
 from .candidates import (CHECKED, PAIRED, PROBES, REFINE_STEPS, Explanation, fit_pair,
                          fit_single, rank_key)
@@ -101,7 +101,8 @@ STAGES = ("nominal models", "baseline Jacobian", "baseline fit",
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
              library: Sequence[str] = EFFECT_NAMES, jobs: int | None = None,
              progress: Callable[[int], None] | None = None,
-             executor: Executor | None = None, initial_state: str = "settled") -> Diagnosis:
+             executor: Executor | None = None, initial_state: str = "settled",
+             floor="numerics") -> Diagnosis:
     """Diagnose the gap between ``records`` (fitted) and their scenario; check on ``holdout``.
 
     ``initial_state``: how each record's model starts (:mod:`.initial_state`: ``settled``,
@@ -113,7 +114,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         raise ValueError("diagnose needs at least one record to fit")
     library = tuple(library)
     data = [RecordData.of(r, initial_state) for r in list(records) + list(holdout)]
-    data = [replace(d, initial=s) for d, s in zip(data, pool([d.initial for d in data]))]
+    data = [replace(d, initial=s) for d, s in zip(data, pool(
+        [d.initial for d in data], initial_state == "auto"))]
     nf = len(records)
     fit_d, hold_d = data[:nf], data[nf:]
     with Runner(executor, jobs, progress) as run:
@@ -366,6 +368,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                      side, p_gap, n_eff, [d.record.name for d in fit_d],
                      [d.record.name for d in hold_d], runs, corrected=corrected,
                      numerics_base=base_c, J_replay=rp)
+    diag.initial_state = initial_summary(data)
     diag.where = where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf)
     diag.gap_before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
     before = diag.gap_before

@@ -20,8 +20,8 @@ This module reads, from a record alone:
   approach, which no tool effect touches;
 * how far the sheet moves between its first frame and the last frame before
   contact (or, when the tool touches sooner, the first frame ``COMPARE_AFTER``
-  later), in units of the profile noise (``motion``: the median distance, so
-  that a tool touching one place does not count).
+  later), in units of the profile noise (``motion``: the median distance of
+  the points farther than ``TOOL_CLEAR`` from the tool).
 
 ``mode`` is ``laid`` when the sheet moves beyond ``MOVING`` noise units before
 the tool touches (it was released when the records begin) and ``settled``
@@ -56,6 +56,9 @@ MOVING = 2.5
 #: Distance [m] of the tool's outline from the measured centreline, beyond the sheet's
 #: half thickness, below which the tool counts as touching.
 CONTACT_GAP = 1e-3
+#: Points nearer than this [m] to the tool's outline do not count in the motion (the tool,
+#: not the release, moves them).
+TOOL_CLEAR = 1e-2
 #: The first frame is compared with a frame at least this much later [s].
 COMPARE_AFTER = 1.5
 #: Inertial steps [s] after the release (the fall and its ringing; docs/diagnosis.md).
@@ -70,8 +73,8 @@ class InitialState:
 
     mode: str                   # "laid" (released when the records begin) or "settled"
     t0: float                   # s, time of the first frame (the release, for a laid sheet)
-    shape: np.ndarray = field(repr=False, compare=False)   # (M, 2) m, first frame smoothed, top to bottom
-    length: float = math.nan    # m, laid length bond to bond (written bonds), bias removed
+    shape: np.ndarray = field(repr=False, compare=False)   # (M, 2) m, first frame, smoothed
+    length: float = math.nan    # m, laid length bond to bond (written bonds)
     length_sd: float = math.nan  # m, its standard error from the profile noise
     noise: float = math.nan     # m, the profile noise of the frames before contact
     motion: float = 0.0         # noise units: median change from the first frame to a later
@@ -111,7 +114,8 @@ class InitialState:
         """Plain numbers for the report and JSON (SI units)."""
         return {"mode": self.mode, "t0_s": self.t0, "laid_length_m": self.length,
                 "laid_length_sd_m": self.length_sd, "motion_noise_units": self.motion,
-                "contact_time_s": self.contact_time, "profile_noise_m": self.noise}
+                "contact_time_s": (self.contact_time if math.isfinite(self.contact_time)
+                                   else None), "profile_noise_m": self.noise}
 
 
 def rest_length(params: CellParams) -> float:
@@ -198,10 +202,17 @@ def contact_time(record: Record) -> float:
     return math.inf
 
 
-def pool(states: list[InitialState | None]) -> list[InitialState | None]:
-    """The laid records' lengths pooled (inverse-variance mean; its standard error): the
-    same sheet's rest length, read once from every record's first frame (each alone is off
-    by its own noise, which no common knob could fit)."""
+def pool(states: list[InitialState | None], auto: bool = False) -> list[InitialState | None]:
+    """The records' initial states read together.  ``auto``: one mode for all, ``laid`` when
+    the records' median motion exceeds ``MOVING`` (the same cell, laid the same way; one
+    record alone can move little).  The laid records' lengths are pooled: their median, the
+    same sheet's rest length read from every record's first frame (each alone is off by its
+    own noise, and a tool that starts against the sheet stretches it in the first instant,
+    which no common knob could fit)."""
+    if auto and any(s is not None for s in states):
+        moving = float(np.median([s.motion for s in states if s is not None])) > MOVING
+        states = [None if s is None else replace(s, mode="laid" if moving else "settled")
+                  for s in states]
     laid = [s for s in states if s is not None and s.mode == "laid" and math.isfinite(s.length)]
     if len(laid) < 2:
         return states
@@ -255,9 +266,25 @@ def estimate(record: Record, mode: str = "auto", seed: int = 0) -> InitialState:
     motion = 0.0
     later = _comparison_frame(usable, times, before, i0)
     if later is not None and noise > 0:
-        d = _distance_to(frames[i0], smooth(frames[later]))
-        motion = float(np.median(d)) / noise
+        pts = frames[i0]
+        far = np.ones(len(pts), dtype=bool)        # away from the tool at both times
+        shape_t = tool_shape(sc.tool)
+        for i in (i0, later):
+            pose = [np.interp(times[i], record.pose_t, record.pose_xz[:, k]) for k in (0, 1)]
+            far &= shape_t.signed_distance(pts, np.array(pose))[0] > TOOL_CLEAR
+        if np.count_nonzero(far) >= 5:
+            d = _distance_to(pts[far], smooth(frames[later]))
+            motion = float(np.median(d)) / noise
     chosen = mode if mode != "auto" else ("laid" if motion > MOVING else "settled")
     ends = (float(np.hypot(*(shape[0] - top))) + float(np.hypot(*(shape[-1] - bottom))))
     return InitialState(chosen, float(times[i0]), shape, length, float(np.std(boot)),
                         noise, motion, t_c, float(sc.sheet.excess_length), ends=ends)
+
+
+def initial_summary(data) -> dict:
+    """How the records' models started: the common mode and each record's reading."""
+    states = {d.record.name: d.initial for d in data}
+    modes = {s.mode if s is not None else "settled" for s in states.values()}
+    return {"mode": modes.pop() if len(modes) == 1 else "mixed",
+            "records": {n: (s.as_dict() if s is not None else {"mode": "settled"})
+                        for n, s in states.items()}}

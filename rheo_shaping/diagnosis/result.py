@@ -45,6 +45,8 @@ class Diagnosis:
     residual_maps: list = field(default_factory=list)
     numerics_base: Explanation | None = None   # the baseline's run against its refined run
     J_replay: tuple = (None, None)   # draws of the model's own replay misfit (fit, holdout)
+    initial_state: dict | None = None  # how each record's model started (initial_state.py)
+    floor: dict | None = None        # the model-form floor the verdict was judged against
 
     def explained(self, fr: Explanation, holdout: bool = False) -> float:
         """Fraction of the baseline's excess misfit the candidate removes."""
