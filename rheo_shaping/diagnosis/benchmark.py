@@ -296,7 +296,8 @@ def summarise(rows: list[dict], wall: float) -> dict:
 def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
                   progress: Callable[[int], None] | None = None, n_masses: int = 31,
                   process_time: float = 70.0, kinds: tuple[str, ...] | None = None,
-                  executor: Executor | None = None, world: str = "finer-chain") -> dict:
+                  executor: Executor | None = None, world: str = "finer-chain",
+                  floor: str | None = None, initial_state: str | None = None) -> dict:
     """Run ``n`` cases; returns the summary with every case under ``case_results``.
 
     The cases go to ``executor`` (:mod:`rheo_shaping.parallel`: a local pool, a Dask
@@ -308,12 +309,16 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
     base = base_cell(n_masses, process_time)
     t0 = time.monotonic()
     shared = {"seed": seed, "base": base, "pattern": kinds or KINDS_PATTERN,
-              "jobs": jobs if executor is None else 1, "world": world}
+              "jobs": jobs if executor is None else 1, "world": world,
+              "floor": floor or ("model-form" if world == "dynamic" else "numerics"),
+              "initial_state": initial_state or ("auto" if world == "dynamic" else "settled")}
     rows = run_tasks(executor, _case_task, shared, list(range(n)), progress,
                      chunks_per_worker=1 if executor is None else 2)
     out = summarise(rows, time.monotonic() - t0)
     true_n = WorldNumerics().n_masses if world == "dynamic" else 2 * n_masses + 1
-    out.update({"seed": seed, "world": world, "n_masses": n_masses, "true_n_masses": true_n,
+    out.update({"seed": seed, "world": world, "floor": shared["floor"],
+                "initial_state": shared["initial_state"], "n_masses": n_masses,
+                "true_n_masses": true_n,
                 "process_time_s": process_time, "case_results": rows})
     return out
 
@@ -331,7 +336,8 @@ def _case_task(shared: dict, i: int) -> dict:
         library = tuple(x for x in EFFECT_NAMES if x != case["truth"][0][0])
     t1 = time.monotonic()
     diag = diagnose(case["records"][:2], case["records"][2:], library=library,
-                    jobs=shared["jobs"])
+                    jobs=shared["jobs"], floor=shared.get("floor", "numerics"),
+                    initial_state=shared.get("initial_state", "settled"))
     row = score_case(case, diag)
     row["diagnosis_wall_s"] = time.monotonic() - t1
     row["library_size"] = len(library)

@@ -51,7 +51,7 @@ from ..sheet.effects import EFFECT_NAMES
 from ..params.params import CellParams
 from ..records.record import Record
 from ..params.schema import ParameterError
-from . import replay, stats
+from . import floor as fl_mod, replay, stats
 from .initial_state import initial_summary, pool
 from .baseline import CHAIN, SHEET, with_sheet
 from .candidates import (CHECKED, PAIRED, PROBES, REFINE_STEPS, Explanation, fit_pair,
@@ -102,12 +102,39 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
              library: Sequence[str] = EFFECT_NAMES, jobs: int | None = None,
              progress: Callable[[int], None] | None = None,
              executor: Executor | None = None, initial_state: str = "settled",
-             floor="numerics") -> Diagnosis:
+             floor: str = "numerics", reference: Sequence[Record] = (),
+             tolerance: tuple[float, float] | None = None) -> Diagnosis:
     """Diagnose the gap between ``records`` (fitted) and their scenario; check on ``holdout``.
 
     ``initial_state``: how each record's model starts (:mod:`.initial_state`: ``settled``,
     the scenario's drape settled before t = 0; ``laid``, the first frame's sheet released;
-    ``auto``, laid when the records show the sheet moving before the tool touches)."""
+    ``auto``, laid when the records show the sheet moving before the tool touches).
+    ``floor``: what the gap and the adequacy are judged against (:mod:`.floor`:
+    ``numerics``, the stored finer-chain null; ``model-form``, the dynamic world's
+    calibration for this configuration, scaled to ``reference`` records' remainder when
+    given; or a calibration file's path).  ``tolerance`` (profile [m], tool force [N]): a
+    baseline remainder below both is not worth naming (``none``)."""
+    if floor not in fl_mod.KINDS and not str(floor).endswith(".json"):
+        raise ValueError(f"floor {floor!r}: expected one of {', '.join(fl_mod.KINDS)} or a "
+                         "calibration file (.json)")
+    scale = (1.0, 1.0)
+    if reference:
+        if len(reference) < 2:
+            raise ValueError("--reference needs at least two effect-free records (one is "
+                             "held out)")
+        ref = diagnose(reference[:-1], reference[-1:], library=(), jobs=jobs,
+                       executor=executor, initial_state=initial_state)
+        sc = reference[0].scenario
+        path = floor if str(floor).endswith(".json") else fl_mod.FLOOR_FILE
+        scale = fl_mod.reference_scale(ref, sc.sheet.n_masses,
+                                       float(round(max(r.duration for r in reference))), path)
+    with stats.using_null(None):
+        return _diagnose(records, holdout, library, jobs, progress, executor, initial_state,
+                         (floor, scale, bool(reference)), tolerance)
+
+
+def _diagnose(records, holdout, library, jobs, progress, executor, initial_state, floor_spec,
+              tolerance) -> Diagnosis:
     from . import gap, where as where_mod
     from .signature import describe, partial_shares
     if not records:
@@ -134,6 +161,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             raise ValueError("the records' profile noise cannot be estimated "
                              "(too few points per frame)")
         sf = sf if sf > 0 else 1.0
+        floor = _floor(floor_spec, data, nf, len(hold_d), sp, sf)
+        stats.using_null_now(floor.sample)
         G = _Group(fit_d, sp, sf, nominal[:nf])
         H = _Group(hold_d, sp, sf, nominal[nf:]) if hold_d else None
         z0 = G.z(nominal[:nf])
@@ -218,7 +247,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             rp = tuple(replay.replay_misfit(dd, [base_params(d, u_s) for d in dd], run, sp, sf)
                        if dd else None for dd in (fit_d, hold_d))
         p_gap = stats.gap_p_value(J_base - 1.0, shift=rp[0])
-        gap_left = p_gap <= stats.ALPHA
+        below_tol = fl_mod.within_tolerance(parts_B, sp, sf, tolerance)
+        gap_left = p_gap <= stats.ALPHA and not below_tol
 
         # 4. which side: the chain beyond its tolerance (no simulation: linear), checked
         u_ch, J_ch = solver.solve(zB_raw, np.r_[-1 - u_s, -chain_free], np.r_[1 - u_s, chain_free])
@@ -324,6 +354,12 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         if (verdict_fit is not None and verdict_fit.J_parts and chain_ok
                 and chain_c.J < verdict_fit.J):
             verdict_fit = None
+        naming = None
+        if verdict_fit is not None and floor.source != "numerics":
+            # beyond the floor: most of the excess on fit and holdout, clearly the best
+            naming = fl_mod.clear_name(verdict_fit, effects, J_base, J_base_h, bool(hold_d))
+            if not (naming["most"] and naming["clear"]):
+                verdict_fit = None
         chain_side = chain_ok and verdict_fit is None
         verdict = ("none" if not gap_left else "+".join(verdict_fit.names) if verdict_fit
                    else "measurement chain" if chain_side else "unexplained")
@@ -369,6 +405,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                      [d.record.name for d in hold_d], runs, corrected=corrected,
                      numerics_base=base_c, J_replay=rp)
     diag.initial_state = initial_summary(data)
+    diag.floor = _floor_report(floor, diag, verdict_fit, naming, below_tol, tolerance, sp, sf,
+                               A, responses, parts_B)
     diag.where = where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf)
     diag.gap_before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
     before = diag.gap_before
@@ -389,4 +427,46 @@ def _n_eff(G: _Group, z: np.ndarray, data: list[RecordData]) -> dict:
     out = {"profile": stats.n_eff_profile(prof, frames)}
     if st.n_f:
         out["tool force"] = stats.n_eff_force(z[st.n_p:].reshape(-1, 2))
+    return out
+
+
+def _floor(spec, data, nf: int, nh: int, sp: float, sf: float) -> "fl_mod.Floor":
+    """The floor this diagnosis is judged against (``spec``: (kind or file, reference
+    scale, from reference records))."""
+    kind, scale, from_ref = spec
+    if kind == "numerics":
+        return fl_mod.numerics_floor()
+    path = kind if str(kind).endswith(".json") else fl_mod.FLOOR_FILE
+    sc = data[0].record.scenario
+    T = float(round(max(d.record.duration for d in data)))
+    src = (f"reference records (the stored dynamic-world floor scaled by {scale[0]:.2f} in "
+           f"profile, {scale[1]:.2f} in force)" if from_ref else None)
+    return fl_mod.stored_floor(sc.sheet.n_masses, T, nf, nh, sp, sf, path, scale, src)
+
+
+def _floor_report(floor, diag: Diagnosis, verdict_fit, naming, below_tol: bool, tolerance,
+                  sp: float, sf: float, A, responses, parts_B: dict) -> dict:
+    """The floor, what the baseline and the verdict leave against it, and the model-form
+    part of the verdict's interval."""
+    out = floor.as_dict()
+    out["baseline"] = fl_mod.remainder(diag.J_base, parts_B, sp, sf, floor)
+    if math.isfinite(diag.J_base_holdout):
+        out["baseline_holdout"] = {"J_minus_1": diag.J_base_holdout - 1.0,
+                                   "floor_q95": floor.quantile(True),
+                                   "beyond_floor": bool(diag.J_base_holdout - 1.0
+                                                        > floor.quantile(True))}
+    out["below_tolerance"] = below_tol
+    out["tolerance"] = None if tolerance is None else {"profile_m": tolerance[0],
+                                                       "force_N": tolerance[1]}
+    out["naming"] = naming
+    if verdict_fit is not None:
+        out["verdict"] = fl_mod.remainder(verdict_fit.J, verdict_fit.J_parts, sp, sf, floor)
+        if math.isfinite(verdict_fit.J_holdout):
+            out["verdict_holdout"] = {"J_minus_1": verdict_fit.J_holdout - 1.0,
+                                      "floor_q95": floor.quantile(True),
+                                      "beyond_floor": bool(verdict_fit.J_holdout - 1.0
+                                                           > floor.quantile(True))}
+        if floor.source != "numerics" and responses:
+            out["model_form_interval_width"] = fl_mod.model_form_interval(
+                verdict_fit, floor.quantile(), A, responses)
     return out
