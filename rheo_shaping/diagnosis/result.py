@@ -106,7 +106,8 @@ class Diagnosis:
                 "gap_before": self.gap_before, "gap_baseline": self.gap_baseline,
                 "gap_after": self.gap_after, "noise": self.noise, "records": self.records,
                 "holdout": self.holdout, "simulations": self.runs,
-                "J_numerics_baseline": self.numerics_json()}
+                "J_numerics_baseline": self.numerics_json(),
+                "initial_state": _finite(self.initial_state), "floor": _finite(self.floor)}
 
     def numerics_json(self) -> dict | None:
         """The baseline's numerics misfit (None when no candidate was checked)."""
@@ -115,6 +116,17 @@ class Diagnosis:
             return None
         return {"fit": num(b.J_num), "fit_unabsorbed": num(b.J_num_perp),
                 "holdout": num(b.J_num_holdout)}
+
+
+def _finite(x):
+    """``x`` with every non-finite float as None (plain JSON)."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    return x
 
 
 def num(v):
