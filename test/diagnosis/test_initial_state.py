@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.diagnosis import initial_state as I
+from rheo_shaping.diagnosis import initial_state as ist
 from rheo_shaping.diagnosis.compare import polylines_at
 from rheo_shaping.params.params import CellParams
 from rheo_shaping.planning.movement import movement_plan
@@ -60,7 +60,8 @@ def test_the_laid_sheet_released_follows_the_world_where_the_settled_drape_canno
     assert _mean_distance(world, laid, 0.0, 0.05) < 5e-5
     assert _mean_distance(world, settled, 0.0, 0.05) > 5e-4
     assert _mean_distance(world, laid, 0.0, 0.5) < 0.5 * _mean_distance(world, settled, 0.0, 0.5)
-    late_l, late_s = _mean_distance(world, laid, 1.0, 6.0), _mean_distance(world, settled, 1.0, 6.0)
+    late_l = _mean_distance(world, laid, 1.0, 6.0)
+    late_s = _mean_distance(world, settled, 1.0, 6.0)
     assert late_l < 1e-4 and late_s < 1e-4 and abs(late_l - late_s) < 2e-5
 
 
@@ -73,8 +74,8 @@ def test_the_records_say_the_sheet_was_laid_and_how_long_it_is(released):
     for seed in range(3):
         rec = measure_world(world, path, SensorParams(frame_dropout=0.0),
                             np.random.default_rng(seed))
-        st = I.estimate(replace(rec, scenario=p), "auto")
-        assert st.mode == "laid" and st.motion > I.MOVING
+        st = ist.estimate(replace(rec, scenario=p), "auto")
+        assert st.mode == "laid" and st.motion > ist.MOVING
         assert st.t0 == 0.0 and st.contact_time > 5.0
         assert abs(st.length - true) < 6e-4
         assert 5e-5 < st.length_sd < 5e-4
@@ -90,25 +91,26 @@ def test_a_settled_sheet_stays_settled():
     p = replace(p, sheet=replace(p.sheet, n_masses=31),
                 movement=replace(p.movement, number=4, process_time=30.0))
     rec, _ = synthesize_record(p, seed=3)
-    st = I.estimate(rec, "auto")
-    assert st.motion < I.MOVING and st.mode == "settled"
+    st = ist.estimate(rec, "auto")
+    assert st.motion < ist.MOVING and st.mode == "settled"
     assert st.laid(p) is None
 
 
 def test_pooling_takes_the_median_length_and_one_mode():
-    base = I.InitialState("laid", 0.0, np.zeros((3, 2)), 0.105, 2e-4, 2e-4, 5.0, 1.0, 0.006)
-    states = [replace(base, length=L, motion=m) for L, m in ((0.105, 5.0), (0.1062, 1.0),
-                                                            (0.1049, 4.0))]
-    pooled = I.pool(states, auto=True)
+    base = ist.InitialState("laid", 0.0, np.zeros((3, 2)), 0.105, 2e-4, 2e-4, 5.0, 1.0, 0.006)
+    states = [replace(base, length=L, motion=m)
+              for L, m in ((0.105, 5.0), (0.1062, 1.0), (0.1049, 4.0))]
+    pooled = ist.pool(states, auto=True)
     assert all(s.mode == "laid" and s.length == 0.105 for s in pooled)
     assert pooled[0].pooled_from == (0.105, 0.1062, 0.1049)
-    quiet = I.pool([replace(s, motion=1.0) for s in states], auto=True)
+    quiet = ist.pool([replace(s, motion=1.0) for s in states], auto=True)
     assert all(s.mode == "settled" for s in quiet)
 
 
 def test_an_unknown_initial_state_is_a_one_line_error():
-    rec, _ = synthesize_record(replace(CellParams(), movement=replace(
-        CellParams().movement, process_time=20.0), sheet=replace(CellParams().sheet,
-                                                                  n_masses=15)), seed=1)
+    p = CellParams()
+    p = replace(p, sheet=replace(p.sheet, n_masses=15),
+                movement=replace(p.movement, process_time=20.0))
+    rec, _ = synthesize_record(p, seed=1)
     with pytest.raises(ValueError, match="initial state 'dropped': expected one of auto"):
-        I.estimate(rec, "dropped")
+        ist.estimate(rec, "dropped")
