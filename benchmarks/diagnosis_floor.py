@@ -7,9 +7,10 @@ and released when the records begin, its own sensors), is the floor below which 
 is worth an effect's name (issue 26, point 3).  Each case: a cell whose written
 scenario and measurement chain are off within +-0.8 of their tolerances (the
 benchmark's draws, ``diagnose-benchmark``), one laying, records of as many movements as
-the largest grouping needs, drawn from 1-4 without repeats; the baseline is fitted with the initial state read from the records
-(``initial_state="auto"``) on the first ``n_fit`` records and held out on the next
-``n_holdout``, at each diagnosis chain size.  The world always runs 63 masses, so the
+the largest grouping needs, drawn from 1-4 without repeats; the baseline is fitted with
+the initial state read from the records (``initial_state="auto"``) on the first
+``n_fit`` records and held out on the next ``n_holdout``, at each diagnosis chain size.
+The world always runs 63 masses, so the
 same records serve every chain size.
 
 Stored per configuration (chain size, record length, fit and holdout counts): the
@@ -129,8 +130,8 @@ def main(argv=None) -> int:
            "what": "baseline excess J - 1 (fit, holdout) on effect-free dynamic-world records, "
                    "initial state read from the records (auto), written scenario and chain "
                    "off within +-0.8 tolerance, a drawn laying, movements 1-4 in a drawn "
-                   "order (as many as the largest grouping needs; the first n_fit fitted, the next "
-                   "n_holdout held out); "
+                   "order (as many as the largest grouping needs; the first n_fit fitted, "
+                   "the next n_holdout held out); "
                    "case i of seed s is diagnose-benchmark's draw seed * 1000 + i"}
     if not a.assemble:
         done = set()
