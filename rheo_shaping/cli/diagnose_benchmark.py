@@ -90,9 +90,14 @@ def run(args: argparse.Namespace) -> int:
                         ("out_of_library_cause_right", ""),
                         ("holdout_gap_shrink_median", ">= 0.70"),
                         ("baseline_within_tolerance_rate", "1.0"),
-                        ("baseline_error_median_tolerances", "")):
-        v = out[key]
-        print(f"  {key:34s} {'n/a' if v is None else f'{v:.3f}':>8s}  {target}")
+                        ("baseline_error_median_tolerances", ""),
+                        ("no_effect_library_name_rate", "<= 0.05"),
+                        ("out_of_library_unexplained_or_flagged_rate", ">= 0.80"),
+                        ("out_of_library_name_unflagged_rate", "<= 0.10"),
+                        ("interval_coverage", ">= 0.80"),
+                        ("diagnosis_wall_s_median", ""), ("diagnosis_wall_s_max", "")):
+        v = out.get(key)
+        print(f"  {key:42s} {'n/a' if v is None else f'{v:.3f}':>8s}  {target}")
     for name, pe in out["per_effect"].items():
         print(f"  {name:16s} {pe['correct']}/{pe['cases']}")
     return 0

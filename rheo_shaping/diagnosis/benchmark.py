@@ -234,11 +234,19 @@ def score_case(case: dict, diag) -> dict:
     row["baseline_error_u"] = errs
     row["baseline_within_tolerance"] = all(not diag.baseline[k]["outside"] for k in diag.baseline
                                            if k in {s.name for s in SHEET})
+    fl = diag.floor or {}
+    row["floor_source"] = fl.get("source")
+    row["verdict_beyond_floor"] = (fl.get("verdict", {}).get("beyond_floor")
+                                   or fl.get("verdict_holdout", {}).get("beyond_floor")
+                                   if vf else None)
+    row["initial_state"] = (diag.initial_state or {}).get("mode")
     if case["kind"] == "single" and row["correct"]:
         n, v = case["truth"][0]
         fit = np.asarray(vf.values[n], float)
         true = np.asarray(v, float)
         row["param_rel_error"] = float(np.linalg.norm(fit - true) / np.linalg.norm(true))
+        ivs = vf.interval.get(n, [])
+        row["in_interval"] = bool(ivs) and all(lo <= t <= hi for t, (lo, hi) in zip(true, ivs))
         h = diag.gap_after.get("holdout")
         row["holdout_gap_shrink"] = h.get("shrink") if h else None
     return row
@@ -289,6 +297,25 @@ def summarise(rows: list[dict], wall: float) -> dict:
         "baseline_within_tolerance_rate": frac(rows, "baseline_within_tolerance"),
         "baseline_error_median_tolerances": float(np.median(sheet_err)) if sheet_err else None,
         "simulations_median": float(np.median([r["simulations"] for r in rows])) if rows else None,
+        # issue 26's list: effect-free records named from the library; out-of-library
+        # effects unexplained or named with a remainder flagged beyond the floor, or named
+        # without that flag; the truth within the named effect's interval; time
+        "no_effect_library_name_rate": (sum(r["verdict"] in EFFECT_NAMES or "+" in r["verdict"]
+                                            for r in by["none"]) / len(by["none"])
+                                        if by["none"] else None),
+        "out_of_library_unexplained_or_flagged_rate": (
+            sum(r["verdict"] == "unexplained" or bool(r.get("verdict_beyond_floor"))
+                for r in by["out_of_library"]) / len(by["out_of_library"])
+            if by["out_of_library"] else None),
+        "out_of_library_name_unflagged_rate": (
+            sum(r["verdict"] not in ("none", "unexplained", "measurement chain")
+                and not r.get("verdict_beyond_floor") for r in by["out_of_library"])
+            / len(by["out_of_library"]) if by["out_of_library"] else None),
+        "interval_coverage": frac(single, "in_interval"),
+        "diagnosis_wall_s_median": (float(np.median([r["diagnosis_wall_s"] for r in rows]))
+                                    if rows and "diagnosis_wall_s" in rows[0] else None),
+        "diagnosis_wall_s_max": (float(np.max([r["diagnosis_wall_s"] for r in rows]))
+                                 if rows and "diagnosis_wall_s" in rows[0] else None),
         "per_effect": per_effect, "wall_time_s": wall,
     }
 
