@@ -11,7 +11,11 @@ simulator's own F_max (every step, from its /diagnostics) reached F_break, as a
 (F_max median / max per attack, the frozen monitor's detection time) are printed as JSON.
 
     .venv/bin/python benchmarks/attack_campaign.py [--runs 50] [--rates 1,10] [--seed 1]
-        [-k ATTACK] [--json OUT]
+        [-k ATTACK] [--jobs 1] [--json OUT]
+
+``--jobs`` runs that many attacks at once, each in a ROS domain of its own (claimed like the
+test suite's, so concurrent runs on the machine never see each other): a busier machine
+than one run at a time, which is reported with the figures (the load average).
 
 Run it with ``python3 dev.py``'s environment (a ROS_DOMAIN_ID of its own):
 ``.venv/bin/python benchmarks/attack_campaign.py`` from the repository root.
@@ -19,6 +23,7 @@ Run it with ``python3 dev.py``'s environment (a ROS_DOMAIN_ID of its own):
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import json
 import os
 import random
@@ -30,6 +35,8 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "test"))
+from _support.domains import claim_domain_id  # noqa: E402  (stdlib only)
 TESTS = "test/nodes/test_attacks.py"
 ATTACKS = [
     "test_a_second_commander_is_refused_and_the_tool_holds[during_run]",
@@ -41,6 +48,7 @@ ATTACKS = [
     "test_lying_tension_data_aborts_with_the_reason",
     "test_a_parameter_slip_in_one_node_is_refused_with_both_values",
     "test_a_spoofed_ready_heartbeat_does_not_open_the_interlock",
+    "test_a_planner_killed_and_restarted_does_not_move_the_tool",
 ]
 F_RE = re.compile(r"F_max ([0-9.]+) N \(threshold ([0-9.]+) N, allowed ([0-9.]+) N, "
                   r"F_break ([0-9.]+) N\)")
@@ -77,20 +85,39 @@ def main(argv=None) -> int:
     ap.add_argument("--rates", default="1,10", help="real-time factors (default 1,10)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("-k", default="", help="only attacks whose name contains this")
-    ap.add_argument("--domain", type=int, default=int(os.environ.get("ROS_DOMAIN_ID", "61")))
+    ap.add_argument("--domain", type=int, default=None,
+                    help="the ROS domain of a one-job campaign (default: one claimed per job)")
+    ap.add_argument("--jobs", type=int, default=1, help="attacks run at once (default 1)")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
     rng = random.Random(args.seed)
     rates = [float(r) for r in args.rates.split(",")]
     todo = [(a, r) for a in ATTACKS if args.k in a for r in rates for _ in range(args.runs)]
     rng.shuffle(todo)
-    results, t0 = [], time.monotonic()
-    for i, (attack, rtf) in enumerate(todo, 1):
-        results.append(one_run(attack, rtf, rng.randrange(2**31), args.domain))
-        el = time.monotonic() - t0
-        print(f"\r[{i}/{len(todo)}] {el:.0f} s, ETA {el / i * (len(todo) - i):.0f} s, "
-              f"failed {sum(not r['passed'] for r in results)}, "
-              f"tears {sum(r['tear'] for r in results)}", end="", flush=True)
+    if args.jobs < 1:
+        ap.error(f"--jobs {args.jobs}: expected a whole number >= 1")
+    domains = [args.domain] if args.domain is not None and args.jobs == 1 else [
+        claim_domain_id() for _ in range(args.jobs)]
+    free = list(domains)
+    seeds = [rng.randrange(2**31) for _ in todo]
+    results, t0, loads = [], time.monotonic(), []
+
+    def job(i):
+        domain = free.pop()
+        try:
+            return one_run(*todo[i], seeds[i], domain)
+        finally:
+            free.append(domain)
+    with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
+        for i, res in enumerate(pool.map(job, range(len(todo))), 1):
+            results.append(res)
+            loads.append(os.getloadavg()[0])
+            if args.json:                   # what ran so far, should the campaign be cut short
+                args.json.write_text(json.dumps({"partial": True, "runs": results}, indent=1))
+            el = time.monotonic() - t0
+            print(f"\r[{i}/{len(todo)}] {el:.0f} s, ETA {el / i * (len(todo) - i):.0f} s, "
+                  f"failed {sum(not r['passed'] for r in results)}, "
+                  f"tears {sum(r['tear'] for r in results)}", end="", flush=True)
     print()
     summary = {}
     for attack in ATTACKS:
@@ -116,7 +143,9 @@ def main(argv=None) -> int:
               "tears": sum(r["tear"] for r in results),
               "tracebacks": sum(r["traceback_in_nodes"] for r in results),
               "failed": sum(not r["passed"] for r in results), "runs": len(results),
-              "wall_s": round(time.monotonic() - t0, 1), "attacks": summary}
+              "wall_s": round(time.monotonic() - t0, 1), "jobs": args.jobs,
+              "load_average_median": round(statistics.median(loads), 2) if loads else None,
+              "attacks": summary}
     print(json.dumps(report, indent=1))
     if args.json:
         args.json.write_text(json.dumps({"report": report, "runs": results}, indent=1))

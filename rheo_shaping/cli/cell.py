@@ -13,7 +13,7 @@ import json
 
 from ..jsonable import json_safe
 from . import UserError
-from .common import add_movement_argument, add_params_argument, cell_from_args
+from .common import add_movement_argument, add_params_argument, cell_from_args, ros_namespace
 
 
 def add_parser(sub) -> None:
@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
                           real_time_factor=args.real_time_factor, timeout=args.timeout,
                           progress=say,
                           log_level="info" if args.verbose else "warn",
-                          namespace=_namespace(args.namespace))
+                          namespace=ros_namespace(args.namespace))
     except ParameterError as exc:
         raise UserError(str(exc)) from None
     except Exception as exc:   # rcl refuses the params file, etc.
@@ -103,15 +103,3 @@ def run(args: argparse.Namespace) -> int:
     if not result.finished:
         return 1
     return 3 if result.aborted else 0
-
-
-def _namespace(text: str) -> str:
-    """A ROS namespace from --namespace, or UserError naming what is wrong."""
-    import re
-    ns = text.strip()
-    if ns in ("", "/"):
-        return ""
-    if not re.fullmatch(r"/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*", ns):
-        raise UserError(f"--namespace = {text!r}: expected a ROS namespace such as /cell2 "
-                        "(tokens of letters, digits and _, each starting with a letter)")
-    return "/" + ns.lstrip("/")

@@ -152,3 +152,15 @@ def executor_label(args: argparse.Namespace) -> str:
     if args.executor:
         return f"executor {args.executor}"
     return f"{args.jobs} worker process{'es' if args.jobs > 1 else ''}"
+
+
+def ros_namespace(text: str) -> str:
+    """A ROS namespace from --namespace, or UserError naming what is wrong."""
+    import re
+    ns = text.strip()
+    if ns in ("", "/"):
+        return ""
+    if not re.fullmatch(r"/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*", ns):
+        raise UserError(f"--namespace = {text!r}: expected a ROS namespace such as /cell2 "
+                        "(tokens of letters, digits and _, each starting with a letter)")
+    return "/" + ns.lstrip("/")

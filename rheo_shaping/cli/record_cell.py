@@ -5,8 +5,7 @@ import argparse
 import json
 
 from . import UserError
-from .cell import _namespace
-from .common import add_params_argument, cell_from_args, output_dir
+from .common import add_params_argument, cell_from_args, output_dir, ros_namespace
 
 
 def add_parser(sub) -> None:
@@ -55,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     from ..records.records import RecordError
     say = None if (args.quiet or args.json) else (lambda msg: print(msg, flush=True))
     try:
-        path, rec = record_cell(out, namespace=_namespace(args.namespace), scenario=scenario,
+        path, rec = record_cell(out, namespace=ros_namespace(args.namespace), scenario=scenario,
                                 duration=args.duration, idle_timeout=args.idle_timeout,
                                 timeout=args.timeout, force=args.force, progress=say,
                                 start=args.start)

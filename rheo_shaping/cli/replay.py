@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..units import NS
 from . import UserError
-from .cell import _namespace
+from .common import ros_namespace
 
 
 def add_parser(sub) -> None:
@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     bar = _Progress(_span_s(Path(args.record)), args.rate, args.quiet or args.json)
     finished = False
     try:
-        result = replay(Path(args.record), namespace=_namespace(args.namespace), rate=args.rate,
+        result = replay(Path(args.record), namespace=ros_namespace(args.namespace), rate=args.rate,
                         clock=args.clock, progress=bar.say, wait_for_subscribers=args.wait)
         finished = True
     except RecordError as exc:

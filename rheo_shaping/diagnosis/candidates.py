@@ -10,7 +10,7 @@ import numpy as np
 from ..sheet.effects import EFFECTS
 from . import stats
 from .evaluate import Candidate
-from .linear import Solver
+from .linear import Solver, Stack
 
 #: Probe values per effect: (kind, values).  "curve": a scalar effect probed at two magnitudes,
 #: the response piecewise linear through 0 and both; "linear": one column per probe (signed).
@@ -31,8 +31,21 @@ REFINE_STEPS = 8   # chord (secant) steps of each checked candidate (each simula
 
 
 @dataclass
+class Search:
+    """Where a candidate's point search stands (not evidence): its last simulated run's
+    residuals, its own Jacobian of the sheet knobs, the point before, the step factor."""
+
+    z_raw: np.ndarray | None = None         # fit records' z at the last run (chain uncorrected)
+    zh_raw: np.ndarray | None = None        # holdout records' z, same run
+    jacobian: np.ndarray | None = None      # own sheet-knob Jacobian (:func:`check.relinearise`)
+    prev: tuple | None = None               # (z_raw, u_sheet, values) of the point before
+    damp: float = 1.0                       # step factor (halved on a miss)
+
+
+@dataclass
 class Explanation:
-    """One candidate explanation (an effect or a pair) and its evidence."""
+    """One candidate explanation (an effect or a pair) and its evidence; ``search``: the
+    state of its refinement."""
 
     names: tuple[str, ...]
     values: dict                    # name -> tuple of values
@@ -47,16 +60,12 @@ class Explanation:
     baseline_u: np.ndarray | None = None
     interval: dict = field(default_factory=dict)
     chain_free: bool = False        # the measurement chain's hypothesis (chain beyond tolerance)
-    z_raw: np.ndarray | None = field(default=None, repr=False)   # fit records' z at the last run
-    zh_raw: np.ndarray | None = field(default=None, repr=False)  # holdout records' z, same run
     J_num: float = math.nan         # misfit of its run against the refined run (fit records)
     J_num_holdout: float = math.nan
     refinement: str = "chain and steps"   # what numerics() refined
     J_num_perp: float = math.nan    # the part of J_num no refit absorbs
-    jacobian: np.ndarray | None = field(default=None, repr=False)  # own sheet-knob Jacobian
     value_shift: dict = field(default_factory=dict)  # name -> value shift under refinement
-    prev: tuple | None = field(default=None, repr=False)         # (z_raw, u_sheet, values) before
-    damp: float = 1.0                                            # step factor (halved on a miss)
+    search: Search = field(default_factory=Search, repr=False)
 
     @property
     def candidate(self) -> Candidate:
@@ -65,6 +74,22 @@ class Explanation:
     @property
     def n_params(self) -> int:
         return self.k
+
+
+@dataclass(frozen=True)
+class LinearFit:
+    """The linearised model at the calibrated baseline, what :func:`fit_single` and
+    :func:`fit_pair` read: the baseline's residual ``z`` (chain uncorrected), the bounded
+    solver on [sheet Jacobian, chain columns] and its bounds, how the residual splits by
+    observable (``stack``), the effective sample sizes and the baseline's misfit parts."""
+
+    z: np.ndarray
+    solver: Solver
+    lo: np.ndarray
+    hi: np.ndarray
+    stack: Stack
+    n_eff: dict
+    parts: dict
 
 
 def rank_key(f: Explanation):
@@ -83,27 +108,40 @@ def magnitude(name: str, v: float) -> float:
     return 1.0 - v if name == "power_law" else v
 
 
-def fit_single(name, resp, zB_raw, solver: Solver, lo, hi, G, n_eff, parts_B):
+def linear_columns(name: str, resp) -> list[tuple[int, np.ndarray]]:
+    """A linear effect's columns: per probe (values ``v``, response ``d``) the parameter it
+    moves (its largest entry) and the response per unit of that parameter."""
+    out = []
+    for v, d in resp:
+        k = int(np.argmax(np.abs(v)))
+        out.append((k, d / v[k]))
+    return out
+
+
+def fit_single(name: str, resp, lin: LinearFit) -> Explanation | None:
+    """Effect ``name`` fitted jointly with the baseline's knobs on the linearised model
+    ``lin``, from its probe responses ``resp`` ((values, response or None) pairs): a linear
+    effect by its columns, a curve effect on a grid of magnitudes (the response piecewise
+    linear through 0 and its probes); with its 95 % interval and likelihood ratio.  None
+    when no probe ran."""
     kind, vals, top = PROBES[name]
     e = EFFECTS[name]
+    solver, n_eff = lin.solver, lin.n_eff
     if any(d is None for _, d in resp):
         resp = [(v, d) for v, d in resp if d is not None]
         if not resp:
             return None
     if kind == "linear":
-        cols = []
-        for v, d in resp:
-            k = int(np.argmax(np.abs(v)))
-            cols.append((k, d / v[k]))
+        cols = linear_columns(name, resp)
         E = np.column_stack([c for _, c in cols])
         elo = np.array([e.bounds[k][0] for k, _ in cols])
         ehi = np.array([e.bounds[k][1] for k, _ in cols])
-        u, J = solver.solve(zB_raw, lo, hi, E, (elo, ehi))
+        u, J = solver.solve(lin.z, lin.lo, lin.hi, E, (elo, ehi))
         vals_fit = [0.0] * e.n_params
         for (k, _), x in zip(cols, u[solver.A.shape[1]:]):
             vals_fit[k] = float(x)
-        z = solver.residual(zB_raw, u, E)
-        c = Explanation((name,), {name: tuple(vals_fit)}, J, G.stack.J_parts(z), k=len(cols),
+        z = solver.residual(lin.z, u, E)
+        c = Explanation((name,), {name: tuple(vals_fit)}, J, lin.stack.J_parts(z), k=len(cols),
                         baseline_u=u[:solver.A.shape[1]])
         # 95 % interval: the value whose LR drop is 3.84 (effective sample size), the baseline
         # refitted (the column with the baseline's columns projected out)
@@ -122,24 +160,25 @@ def fit_single(name, resp, zB_raw, solver: Solver, lo, hi, G, n_eff, parts_B):
         grid = np.linspace(0.0, magnitude(name, top), GRID)
         Js, us = [], []
         for a in grid:
-            u, J = solver.solve(zB_raw + response_at(mags, a), lo, hi)
+            u, J = solver.solve(lin.z + response_at(mags, a), lin.lo, lin.hi)
             Js.append(J)
             us.append(u)
         i = int(np.argmin(Js))
         a = float(grid[i])
         # 95 % interval: magnitudes within the LR drop of 3.84 (effective sample size)
         ntot = sum(n_eff.values())
-        lo_a, hi_a = _lr_interval(grid, np.asarray(Js), i, ntot)
-        z = zB_raw + response_at(mags, a) + solver.A @ us[i]
+        lo_a, hi_a = lr_interval(grid, np.asarray(Js), i, ntot)
+        z = lin.z + response_at(mags, a) + solver.A @ us[i]
         v = 1.0 - a if name == "power_law" else a
         iv = sorted((1.0 - lo_a, 1.0 - hi_a)) if name == "power_law" else [lo_a, hi_a]
-        c = Explanation((name,), {name: (v,)}, Js[i], G.stack.J_parts(z), k=1, baseline_u=us[i])
+        c = Explanation((name,), {name: (v,)}, Js[i], lin.stack.J_parts(z), k=1,
+                        baseline_u=us[i])
         c.interval = {name: [tuple(iv)]}
-    c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
+    c.LR = stats.likelihood_ratio(lin.parts, c.J_parts, n_eff)
     return c
 
 
-def _lr_interval(grid: np.ndarray, Js: np.ndarray, i: int, ntot: float) -> tuple[float, float]:
+def lr_interval(grid: np.ndarray, Js: np.ndarray, i: int, ntot: float) -> tuple[float, float]:
     """Magnitudes whose LR drop n ln(J / J_min) stays within 3.84 (95 %), between grid points
     by linear interpolation of the drop, and never narrower than the parabola through the
     minimum and its neighbours gives (a grid step can be wider than the interval)."""
@@ -164,10 +203,11 @@ def _lr_interval(grid: np.ndarray, Js: np.ndarray, i: int, ntot: float) -> tuple
     return max(lo_a, float(grid[0])), min(hi_a, float(grid[-1]))
 
 
-def fit_pair(a: Explanation, b: Explanation, responses, zB_raw, solver: Solver, lo, hi, G, n_eff,
-             parts_B):
-    """Two effects together on the linearised model (responses add)."""
+def fit_pair(a: Explanation, b: Explanation, responses, lin: LinearFit) -> Explanation:
+    """Two effects together on the linearised model ``lin`` (responses add): linear effects
+    by their columns, curve effects on a grid of 17 magnitudes each."""
     na, nb = a.names[0], b.names[0]
+    solver = lin.solver
     best = None
     grids = []
     for n in (na, nb):
@@ -179,26 +219,25 @@ def fit_pair(a: Explanation, b: Explanation, responses, zB_raw, solver: Solver, 
             mags = [(magnitude(n, v[0]), d) for v, d in resp]
             grids.append((n, "curve", (mags, np.linspace(0, magnitude(n, top), 17))))
     curve = [g for g in grids if g[1] == "curve"]
-    lin = [g for g in grids if g[1] == "linear"]
+    lin_e = [g for g in grids if g[1] == "linear"]
     E, elo, ehi, kidx = None, [], [], []
-    if lin:
+    if lin_e:
         cols = []
-        for n, _, resp in lin:
+        for n, _, resp in lin_e:
             e = EFFECTS[n]
-            for v, d in resp:
-                k = int(np.argmax(np.abs(v)))
-                cols.append(d / v[k])
+            for k, col in linear_columns(n, resp):
+                cols.append(col)
                 elo.append(e.bounds[k][0])
                 ehi.append(e.bounds[k][1])
                 kidx.append((n, k))
         E = np.column_stack(cols)
     axes = [g[2][1] for g in curve] or [[None]]
     for combo in itertools.product(*axes):
-        shift = np.zeros_like(zB_raw)
+        shift = np.zeros_like(lin.z)
         for (n, _, (mags, _g)), x in zip(curve, combo):
             if x is not None:
                 shift = shift + response_at(mags, x)
-        u, J = solver.solve(zB_raw + shift, lo, hi, E,
+        u, J = solver.solve(lin.z + shift, lin.lo, lin.hi, E,
                             (np.array(elo), np.array(ehi)) if E is not None else None)
         if best is None or J < best[0]:
             best = (J, u, combo, shift)
@@ -214,10 +253,10 @@ def fit_pair(a: Explanation, b: Explanation, responses, zB_raw, solver: Solver, 
                     vv[k] = float(x)
             values[n] = tuple(vv)
     k0 = solver.A.shape[1]
-    z = zB_raw + shift + solver.A @ u[:k0] + (E @ u[k0:] if E is not None else 0.0)
+    z = lin.z + shift + solver.A @ u[:k0] + (E @ u[k0:] if E is not None else 0.0)
     names = tuple(sorted((na, nb)))
-    c = Explanation(names, {n: values[n] for n in names}, J, G.stack.J_parts(z),
+    c = Explanation(names, {n: values[n] for n in names}, J, lin.stack.J_parts(z),
                     k=a.k + b.k, baseline_u=u[:solver.A.shape[1]])
     c.interval = {n: [(v, v) for v in values[n]] for n in names}
-    c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
+    c.LR = stats.likelihood_ratio(lin.parts, c.J_parts, lin.n_eff)
     return c

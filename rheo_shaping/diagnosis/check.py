@@ -26,7 +26,8 @@ from ..params.params import CellParams
 
 from ..sheet.effects import EFFECTS
 from . import stats
-from .candidates import PROBES, magnitude
+from .candidates import PROBES, REFINE_STEPS, Explanation, linear_columns, magnitude
+from .context import Baseline, FitContext, Group, forward_jacobian
 from .evaluate import Task, all_ok, apply
 
 #: One refinement of the diagnosis's discretisation: factors on the solver's steps (the chain
@@ -55,44 +56,46 @@ def refined(p: CellParams, chain: bool = True) -> CellParams:
     return replace(p, sheet=replace(p.sheet, n_masses=n), solver=solver)
 
 
-def numerics(cands, run, fit_d, hold_d, G, H, base_params, n_s, A, responses) -> None:
+def numerics(cands: list[Explanation], ctx: FitContext, base: Baseline, responses) -> None:
     """Each candidate's numerics misfit: its run against the same run refined
     (:func:`refined`).  ``J_num``: all of it (fit records); ``J_num_perp``: the part no
     refit of the baseline's knobs and the candidate's own values could absorb (the change
     projected off their columns ``A`` and the effects' responses; reported, not used);
     ``J_num_holdout``: all of it on the holdout records (no refit there).  A single effect's
     interval is widened by the value error the refinement implies."""
-    cands = [c for c in cands if c.checked and c.z_raw is not None and math.isfinite(c.J)]
+    cands = [c for c in cands
+             if c.checked and c.search.z_raw is not None and math.isfinite(c.J)]
     if not cands:
         return
+    run, G, H, n_s, A = ctx.run, ctx.G, ctx.H, ctx.n_s, base.solver.A
     tasks = []
     for c in cands:
-        for d in list(fit_d) + list(hold_d):
-            tasks.append(Task(d, refined(apply(base_params(d, c.baseline_u[:n_s]),
+        for d in ctx.data:
+            tasks.append(Task(d, refined(apply(ctx.params(d, c.baseline_u[:n_s]),
                                                c.candidate))))
     outs = run(tasks)
-    nd, nf = len(fit_d) + len(hold_d), len(fit_d)
+    nd, nf = len(ctx.data), ctx.nf
     # where the finer chain does not run (its Newton gives up), the steps alone are refined,
     # for every candidate alike (the baseline's J_num is compared with theirs)
     if any(not all_ok(outs[i * nd:(i + 1) * nd]) for i in range(len(cands))):
-        outs = run([Task(d, refined(apply(base_params(d, c.baseline_u[:n_s]), c.candidate),
+        outs = run([Task(d, refined(apply(ctx.params(d, c.baseline_u[:n_s]), c.candidate),
                                     chain=False))
-                    for c in cands for d in list(fit_d) + list(hold_d)])
+                    for c in cands for d in ctx.data])
         for c in cands:
             c.refinement = "steps"
     for i, c in enumerate(cands):
         o = outs[i * nd:(i + 1) * nd]
         if not all_ok(o):
             continue                         # no allowance where no refined run runs
-        dz = G.z(o[:nf]) - c.z_raw
+        dz = G.z(o[:nf]) - c.search.z_raw
         c.J_num = G.J(dz)
         E, slots = _columns(c, responses)
         M = np.hstack((A, E)) if E is not None else A
         Q = np.linalg.qr(M, mode="reduced")[0]
         perp = dz - Q @ (Q.T @ dz)
         c.J_num_perp = G.J(perp)
-        if H is not None and c.zh_raw is not None:
-            c.J_num_holdout = H.J(H.z(o[nf:]) - c.zh_raw)
+        if H is not None and c.search.zh_raw is not None:
+            c.J_num_holdout = H.J(H.z(o[nf:]) - c.search.zh_raw)
         if E is not None and len(c.names) == 1:
             _widen(c, dz, A, E, slots)
 
@@ -104,7 +107,7 @@ def effect_columns(name: str, responses, value) -> list[tuple[int, np.ndarray]] 
     kind, _vals, _top = PROBES[name]
     resp = [(v, d) for v, d in responses[name] if d is not None]
     if kind == "linear":
-        return [(int(np.argmax(np.abs(v))), d / v[int(np.argmax(np.abs(v)))]) for v, d in resp]
+        return linear_columns(name, resp)
     mags = [(magnitude(name, v[0]), d) for v, d in resp]
     if len(mags) < 2:
         return None
@@ -141,118 +144,113 @@ def _widen(c, dz: np.ndarray, A: np.ndarray, E: np.ndarray, slots: list[int]) ->
     c.value_shift = {name: [float(s) for s in shift]}
 
 
-def check(cands, run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit, parts_B, n_eff,
-          J_base_h, m, chain_free=None, refine=None) -> None:
-    """Simulate the candidates at their fitted values (fit and holdout records).
+def check(cands: list[Explanation], ctx: FitContext, base: Baseline, *, m: int,
+          responses: dict | None = None) -> None:
+    """Simulate the candidates at their fitted values (fit and holdout records); ``m``: the
+    number of candidates their p-values are corrected for.
 
-    With ``refine = (A_sheet, responses, steps)``, each effect candidate then takes up to
-    ``steps`` chord steps (the baseline's Jacobian and the effect's probe response, from the
-    simulated point), each simulated and kept only when it lowers J on the fit records.
+    With the probes' ``responses``, each effect candidate then takes up to ``REFINE_STEPS``
+    chord steps (:func:`refine_points`).
     """
     points = []
     for c in cands:
-        points.append((c, np.clip(u_s + c.baseline_u[:n_s], -1, 1), c.values))
-    simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
-                    chain_free, first=True)
-    if refine is None:
+        points.append((c, np.clip(base.u_s + c.baseline_u[:ctx.n_s], -1, 1), c.values))
+    simulate_points(points, ctx, base, m=m, first=True)
+    if responses is None:
         return
-    A_sheet, responses, steps = refine
-    refine_points(cands, run, fit_d, hold_d, G, H, n_s, base_params, chain_fit, parts_B, n_eff,
-                  m, chain_free, A_sheet, responses, steps)
+    refine_points(cands, ctx, base, m=m, responses=responses)
 
 
-def refine_points(cands, run, fit_d, hold_d, G, H, n_s, base_params, chain_fit, parts_B, n_eff,
-                  m, chain_free, A_sheet, responses, steps) -> None:
+def refine_points(cands: list[Explanation], ctx: FitContext, base: Baseline, *, m: int,
+                  responses: dict, steps: int = REFINE_STEPS) -> None:
     """Up to ``steps`` chord steps of each effect candidate (its own Jacobian of the sheet
-    knobs when :func:`relinearise` made one, else ``A_sheet``), each simulated and kept only
-    when it lowers J on the fit records."""
+    knobs when :func:`relinearise` made one, else the baseline's), each simulated and kept
+    only when it lowers J on the fit records."""
     for _ in range(steps):
         points = []
         for c in cands:
-            if c.chain_free or not math.isfinite(c.J) or c.z_raw is None:
+            if c.chain_free or not math.isfinite(c.J) or c.search.z_raw is None:
                 continue
-            A_c = c.jacobian if c.jacobian is not None else A_sheet
-            step = chord(c, A_c, G, responses, n_s)
+            A_c = c.search.jacobian if c.search.jacobian is not None else base.A_sheet
+            step = chord(c, A_c, ctx.G, responses)
             if step is not None:
                 points.append((c, *step))
         if not points:
             break
-        simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff,
-                        m, chain_free, first=False)
+        simulate_points(points, ctx, base, m=m, first=False)
 
 
-def relinearise(cands, run, fit_d, G, base_params, n_s) -> None:
+def relinearise(cands: list[Explanation], ctx: FitContext) -> None:
     """Each candidate's own Jacobian of the sheet knobs, at its point with its effect on
     (forward differences of half a tolerance, toward the inside of the +-1 box): the
     baseline's Jacobian is taken without any effect, and a strong effect (a large creep, a
     friction) changes how the knobs act, so chord steps from it stall short of the fit."""
-    from ..params.schema import ParameterError
-    nf = len(fit_d)
     for c in cands:
-        u = np.asarray(c.baseline_u[:n_s], float)
-        tasks, steps = [], []
-        for j in range(n_s):
-            h = 0.5 if u[j] <= 0.5 else -0.5
+        u = np.asarray(c.baseline_u[:ctx.n_s], float)
+
+        def at(j: int, h: float, c=c, u=u) -> list:
             uj = u.copy()
             uj[j] += h
-            try:
-                ps = [apply(base_params(d, uj), c.candidate) for d in fit_d]
-            except ParameterError:
-                ps, h = [apply(base_params(d, u), c.candidate) for d in fit_d], 0.0
-            tasks += [Task(d, p) for d, p in zip(fit_d, ps)]
-            steps.append(h)
-        outs = run(tasks)
-        cols = []
-        for j in range(n_s):
-            o = outs[j * nf:(j + 1) * nf]
-            ok = all_ok(o) and steps[j] != 0.0
-            cols.append((G.z(o) - c.z_raw) / steps[j] if ok else np.zeros_like(c.z_raw))
-        c.jacobian = np.column_stack(cols)
-        c.prev, c.damp = None, 1.0
+            return [apply(ctx.params(d, uj), c.candidate) for d in ctx.fit_d]
+
+        def invalid(j: int, c=c, u=u) -> list:
+            return [apply(ctx.params(d, u), c.candidate) for d in ctx.fit_d]
+        steps = [(0.5 if u[j] <= 0.5 else -0.5,) for j in range(ctx.n_s)]
+        c.search.jacobian = forward_jacobian(ctx, c.search.z_raw, at, steps, invalid)
+        c.search.prev, c.search.damp = None, 1.0
 
 
-def simulate_points(points, run, fit_d, hold_d, G, H, base_params, chain_fit, parts_B, n_eff, m,
-                    chain_free, first: bool) -> None:
+def simulate_points(points, ctx: FitContext, base: Baseline, *, m: int, first: bool) -> None:
+    """Run each (candidate, sheet u, values) point on the fit and holdout records and take
+    it as the candidate's evidence (the first time always; later only when J drops, else
+    the candidate's step is halved)."""
+    G, H, nf = ctx.G, ctx.H, ctx.nf
     tasks = []
     for c, u_sheet, vals in points:
         cand = tuple((n, vals[n]) for n in c.names)
-        for d in list(fit_d) + list(hold_d):
-            tasks.append(Task(d, apply(base_params(d, u_sheet), cand)))
-    outs = run(tasks)
-    nd = len(fit_d) + len(hold_d)
+        for d in ctx.data:
+            tasks.append(Task(d, apply(ctx.params(d, u_sheet), cand)))
+    outs = ctx.run(tasks)
+    nd = len(ctx.data)
     for i, (c, u_sheet, vals) in enumerate(points):
         o = outs[i * nd:(i + 1) * nd]
         if not all_ok(o):
             if first:
                 c.checked, c.J, c.p = True, math.inf, 1.0
             continue
-        z_raw = G.z(o[:len(fit_d)])
+        z_raw = G.z(o[:nf])
         if c.chain_free:
-            uc, J, zc = chain_fit(z_raw, -chain_free, chain_free)
+            uc, J, zc = base.chain_fit(z_raw, ctx.chain_free)
         else:
-            uc, J, zc = chain_fit(z_raw)
+            uc, J, zc = base.chain_fit(z_raw, ctx.chain_lim)
+        s = c.search
         if not first and not J < c.J:
-            c.damp *= 0.5
+            s.damp *= 0.5
             continue
         if not first:
-            c.prev = (c.z_raw, c.baseline_u[:len(u_sheet)].copy(), dict(c.values))
+            s.prev = (s.z_raw, c.baseline_u[:len(u_sheet)].copy(), dict(c.values))
         for n in c.names:
             if n in c.interval:
                 c.interval[n] = [(lo + vals[n][k] - c.values[n][k],
                                   hi + vals[n][k] - c.values[n][k])
                                  for k, (lo, hi) in enumerate(c.interval[n])]
-        c.J, c.J_parts, c.z_raw, c.values = J, G.stack.J_parts(zc), z_raw, dict(vals)
-        c.LR = stats.likelihood_ratio(parts_B, c.J_parts, n_eff)
-        c.p = min(1.0, stats.chi2_sf(c.LR, c.k) * m)
+        c.J, c.J_parts, s.z_raw, c.values = J, G.stack.J_parts(zc), z_raw, dict(vals)
+        c.LR = stats.likelihood_ratio(base.parts, c.J_parts, base.n_eff)
+        c.p = stats.bonferroni_p(c.LR, c.k, m)
         if H is not None:
-            c.zh_raw = H.z(o[len(fit_d):])
-            c.J_holdout = H.J(c.zh_raw + H.chain @ uc)
+            s.zh_raw = H.z(o[nf:])
+            c.J_holdout = H.J(s.zh_raw + H.chain @ uc)
         c.baseline_u = np.r_[u_sheet, uc]
         c.checked = True
 
 
-def chord(c, A_sheet, G, responses, n_s):
-    """The next point (sheet u, values) of candidate ``c``: one linearised step from its run."""
+def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict):
+    """The next point (sheet u, values) of candidate ``c``: one linearised step from its run
+    (the sheet knobs' Jacobian ``A_sheet``, the effects' probe responses; a curve effect of a
+    single candidate by the secant through its last two simulated points); None when an
+    effect has too few probe responses."""
+    n_s = A_sheet.shape[1]
+    s = c.search
     cols, lo_e, hi_e, slots = [], [], [], []
     for name in c.names:
         kind, vals, top = PROBES[name]
@@ -270,13 +268,13 @@ def chord(c, A_sheet, G, responses, n_s):
         else:
             a = magnitude(name, cur[0])
             col = columns[0][1]
-            if c.prev is not None and len(c.names) == 1:
+            if s.prev is not None and len(c.names) == 1:
                 # secant: the response between the last two simulated points, the baseline's
                 # linear part removed
-                z_p, u_p, v_p = c.prev
+                z_p, u_p, v_p = s.prev
                 da = a - magnitude(name, v_p[name][0])
                 if abs(da) > 1e-12:
-                    col = (c.z_raw - z_p - A_sheet @ (c.baseline_u[:n_s] - u_p)) / da
+                    col = (s.z_raw - z_p - A_sheet @ (c.baseline_u[:n_s] - u_p)) / da
             cols.append(col)
             lo_e.append(-a)
             hi_e.append(magnitude(name, top) - a)
@@ -284,9 +282,9 @@ def chord(c, A_sheet, G, responses, n_s):
     u_cur = c.baseline_u[:n_s]
     solver = G.solver(A_sheet)
     lim = np.ones(G.chain.shape[1])
-    du, _ = solver.solve(c.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
+    du, _ = solver.solve(s.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
                          np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
-    du = du * c.damp
+    du = du * s.damp
     u_new = np.clip(u_cur + du[:n_s], -1, 1)
     vals = {n: list(v) for n, v in c.values.items()}
     for (name, k, is_curve), x in zip(slots, du[solver.A.shape[1]:]):

@@ -37,6 +37,11 @@
 
 Every batch of simulations goes through :func:`evaluate.run_batch` on one
 executor (``executor=``, default a local process pool on ``jobs`` cores).
+
+Each step is one function over a frozen :class:`~.context.FitContext` (the records, their
+groups, the noise, the runner) returning a small frozen result: :mod:`stages` (nominal,
+baseline, gap test, sensor side) and :mod:`verdict` (candidate effects, pairs, verdict, the
+verdict's runs); :func:`diagnose` calls them in order and assembles the :class:`Diagnosis`.
 """
 from __future__ import annotations
 
@@ -47,55 +52,16 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..sheet.effects import EFFECT_NAMES
-from ..params.params import CellParams
 from ..records.record import Record
-from ..params.schema import ParameterError
-from . import floor as fl_mod, replay, stats
+from ..sheet.effects import EFFECT_NAMES
+from . import floor as fl_mod, stats
+from .compare import RecordData, residuals
+from .context import Baseline, FitContext
+from .evaluate import Runner, apply
 from .initial_state import initial_summary, pool
-from .baseline import CHAIN, SHEET, with_sheet
-from .candidates import (CHECKED, PAIRED, PROBES, REFINE_STEPS, Explanation, fit_pair,
-                         fit_single, rank_key)
-from .check import (adequate, check, needs_numerics, numerics, refine_points,
-                    relinearise)
-from .compare import RecordData, noise_level, residuals
-from .evaluate import Outcome, Runner, Task, all_ok, apply
-from .linear import Solver, Stack
-from .result import Diagnosis, as_residuals, baseline_table, chain_correct, num as _num
-
-
-class _Group:
-    """The records of one group (fit or holdout) and their stacked residuals."""
-
-    def __init__(self, data: list[RecordData], sp: float, sf: float, nominal: list[Outcome]):
-        self.data = data
-        self.stack = Stack([d.point_frame for d in data], [d.record.has_wrench for d in data],
-                           sp, sf)
-        self.stack.set_force_count(nominal)
-        self.chain = self.stack.chain_columns(nominal) if data else np.zeros((0, len(CHAIN)))
-        self._solvers: dict = {}
-
-    def z(self, outs: list[Outcome]) -> np.ndarray:
-        return self.stack.vec(outs)
-
-    def solver(self, A_sheet: np.ndarray) -> Solver:
-        """The bounded fit on [A_sheet, chain columns]: its QR once per Jacobian (the
-        baseline's, or a candidate's own, :func:`check.relinearise`)."""
-        hit = self._solvers.get(id(A_sheet))
-        if hit is None or hit[0] is not A_sheet:       # the array kept: its id stays its own
-            hit = self._solvers[id(A_sheet)] = (A_sheet,
-                                                Solver(np.hstack((A_sheet, self.chain))))
-        return hit[1]
-
-    def J(self, z: np.ndarray) -> float:
-        return float(z @ z)
-
-
-#: The diagnosis's stages, in order (a progress display shows "stage k of n"); a stage
-#: that has nothing to run (the replay misfit of a Maxwell cell, the effects when no gap
-#: is left) is passed over.
-STAGES = ("nominal models", "baseline Jacobian", "baseline fit",
-          "replay misfit (Kelvin cell)", "effect probes", "candidate checks", "verdict runs")
+from .result import Diagnosis, as_residuals, baseline_table, chain_correct
+from .stages import Nominal, baseline_stage, gap_stage, nominal_stage, sensor_stage
+from .verdict import After, Candidates, Verdict, after_stage, candidates_stage, verdict_stage
 
 
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
@@ -114,6 +80,8 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
     calibration for this configuration, scaled to ``reference`` records' remainder when
     given; or a calibration file's path).  ``tolerance`` (profile [m], tool force [N]): a
     baseline remainder below both is not worth naming (``none``)."""
+    if not records:
+        raise ValueError("diagnose needs at least one record to fit")
     if floor not in fl_mod.KINDS and not str(floor).endswith(".json"):
         raise ValueError(f"floor {floor!r}: expected one of {', '.join(fl_mod.KINDS)} or a "
                          "calibration file (.json)")
@@ -124,310 +92,41 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                              "held out)")
         ref = diagnose(reference[:-1], reference[-1:], library=(), jobs=jobs,
                        executor=executor, initial_state=initial_state)
-        sc = reference[0].scenario
         path = floor if str(floor).endswith(".json") else fl_mod.FLOOR_FILE
-        scale = fl_mod.reference_scale(ref, sc.sheet.n_masses,
+        scale = fl_mod.reference_scale(ref, reference[0].scenario.sheet.n_masses,
                                        float(round(max(r.duration for r in reference))), path)
-    with stats.using_null(None):
-        return _diagnose(records, holdout, library, jobs, progress, executor, initial_state,
-                         (floor, scale, bool(reference)), tolerance)
-
-
-def _diagnose(records, holdout, library, jobs, progress, executor, initial_state, floor_spec,
-              tolerance) -> Diagnosis:
-    from . import gap, where as where_mod
-    from .signature import describe, partial_shares
-    if not records:
-        raise ValueError("diagnose needs at least one record to fit")
     library = tuple(library)
     data = [RecordData.of(r, initial_state) for r in list(records) + list(holdout)]
     data = [replace(d, initial=s) for d, s in zip(data, pool(
         [d.initial for d in data], initial_state == "auto"))]
-    nf = len(records)
-    fit_d, hold_d = data[:nf], data[nf:]
-    with Runner(executor, jobs, progress) as run:
-        # 1. nominal: noise
-        run.stage(1, len(data))
-        nominal = run([Task(d, d.record.scenario, keep_run=True) for d in data])
-        bad = [d.record.name for d, o in zip(data, nominal) if not o.ok]
-        if bad:
-            raise ValueError(f"the nominal model of record '{bad[0]}' does not run: "
-                             f"{next(o.error for o in nominal if not o.ok)}")
-        sp = float(np.nanmedian([noise_level(o.profile, d.point_frame)
-                                 for d, o in zip(data, nominal)]))
-        sfs = [noise_level(o.force[:, k]) for o in nominal if o.force is not None for k in (0, 1)]
-        sf = float(np.nanmedian(sfs)) if sfs else math.nan
-        if not (sp > 0):
-            raise ValueError("the records' profile noise cannot be estimated "
-                             "(too few points per frame)")
-        sf = sf if sf > 0 else 1.0
-        floor = _floor(floor_spec, data, nf, len(hold_d), sp, sf)
-        stats.using_null_now(floor.sample)
-        G = _Group(fit_d, sp, sf, nominal[:nf])
-        H = _Group(hold_d, sp, sf, nominal[nf:]) if hold_d else None
-        z0 = G.z(nominal[:nf])
-        J0 = G.J(z0)
-        J0h = H.J(H.z(nominal[nf:])) if H else math.nan
+    with stats.using_null(None), Runner(executor, jobs, progress) as run:
+        nominal, ctx = nominal_stage(data, len(records), run)
+        fl = _floor((floor, scale, bool(reference)), data, ctx.nf, len(ctx.hold_d), ctx.sp,
+                    ctx.sf)
+        stats.using_null_now(fl.sample)              # the gap test and adequacy use it
+        base = baseline_stage(ctx, nominal)
+        gap = gap_stage(ctx, base)
+        below = fl_mod.within_tolerance(base.parts, ctx.sp, ctx.sf, tolerance)
+        gap = replace(gap, below_tolerance=below)
+        chain_c = sensor_stage(ctx, base)
+        cands = candidates_stage(ctx, base, gap, chain_c, library)
+        naming: dict = {}
 
-        # 2. baseline: Jacobian of the sheet knobs (half a tolerance), chain columns linear
-        h = 0.5
-        steps, tasks = [], []
-        for knob in SHEET:
-            for sgn in (1.0, -1.0):
-                try:
-                    ps = [with_sheet(d.record.scenario, {knob.name: sgn * h}) for d in fit_d]
-                except ParameterError:
-                    continue
-                steps.append(sgn * h)
-                tasks += [Task(d, p) for d, p in zip(fit_d, ps)]
-                break
-            else:
-                raise ValueError(f"baseline knob {knob.name}: no valid step of half a tolerance")
-        run.stage(2, len(tasks))
-        outs = run(tasks)
-        cols = []
-        for j in range(len(SHEET)):
-            o = outs[j * nf:(j + 1) * nf]
-            cols.append((G.z(o) - z0) / steps[j] if all_ok(o) else np.zeros_like(z0))
-        A_sheet = np.column_stack(cols)
-        solver = G.solver(A_sheet)
-        A = solver.A
-        n_s = len(SHEET)
-        chain_lim = np.ones(len(CHAIN))                      # the baseline: within tolerance
-        chain_free = np.array([k.limit for k in CHAIN])      # the chain hypothesis: beyond it
-        lo = np.r_[-np.ones(n_s), -chain_lim]
-        hi = np.r_[np.ones(n_s), chain_lim]
-
-        def base_params(d: RecordData, u_s: np.ndarray) -> CellParams:
-            return with_sheet(d.record.scenario, {k.name: float(v) for k, v in zip(SHEET, u_s)})
-
-        chain_solver = Solver(G.chain)
-
-        def chain_fit(z: np.ndarray, chain_lo=-chain_lim, chain_hi=chain_lim):
-            """Chain values for residual ``z`` (sheet held): (u_chain, J, corrected z)."""
-            u, J = chain_solver.solve(z, chain_lo, chain_hi)
-            return u, J, z + G.chain @ u
-
-        u_lin, _ = solver.solve(z0, lo, hi)
-        best = None
-        u_s = np.zeros(n_s)
-        tried = [(np.zeros(n_s), nominal)]
-        run.stage(3, 2 * len(data))
-        for _it in range(2):
-            u_try = np.clip(u_lin[:n_s], -1, 1)
-            try:
-                outs = run([Task(d, base_params(d, u_try), keep_run=True) for d in data])
-            except ParameterError:
-                break
-            tried.append((u_try, outs))
-            if not all_ok(outs[:nf]):
-                break
-            zb = G.z(outs[:nf])
-            # chord step: same Jacobian from the new point
-            du, _ = solver.solve(zb, np.r_[-1 - u_try, -chain_lim], np.r_[1 - u_try, chain_lim])
-            u_lin = np.r_[u_try + du[:n_s], du[n_s:]]
-        for u_try, outs in tried:
-            if not all_ok(outs[:nf]) or (H and not all_ok(outs[nf:])):
-                continue
-            uc, J, zc = chain_fit(G.z(outs[:nf]))
-            if best is None or J < best[1]:
-                best = (u_try, J, outs, uc)
-        u_s, J_base, base_outs, u_c = best
-        zB_raw = G.z(base_outs[:nf])
-        zB = zB_raw + G.chain @ u_c
-        zBh = (H.z(base_outs[nf:]) + H.chain @ u_c) if H else None
-        J_base_h = H.J(zBh) if H else math.nan
-        parts_B = G.stack.J_parts(zB)
-        n_eff = _n_eff(G, zB, fit_d)
-
-        # 3. gap test; for a Kelvin cell the null plus the model's own replay misfit
-        rp = (None, None)
-        if any(replay.kelvin(d.record.scenario) for d in data):
-            run.stage(4, (1 + replay.DRAWS) * len(data))
-            rp = tuple(replay.replay_misfit(dd, [base_params(d, u_s) for d in dd], run, sp, sf)
-                       if dd else None for dd in (fit_d, hold_d))
-        p_gap = stats.gap_p_value(J_base - 1.0, shift=rp[0])
-        below_tol = fl_mod.within_tolerance(parts_B, sp, sf, tolerance)
-        gap_left = p_gap <= stats.ALPHA and not below_tol
-
-        # 4. which side: the chain beyond its tolerance (no simulation: linear), checked
-        u_ch, J_ch = solver.solve(zB_raw, np.r_[-1 - u_s, -chain_free], np.r_[1 - u_s, chain_free])
-        chain_c = Explanation((), {}, J_ch, G.stack.J_parts(solver.residual(zB_raw, u_ch)),
-                              baseline_u=u_ch, chain_free=True)
-        outside = [k.name for k, v in zip(CHAIN, u_ch[n_s:]) if abs(v) > 1.0 + 1e-6]
-        chain_c.k = max(len(outside), 1)
-        chain_c.LR = stats.likelihood_ratio(parts_B, chain_c.J_parts, n_eff)
-
-        # 5. effects: probes at the baseline, linearised fits
-        base_c = None
-        effects: list[Explanation] = []
-        pairs: list[Explanation] = []
-        responses: dict = {}
-        if gap_left and library:
-            ptasks, index = [], []
-            for name in library:
-                kind, vals, _ = PROBES[name]
-                for v in vals:
-                    vv = v if isinstance(v, tuple) else (v,)
-                    for d in fit_d:
-                        ptasks.append(Task(d, apply(base_params(d, u_s), ((name, vv),))))
-                    index.append((name, vv))
-            run.stage(5, len(ptasks))
-            pouts = run(ptasks)
-            for i, (name, vv) in enumerate(index):
-                o = pouts[i * nf:(i + 1) * nf]
-                responses.setdefault(name, []).append(
-                    (vv, G.z(o) - zB_raw if all_ok(o) else None))
-            blo = np.r_[-1 - u_s, -chain_lim]
-            bhi = np.r_[1 - u_s, chain_lim]
-            for name in library:
-                c = fit_single(name, responses[name], zB_raw, solver, blo, bhi, G, n_eff,
-                               parts_B)
-                if c is not None:
-                    effects.append(c)
-            m = len(effects) + math.comb(min(PAIRED, len(effects)), 2)
-            for c in effects:
-                c.p = min(1.0, stats.chi2_sf(c.LR, c.k) * m)
-            effects.sort(key=lambda c: (c.p, c.J))
-            chain_c.p = min(1.0, stats.chi2_sf(chain_c.LR, chain_c.k) * (m + 1))
-            run.stage(6)
-            check(effects[:CHECKED] + [chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params,
-                  chain_fit, parts_B, n_eff, J_base_h, m, chain_free,
-                  (A_sheet, responses, REFINE_STEPS))
-            base_c = Explanation((), {}, J_base, checked=True, baseline_u=np.r_[u_s, u_c],
-                                 z_raw=zB_raw, zh_raw=H.z(base_outs[nf:]) if H else None)
-            need = [c for c in effects[:CHECKED] if needs_numerics(c, J_base_h, bool(hold_d), rp)]
-            if need:
-                # a strong effect changes how the knobs act: refit from its own Jacobian
-                relinearise(need, run, fit_d, G, base_params, n_s)
-                refine_points(need, run, fit_d, hold_d, G, H, n_s, base_params, chain_fit,
-                              parts_B, n_eff, m, chain_free, A_sheet, responses, REFINE_STEPS)
-                need = [c for c in need if needs_numerics(c, J_base_h, bool(hold_d), rp)]
-            if need:
-                numerics(need + [base_c], run, fit_d, hold_d, G, H, base_params, n_s, A,
-                         responses)
-        elif gap_left:
-            run.stage(6)
-            check([chain_c], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
-                  parts_B, n_eff, J_base_h, 1, chain_free)
-        # decision
-        verdict_fit = None
-        if not gap_left or not library:
-            chain_c.p = min(1.0, stats.chi2_sf(chain_c.LR, chain_c.k))
-        outside = [k.name for k, v in zip(CHAIN, chain_c.baseline_u[n_s:]) if abs(v) > 1.0 + 1e-6]
-        chain_c.adequate = chain_c.checked and adequate(chain_c, J_base_h, bool(hold_d), replay=rp)
-        chain_ok = gap_left and chain_c.checked and chain_c.p <= stats.ALPHA and chain_c.adequate
-        for c in effects:
-            c.adequate = c.checked and adequate(c, J_base_h, bool(hold_d), base_c, rp)
-        ranked = sorted(effects, key=rank_key)
-        if gap_left and ranked:
-            lead = ranked[0]
-            if lead.checked and lead.p <= stats.ALPHA and lead.adequate and not (
-                    chain_ok and chain_c.J < lead.J):
-                verdict_fit = lead
-            elif chain_ok:
-                pass
-            elif len(effects) >= 2:
-                top = sorted(effects, key=lambda c: (c.p, c.J))[:PAIRED]
-                for i, a in enumerate(top):
-                    for b in top[i + 1:]:
-                        pc = fit_pair(a, b, responses, zB_raw, solver,
-                                      np.r_[-1 - u_s, -chain_lim],
-                                      np.r_[1 - u_s, chain_lim], G, n_eff, parts_B)
-                        if pc is not None:
-                            pc.p = min(1.0, stats.chi2_sf(pc.LR, pc.k) * m)
-                            pairs.append(pc)
-                pairs.sort(key=lambda c: (c.p, c.J))
-                if pairs:
-                    check(pairs[:1], run, fit_d, hold_d, G, H, u_s, n_s, base_params, chain_fit,
-                          parts_B, n_eff, J_base_h, m, chain_free,
-                          (A_sheet, responses, REFINE_STEPS))
-                    if needs_numerics(pairs[0], J_base_h, bool(hold_d), rp):
-                        # the baseline again, refined the same way as the pair
-                        numerics([pairs[0], base_c], run, fit_d, hold_d, G, H, base_params,
-                                 n_s, A, responses)
-                    bp = pairs[0]
-                    bp.adequate = bp.checked and adequate(bp, J_base_h, bool(hold_d), base_c, rp)
-                    # a pair must beat each of its parts significantly
-                    if bp.checked and bp.p <= stats.ALPHA and bp.adequate:
-                        verdict_fit = bp
-        if (verdict_fit is not None and verdict_fit.J_parts and chain_ok
-                and chain_c.J < verdict_fit.J):
-            verdict_fit = None
-        naming = None
-        if verdict_fit is not None and floor.source != "numerics":
-            # beyond the floor: most of the excess on fit and holdout, clearly the best
-            naming = fl_mod.clear_name(verdict_fit, effects, J_base, J_base_h, bool(hold_d))
-            if not (naming["most"] and naming["clear"]):
-                verdict_fit = None
-        chain_side = chain_ok and verdict_fit is None
-        verdict = ("none" if not gap_left else "+".join(verdict_fit.names) if verdict_fit
-                   else "measurement chain" if chain_side else "unexplained")
-        side = {"side": ("measurement chain" if chain_side else "sheet" if gap_left
-                         else "neither"),
-                "chain_outside": outside if chain_side else [],
-                "chain_candidate": {"J": chain_c.J, "J_holdout": _num(chain_c.J_holdout),
-                                    "p": _num(chain_c.p), "adequate": chain_c.adequate,
-                                    "outside": outside,
-                                    "values": {k.name: float(v * k.tolerance) for k, v in
-                                               zip(CHAIN, chain_c.baseline_u[n_s:])}},
-                "p_gap": p_gap}
-
-        # 6. the verdict's runs for the gap figures
-        if chain_side:
-            verdict_fit_chain = chain_c
-        else:
-            verdict_fit_chain = None
-        if verdict_fit is not None or verdict_fit_chain is not None:
-            u_v = (verdict_fit or verdict_fit_chain).baseline_u
-            cand = verdict_fit.candidate if verdict_fit else ()
-            run.stage(7, len(data))
-            after = run([Task(d, apply(base_params(d, u_v[:n_s]), cand)) for d in data])
-            u_cv = u_v[n_s:]
-        else:
-            after, u_cv = base_outs, u_c
+        def rule(c) -> bool:
+            """Beyond the floor: most of the excess on fit and holdout, clearly the best."""
+            if fl.source == "numerics":
+                return True
+            naming.update(fl_mod.clear_name(c, cands.effects, base.J, base.J_h,
+                                            bool(ctx.hold_d)))
+            return naming["most"] and naming["clear"]
+        verdict = verdict_stage(ctx, base, gap, chain_c, cands, library, rule)
+        after = after_stage(ctx, base, verdict, chain_c)
         runs = run.runs
-
-    vfc = verdict_fit or verdict_fit_chain
-    corrected = (apply(base_params(fit_d[0], vfc.baseline_u[:n_s]), vfc.candidate)
-                 if vfc else base_params(fit_d[0], u_s))
-    baseline_tab = baseline_table(fit_d[0].record.scenario,
-                                  vfc.baseline_u if vfc else np.r_[u_s, u_c])
-    nom_res = [residuals(d, o.run) for d, o in zip(data, nominal)]
-    base_runs = [o.run for o in base_outs]
-    base_res = [chain_correct(residuals(d, o.run), o, u_c) for d, o in zip(data, base_outs)]
-    after_res = ([chain_correct(as_residuals(d, o, base_runs[i]), o, u_cv) for i, (d, o) in
-                  enumerate(zip(data, after))] if vfc else base_res)
-    fit_idx, hold_idx = tuple(range(nf)), tuple(range(nf, len(data)))
-    diag = Diagnosis(verdict, verdict_fit, effects, pairs, [], {}, {}, {},
-                     {"profile_m": sp, "force_N": sf}, J0, J0h, J_base, J_base_h, baseline_tab,
-                     side, p_gap, n_eff, [d.record.name for d in fit_d],
-                     [d.record.name for d in hold_d], runs, corrected=corrected,
-                     numerics_base=base_c, J_replay=rp)
+    diag = _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs)
     diag.initial_state = initial_summary(data)
-    diag.floor = _floor_report(floor, diag, verdict_fit, naming, below_tol, tolerance, sp, sf,
-                               A, responses, parts_B)
-    diag.where = where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf)
-    diag.gap_before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
-    before = diag.gap_before
-    diag.gap_baseline = gap.figures(data, base_res, fit_idx, hold_idx, sp, sf, before=before)
-    diag.gap_after = gap.figures(data, after_res, fit_idx, hold_idx, sp, sf, before=before)
-    if verdict not in ("none", "measurement chain"):
-        diag.signature = describe(fit_d, base_res[:nf], base_runs[:nf], sp, sf, u_c,
-                                  partial_shares(effects, J_base))
-    diag.residual_maps = [(d, nom_res[i], after_res[i], nominal[i].run)
-                          for i, d in enumerate(data)]
+    diag.floor = _floor_report(fl, diag, verdict.fit, naming or None, below, tolerance, ctx.sp,
+                               ctx.sf, base.solver.A, cands.responses, base.parts)
     return diag
-
-
-def _n_eff(G: _Group, z: np.ndarray, data: list[RecordData]) -> dict:
-    st = G.stack
-    prof = z[:st.n_p]
-    frames = np.concatenate([d.point_frame + 100000 * i for i, d in enumerate(data)])
-    out = {"profile": stats.n_eff_profile(prof, frames)}
-    if st.n_f:
-        out["tool force"] = stats.n_eff_force(z[st.n_p:].reshape(-1, 2))
-    return out
 
 
 def _floor(spec, data, nf: int, nh: int, sp: float, sf: float) -> "fl_mod.Floor":
@@ -470,3 +169,39 @@ def _floor_report(floor, diag: Diagnosis, verdict_fit, naming, below_tol: bool, 
             out["model_form_interval_width"] = fl_mod.model_form_interval(
                 verdict_fit, floor.quantile(), A, responses)
     return out
+
+
+def _assemble(ctx: FitContext, nominal: Nominal, base: Baseline, p_gap: float, rp: tuple,
+              cands: Candidates, verdict: Verdict, after: After, runs: int) -> Diagnosis:
+    """The :class:`Diagnosis` of the stages' results: gap figures, where, the signature."""
+    from . import gap, where as where_mod
+    from .signature import describe, partial_shares
+    data, fit_d, hold_d, nf, n_s = ctx.data, ctx.fit_d, ctx.hold_d, ctx.nf, ctx.n_s
+    sp, sf = ctx.sp, ctx.sf
+    vfc = after.fit
+    corrected = (apply(ctx.params(fit_d[0], vfc.baseline_u[:n_s]), vfc.candidate)
+                 if vfc else ctx.params(fit_d[0], base.u_s))
+    baseline_tab = baseline_table(fit_d[0].record.scenario,
+                                  vfc.baseline_u if vfc else np.r_[base.u_s, base.u_c])
+    nom_res = [residuals(d, o.run) for d, o in zip(data, nominal.outs)]
+    base_runs = [o.run for o in base.outs]
+    base_res = [chain_correct(residuals(d, o.run), o, base.u_c) for d, o in zip(data, base.outs)]
+    after_res = ([chain_correct(as_residuals(d, o, base_runs[i]), o, after.u_c) for i, (d, o) in
+                  enumerate(zip(data, after.outs))] if vfc else base_res)
+    fit_idx, hold_idx = tuple(range(nf)), tuple(range(nf, len(data)))
+    diag = Diagnosis(verdict.name, verdict.fit, cands.effects, verdict.pairs, [], {}, {}, {},
+                     {"profile_m": sp, "force_N": sf}, nominal.J0, nominal.J0_h, base.J,
+                     base.J_h, baseline_tab, verdict.side, p_gap, base.n_eff,
+                     [d.record.name for d in fit_d], [d.record.name for d in hold_d], runs,
+                     corrected=corrected, numerics_base=cands.base_c, J_replay=rp)
+    diag.where = where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf)
+    diag.gap_before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
+    before = diag.gap_before
+    diag.gap_baseline = gap.figures(data, base_res, fit_idx, hold_idx, sp, sf, before=before)
+    diag.gap_after = gap.figures(data, after_res, fit_idx, hold_idx, sp, sf, before=before)
+    if verdict.name not in ("none", "measurement chain"):
+        diag.signature = describe(fit_d, base_res[:nf], base_runs[:nf], sp, sf, base.u_c,
+                                  partial_shares(cands.effects, base.J))
+    diag.residual_maps = [(d, nom_res[i], after_res[i], nominal.outs[i].run)
+                          for i, d in enumerate(data)]
+    return diag

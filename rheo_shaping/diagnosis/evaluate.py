@@ -112,6 +112,13 @@ def default_executor(jobs: int | None = None) -> Executor:
     return local_pool(max(1, jobs or os.cpu_count() or 1))
 
 
+#: The diagnosis's stages, in order (a progress display shows "stage k of n"); a stage
+#: that has nothing to run (the replay misfit of a Maxwell cell, the effects when no gap
+#: is left) is passed over.
+STAGES = ("nominal models", "baseline Jacobian", "baseline fit",
+          "replay misfit (Kelvin cell)", "effect probes", "candidate checks", "verdict runs")
+
+
 class Runner:
     """Counts and runs batches on an executor (owned when made here, else the caller's)."""
 
@@ -123,10 +130,9 @@ class Runner:
         self.runs = 0
 
     def stage(self, k: int, total: int | None = None) -> None:
-        """Stage ``k`` of :data:`engine.STAGES` begins, with ``total`` simulations when known
+        """Stage ``k`` of :data:`STAGES` begins, with ``total`` simulations when known
         up front (None: its batches add theirs as they start); told to a progress display
         that has a ``stage(k, n, name, total)`` method."""
-        from .engine import STAGES
         stage = getattr(self.progress, "stage", None)
         if stage is not None:
             stage(k, len(STAGES), STAGES[k - 1], total)

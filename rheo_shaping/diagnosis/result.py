@@ -10,6 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from ..params.params import CellParams
+from ..sheet.metrics import safety_factor
 from .baseline import CHAIN, SHEET, values as knob_values
 from .candidates import Explanation, rank_key
 from .compare import RecordData
@@ -166,11 +167,11 @@ def process_figures(nominal: CellParams, corrected: CellParams,
                     executor: Executor | None = None) -> dict:
     """Movement 4 of the nominal and the corrected cell: F_max [N], SF, Delta [m], d_opt [m].
 
-    d_opt is the planner's choice (:func:`rheo_shaping.study.optimise.best_d`: smallest
+    d_opt is the planner's choice (:func:`rheo_shaping.planning.choose_d.best_d`: smallest
     F_max with Delta <= ``delta_limit``) over ``d_candidates`` (default: the
     cell's d +- 3 mm in 1 mm steps); None when no candidate meets the limit.
     """
-    from ..study.optimise import run_d
+    from ..planning.choose_d import run_d
     d0 = nominal.movement.d
     ds = list(d_candidates) if d_candidates is not None else [d0 + k * 1e-3 for k in range(-3, 4)]
     jobs = [(p, d) for p in (nominal, corrected) for d in [d0] + ds]
@@ -186,11 +187,11 @@ def process_figures(nominal: CellParams, corrected: CellParams,
         best = min(ok, key=lambda r: (r.F_max, r.d)) if ok else None
         F = rs[0].F_max
         p = (nominal, corrected)[i]
-        out[key] = {"F_max": F, "SF": p.material.F_break / F if F > 0 else math.inf,
+        out[key] = {"F_max": F, "SF": safety_factor(p.material.F_break, F),
                     "delta": rs[0].delta, "d_opt": best.d if best else None}
     return out
 
 
 def _run_d(args):
-    from ..study.optimise import run_d
+    from ..planning.choose_d import run_d
     return run_d(*args)

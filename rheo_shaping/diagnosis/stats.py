@@ -151,3 +151,9 @@ def likelihood_ratio(J_base: dict, J_eff: dict, n_eff: dict) -> float:
 def chi2_sf(x: float, k: int) -> float:
     from scipy.stats import chi2
     return float(chi2.sf(max(x, 0.0), max(k, 1)))
+
+
+def bonferroni_p(LR: float, k: int, m: int = 1) -> float:
+    """The likelihood-ratio p-value of ``LR`` on ``k`` parameters (chi^2), Bonferroni-corrected
+    over ``m`` candidates."""
+    return min(1.0, chi2_sf(LR, k) * m)

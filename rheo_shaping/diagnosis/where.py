@@ -23,10 +23,14 @@ import math
 
 import numpy as np
 
+from ..planning.scenarios import PHASES as _PHASE_WORDS
+from ..sheet.metrics import touching_tool
 from ..sheet.tools import tool_shape
 
 PLACES = ("top edge", "free span", "tool contact", "cake bottom", "workplane")
-PHASES = ("approach", "forced deformation", "dwell", "release", "settle")
+#: The movement's phases in their words (planning.scenarios.PHASES, the one vocabulary),
+#: in order: a phase label is an index into this.
+PHASES = tuple(_PHASE_WORDS.values())
 
 
 def places(data, res, run) -> np.ndarray:
@@ -55,7 +59,7 @@ def places(data, res, run) -> np.ndarray:
 def phases(data, run) -> np.ndarray:
     """Phase label index (into PHASES) of each profile frame."""
     t = data.record.profile_t
-    touching = np.any(np.abs(run.tool_contact) > 0, axis=(1, 2))
+    touching = touching_tool(run.tool_contact).any(axis=1)
     k = np.clip(np.searchsorted(run.t, t), 0, run.t.size - 1)
     contact = touching[k]
     # the tool's speed [m/s] over +-1 s of the reconstructed path: the measured poses'

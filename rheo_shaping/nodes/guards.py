@@ -19,7 +19,7 @@ from std_msgs.msg import String
 from ..params.fingerprint import cell_mismatch
 from ..params.params import CellParams
 from ..safety.clock_guard import ClockGuard
-from ..safety.one_of_each import SETTLE_TIME, Announcement, twin_reason
+from ..safety.one_of_each import Announcement, settle_time, twin_reason
 from ..units import NS
 from . import topics as T
 
@@ -95,26 +95,45 @@ class Presence:
         self._younger: set[Announcement] = set()   # same-name nodes that started after this
         self._settled = False
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._t0 = self._steady.now().nanoseconds
+        self._t0 = self._start = self._steady.now().nanoseconds
+        self._settle_s = settle_time(None)
+        self._peer_s: float | None = None           # start -> the graph showed another node
+        self._peer_timer = node.create_timer(0.05, self._look_for_peers, clock=self._steady)
         self._pub = node.create_publisher(T.PRESENCE.type, T.PRESENCE.name, T.PRESENCE.qos)
         node.create_subscription(T.PRESENCE.type, T.PRESENCE.name, self._on, T.PRESENCE.qos)
         self._pub.publish(String(data=self.mine.message()))
 
     def discovered(self) -> None:
         """Discovery has just reached the rest of the cell (its first latched message came):
-        :data:`SETTLE_TIME` counts from now, so a twin's announcement that discovery brings
-        with the same wave arrives before this node acts."""
+        the settle time (:func:`~rheo_shaping.safety.one_of_each.settle_time`: at least as
+        long as discovery took to show this node any other node) counts from now, so a
+        twin's announcement that discovery brings with the same wave arrives before this
+        node acts."""
         if not self._settled:
+            self._look_for_peers()
+            self._settle_s = settle_time(self._peer_s)
             self._t0 = self._steady.now().nanoseconds
+
+    def _look_for_peers(self) -> None:
+        """How long discovery took to show this node another node of the graph: the measure
+        of discovery on this machine now (not of the other node's own start-up)."""
+        if self._peer_s is not None:
+            return
+        mine = self.mine.node
+        for n, s in self._node.get_node_names_and_namespaces():
+            if f"{s.rstrip('/')}/{n}" != mine:
+                self._peer_s = (self._steady.now().nanoseconds - self._start) / NS
+                self._node.destroy_timer(self._peer_timer)
+                return
 
     @property
     def settled(self) -> bool:
         """Whether this node knows it is the only (or the oldest) node of its name: at least
-        :data:`SETTLE_TIME` after its start, and every other node of its name in the graph
+        the settle time after its start, and every other node of its name in the graph
         has announced itself as younger.  Latches once true."""
         if self._settled:
             return True
-        if self.twin or (self._steady.now().nanoseconds - self._t0) / NS < SETTLE_TIME:
+        if self.twin or (self._steady.now().nanoseconds - self._t0) / NS < self._settle_s:
             return False
         ns, _, name = self.mine.node.rpartition("/")
         same = sum(1 for n, s in self._node.get_node_names_and_namespaces()

@@ -5,7 +5,7 @@ The plan is the core's: ``movement.movement_plan(params)``
 dwells), a chain of ruckig state-to-state segments, at rest at every waypoint,
 straight lines by phase synchronisation, dwells between.  It is the same plan
 the offline run (``rheo-shaping simulate``) uses.  With ``optimise_d`` the node
-first picks movement 4's d with the core model (:func:`rheo_shaping.study.optimise.best_d`).
+first picks movement 4's d with the core model (:func:`rheo_shaping.planning.choose_d.best_d`).
 
 Interlock (safety principle 6, docs/safety-principles.md).  With ``wait_for_monitor`` the planner
 starts only while the monitor's ``/shaping/ready`` heartbeat says ready and is
@@ -46,7 +46,7 @@ from std_srvs.srv import Trigger
 
 from ..planning.clearance import require_clearance
 from ..params.node_params import PlannerNodeParams
-from ..study.optimise import best_d, d_values
+from ..planning.choose_d import best_d, d_values
 from ..params.params import CellParams
 from ..planning.planning import MotionLimits, Plan
 from ..planning.movement import approach_plan, autostart_refusal, movement_plan

@@ -232,8 +232,7 @@ class SimulatorNode(Node):
         self.run = SetpointRun(cell, movement_scenario(cell).start)
         self._run_cell = cell
         self._tool_outline = tool_shape(cell.tool).outline(48)
-        self._cake_outline = Cake(cell.cake.height, cell.cake.fillet_radius,
-                                  cell.cake.radius).outline(48)
+        self._cake_outline = Cake.of(cell.cake).outline(48)
         self._commands_fresh = Freshness(self.settings.command_timeout)
         self._next_progress = self.settings.progress_period
         self.pub_cell.publish(String(data=cell_message(cell)))

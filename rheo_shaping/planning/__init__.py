@@ -6,7 +6,10 @@ movement of a cell.  Imports :mod:`rheo_shaping.params` and
 from .._lazy import lazy_api
 
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
-    'planning': ['MotionLimits', 'Plan', 'Waypoint', 'plan_waypoints'],
+    'limits': ['MotionLimits'],
+    'planning': ['Plan', 'Waypoint', 'plan_waypoints'],
+    'movement': ['run_movement', 'movement_plan'],
+    'choose_d': ['best_d', 'run_d', 'd_values'],
     'scenarios': ['movement_scenario', 'scenario_plan'],
     'stopping': ['TrajectoryStreamer', 'stopping_time'],
 })

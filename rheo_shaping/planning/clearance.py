@@ -44,7 +44,7 @@ def plan_clearance(params: CellParams, plan: Plan, step: float = 2e-4,
     pts = (pos[:, None, :] + outline[None, :, :]).reshape(-1, 2)
     c = params.cake
     best = None
-    for name, shape in (("cake", Cake(c.height, c.fillet_radius, c.radius)),
+    for name, shape in (("cake", Cake.of(c)),
                         ("workplane", Workplane())):
         d, _ = shape.signed_distance(pts)
         d = d.reshape(len(times), -1).min(axis=1)

@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import bisect
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Sequence
+from typing import Sequence
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-if TYPE_CHECKING:
-    from .planning import MotionLimits
+from .limits import MotionLimits
 
 
 @dataclass(frozen=True, eq=False)

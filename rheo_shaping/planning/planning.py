@@ -25,6 +25,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 from ..params.validators import check_finite, check_non_negative, check_point, check_positive
+from .limits import MotionLimits
 from .pieces import AxisBuilder, Pieces, append_trajectory, as_point, line_trajectory
 
 __all__ = [
@@ -41,28 +42,6 @@ __all__ = [
 
 #: A move shorter than this [m] is treated as already done (no segment).
 MIN_MOVE_M = 1e-12
-
-
-@dataclass(frozen=True)
-class MotionLimits:
-    """Path limits of the tool: ``v_max`` [m/s], ``a_max`` [m/s^2], ``j_max`` [m/s^3].
-
-    They bound the Euclidean norm of the tool's velocity, acceleration and
-    jerk in the x-z plane.  Each must be finite and > 0.
-    """
-
-    v_max: float
-    a_max: float
-    j_max: float
-
-    def __post_init__(self) -> None:
-        for name, unit in (("v_max", "m/s"), ("a_max", "m/s^2"), ("j_max", "m/s^3")):
-            check_positive(f"MotionLimits.{name} [{unit}]", getattr(self, name))
-
-    def scaled(self, factor: float) -> "MotionLimits":
-        """All three limits multiplied by ``factor`` (> 0)."""
-        check_positive("factor [-]", factor)
-        return MotionLimits(self.v_max * factor, self.a_max * factor, self.j_max * factor)
 
 
 @dataclass(frozen=True)

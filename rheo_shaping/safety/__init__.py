@@ -9,4 +9,5 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'acknowledge': ['Acknowledgements', 'MonitorLead'],
     'clock_guard': ['ClockGuard'],
     'command_gate': ['CommandGate', 'Publisher', 'ToolLimits'],
+    'monitor': ['TensionMonitor'],
 })

@@ -24,6 +24,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..params.node_params import MonitorNodeParams
+from ..sheet.metrics import safety_factor
 from ..units import NS
 
 
@@ -307,7 +308,7 @@ class TensionMonitor:
             "state": self.state, "tension_max": F, "tension_link": self.link,
             "contact_tension": self.contact, "F_break": self.F_break,
             "abort_threshold": self.threshold,
-            "safety_factor": self.F_break / F if math.isfinite(F) and F > 0 else math.inf,
+            "safety_factor": safety_factor(self.F_break, F),
             "largest_tension_seen": self.F_seen, "trend_rate": self.trend_rate,
             **{"data_age_" + t.rsplit("/", 1)[-1]: self.age(t, steady)
                for t in self.tension_topics},

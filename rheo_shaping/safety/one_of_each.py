@@ -4,7 +4,7 @@ Every node announces itself once on ``/shaping/presence`` (latched): its fully q
 name, its start time and its process.  A node that reads the announcement of another node
 of its own name that started earlier yields to it (it stops with the reason); the older
 one runs on.  A node acts (starts a plan, reports ready, steps the sheet) only
-:data:`SETTLE_TIME` after its own start, so that an older twin's announcement has arrived
+:func:`settle_time` after its own start, so that an older twin's announcement has arrived
 by then.  Ties of start time go to the smaller process id, then host name.
 """
 from __future__ import annotations
@@ -16,6 +16,19 @@ from dataclasses import asdict, dataclass
 #: first latched message, i.e. once discovery reached the cell) before it acts: an older
 #: twin's latched announcement arrives within DDS discovery, under a second on one idle host.
 SETTLE_TIME = 1.0
+
+
+def settle_time(discovery_s: float | None) -> float:
+    """How long [s] a node waits, from the moment discovery reached the rest of the cell,
+    before it acts: :data:`SETTLE_TIME`, or as long as discovery took to show it another node
+    of the graph (``discovery_s`` [s] from the node's start; None if unknown) when that was
+    longer.  An older twin is
+    found by the same discovery as the rest of the cell, so on a busy machine, where
+    discovery is slow, the wait grows with it (seen: a newcomer planner that settled after
+    1 s at a load average of 20 had not yet seen the older planner and took a start)."""
+    if discovery_s is None or not discovery_s > SETTLE_TIME:
+        return SETTLE_TIME
+    return float(discovery_s)
 
 
 @dataclass(frozen=True, order=True)

@@ -165,6 +165,12 @@ class Cake(_Region):
         # The region is the quadrant {x <= -r, z <= h - r} grown by a disc of radius r.
         object.__setattr__(self, "_centre", np.array([-r, h - r]))
 
+    @classmethod
+    def of(cls, cake) -> "Cake":
+        """The cross-section of a cell's cake (``CakeParams``: height, fillet radius [m];
+        its radius [m] bounds the plotted top)."""
+        return cls(cake.height, cake.fillet_radius, cake.radius)
+
     def kernel_description(self) -> tuple[int, float, np.ndarray]:
         """(kind 0, fillet radius [m], quadrant corner (1, 2) [m]) for the compiled step
         (rheo_shaping.sheet.kernel.shape_eval): the quadrant grown by the fillet radius."""

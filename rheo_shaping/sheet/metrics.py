@@ -1,6 +1,7 @@
 """Quality and safety figures of a shaping run (paper Sec. 5, Table 2)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,8 +43,11 @@ def peak_tension(times: np.ndarray, tensions: np.ndarray) -> PeakTension:
 
 
 def safety_factor(F_break: float, F_max: float) -> float:
-    """SF = F_break / F_max (the paper's Table 2 numbers are this ratio)."""
-    return float(F_break / F_max) if F_max > 0 else float("inf")
+    """SF = F_break / F_max [-] (the paper's Table 2 numbers are this ratio); inf where no
+    tension is known (``F_max`` [N] NaN or <= 0), 0 for an infinite one."""
+    if math.isnan(F_max) or F_max <= 0:
+        return math.inf
+    return float(F_break / F_max)
 
 
 def residual_gap(nodes: np.ndarray, thickness: float) -> float:

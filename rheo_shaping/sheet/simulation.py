@@ -134,8 +134,7 @@ class Simulation:
         self.laid = laid
         self.constants, self.x0 = build_chain(params, laid)
         obstacles = [
-            Obstacle("cake",
-                     Cake(params.cake.height, params.cake.fillet_radius, params.cake.radius)),
+            Obstacle("cake", Cake.of(params.cake)),
             Obstacle("workplane", Workplane()),
             Obstacle("tool", tool_shape(params.tool), moving=True),
         ]

@@ -39,7 +39,7 @@ def draw_cell(ax, result: RunResult, k: int, colour: str = "C0", label: str | No
               tool: bool = True) -> None:
     """Draw the cake outline, the sheet (centreline + spheres) and the tool at step k."""
     p = result.params
-    cake = Cake(p.cake.height, p.cake.fillet_radius, p.cake.radius)
+    cake = Cake.of(p.cake)
     outline = cake.outline(200)
     ax.plot(outline[:, 0] * 1e3, outline[:, 1] * 1e3, color="saddlebrown", lw=1.5)
     ax.axhline(0.0, color="k", lw=1.0)
@@ -247,7 +247,7 @@ def plot_speed_comparison(full, half, path: str | Path, delta_limit: float | Non
     ax1.legend(fontsize=7)
     ax1.set_title("movement 1 at full and half tool speed (Fig. 19)", fontsize=9)
     p = full.result.params
-    cake = Cake(p.cake.height, p.cake.fillet_radius, p.cake.radius)
+    cake = Cake.of(p.cake)
     out = cake.outline(200)
     ax2.plot(out[:, 0] * 1e3, out[:, 1] * 1e3, color="saddlebrown", lw=1.5)
     ax2.axhline(0.0, color="k", lw=1.0)
@@ -279,7 +279,7 @@ def plot_sag(sag, params, path: str | Path) -> Path:
     """Test case 1: the undeformed drape (t = 0) and the sheet after sagging under gravity."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 4.6))
-    cake = Cake(params.cake.height, params.cake.fillet_radius, params.cake.radius)
+    cake = Cake.of(params.cake)
     out = cake.outline(200)
     ax.plot(out[:, 0] * 1e3, out[:, 1] * 1e3, color="saddlebrown", lw=1.5)
     ax.axhline(0.0, color="k", lw=1.0)

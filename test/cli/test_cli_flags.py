@@ -52,3 +52,18 @@ def test_a_cell_the_model_cannot_run_is_a_clear_error_not_a_traceback(tmp_path, 
     err = capsys.readouterr().err
     assert err.startswith("rheo-shaping simulate: error: the model cannot run this cell")
     assert str(path) in err and "RuckigError" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("text, ns", [("", ""), ("/", ""), ("cell2", "/cell2"),
+                                      ("/a/b_2", "/a/b_2"), (" /cellA ", "/cellA")])
+def test_namespace_option_gives_an_absolute_ros_namespace(text, ns):
+    from rheo_shaping.cli.common import ros_namespace
+    assert ros_namespace(text) == ns
+
+
+@pytest.mark.parametrize("text", ["2cell", "/cell-2", "//cell", "/cell/", "a b"])
+def test_a_bad_namespace_is_named_with_what_was_expected(text):
+    from rheo_shaping.cli import UserError
+    from rheo_shaping.cli.common import ros_namespace
+    with pytest.raises(UserError, match=r"^--namespace = .*: expected a ROS namespace"):
+        ros_namespace(text)

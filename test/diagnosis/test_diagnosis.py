@@ -158,7 +158,14 @@ def test_an_effect_outside_the_library_is_unexplained_with_a_signature():
     assert d.verdict == "unexplained"
     sig = d.signature
     assert {"observables", "where", "when", "trend", "proportional_to", "causes"} <= set(sig)
-    assert len(sig["causes"]) == 7
+    # every kind once, ranked by score after any library effect that imitates the gap
+    from rheo_shaping.diagnosis.signature import CAUSES, SUBSTITUTE_SHARE
+    causes = sig["causes"]
+    assert sorted(c["kind"] for c in causes) == sorted(CAUSES)
+    lead = [c for c in causes if (c["substitute_share"] or 0.0) >= SUBSTITUTE_SHARE]
+    assert causes[:len(lead)] == lead
+    rest = [c["score"] for c in causes[len(lead):]]
+    assert rest == sorted(rest, reverse=True)
 
 
 def test_diagnose_command_and_write_scenario(tmp_path, capsys):

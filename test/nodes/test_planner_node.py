@@ -201,7 +201,7 @@ def test_refuses_a_plan_that_pinches_the_sheet(ros):
 
 
 def test_optimise_d_picks_the_cores_best_d_before_moving(ros):
-    from rheo_shaping.study.optimise import best_d, d_values
+    from rheo_shaping.planning.choose_d import best_d, d_values
     settings = {"optimise_d": True, "d_min": 0.012, "d_max": 0.017, "d_step": 0.0025,
                 "delta_limit": 5e-3}
     node = ros.add(PlannerNode(context=ros.context, parameter_overrides=[

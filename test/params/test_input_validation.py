@@ -40,7 +40,12 @@ def test_chain_rejects_negative_or_nan_dashpots(chain, field, bad):
 
 
 def test_chain_accepts_rigid_c2_and_zero_c1(chain):
-    replace(chain, c2=np.full_like(chain.c2, math.inf), c1=np.zeros_like(chain.c1))
+    """No plastic flow (c2 = inf: the link is a Kelvin-Voigt element) and no damper beside
+    the spring (c1 = 0) are limits the model takes; they are kept as given."""
+    rigid = replace(chain, c2=np.full_like(chain.c2, math.inf), c1=np.zeros_like(chain.c1))
+    assert np.all(np.isinf(rigid.c2)) and np.all(rigid.c1 == 0.0)
+    assert np.array_equal(rigid.k1, chain.k1)
+    assert np.array_equal(rigid.rest_length, chain.rest_length)
 
 
 def test_chain_rejects_a_zero_c2(chain):

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 
 import numpy as np
 import pytest
@@ -257,14 +256,17 @@ def test_knots_and_arrays():
     assert np.array_equal(pos[123], p) and np.array_equal(vel[123], v)
 
 
-def test_sampling_speed_120_s_at_1_kHz():
+def test_vectorised_sampling_of_120_s_at_1_kHz_matches_the_pointwise_samples():
+    """sample_many (the fast path: its speed is measured in benchmarks/bench_simulator.py)
+    gives what sample gives, point by point."""
     plan = plan_waypoints(START, MOVEMENT, NOMINAL)
     times = np.arange(0.0, 120.0, 1e-3)
-    t0 = time.perf_counter()
     pos, vel, acc = plan.sample_many(times)
-    elapsed = time.perf_counter() - t0
-    assert pos.shape == (120000, 2)
-    assert elapsed < 0.3, elapsed
+    assert pos.shape == vel.shape == acc.shape == (120000, 2)
+    for k in (0, 1, 4567, 60000, 119999):
+        p, v, a = plan.sample(times[k])
+        assert np.array_equal(pos[k], p) and np.array_equal(vel[k], v)
+        assert np.array_equal(acc[k], a)
 
 
 def test_empty_and_degenerate_plans():

@@ -7,7 +7,7 @@ import os
 
 import pytest
 
-from rheo_shaping.study.optimise import run_d
+from rheo_shaping.planning.choose_d import run_d
 from rheo_shaping.parallel import SerialExecutor, executor_from_spec, executor_workers, run_tasks
 from rheo_shaping.params.params import CellParams
 

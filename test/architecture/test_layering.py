@@ -108,6 +108,31 @@ def test_subpackage_graph_is_acyclic():
     assert cycle is None, "import cycle between subpackages: " + " -> ".join(cycle)
 
 
+def _module_graph() -> dict[str, set[str]]:
+    """module -> the package's modules it imports (dotted names; a package is its
+    ``__init__``).  An import of a module's own enclosing package is left out: that is how
+    a module reaches its package's lazy API, which imports nothing until a name is used."""
+    mods = {".".join(p.relative_to(PKG.parent).with_suffix("").parts).removesuffix(".__init__")
+            for p in PKG.rglob("*.py")}
+    graph = {}
+    for path in sorted(PKG.rglob("*.py")):
+        src = ".".join(path.relative_to(PKG.parent).with_suffix("").parts).removesuffix(
+            ".__init__")
+        graph[src] = {d for d in _imports(path)
+                      if d in mods and d != src and not src.startswith(d + ".")}
+    return graph
+
+
+def test_module_graph_is_acyclic():
+    """No two modules import each other, directly or round a loop (imports inside
+    functions count: they are dependencies too, only later)."""
+    graph = _module_graph()
+    assert graph["rheo_shaping.planning.pieces"] >= {"rheo_shaping.planning.limits"}
+    assert len(graph) > 100                                     # sees the whole tree
+    cycle = _cycle(graph)
+    assert cycle is None, "import cycle between modules: " + " -> ".join(cycle)
+
+
 def test_the_cycle_check_finds_a_cycle():
     """The walk is not vacuous: a cycle is reported, a chain is not."""
     assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
@@ -139,3 +164,32 @@ def test_docs_architecture_lists_every_import_between_subpackages():
         used = {d for d in graph.get(src, {}) if d not in ROS_ROOTS and d not in ("_lazy",)}
         missing += [f"{src} -> {d}" for d in sorted(used - allowed[src])]
     assert not missing, "imports docs/architecture.md does not list: " + ", ".join(missing)
+
+
+def _lazy_packages() -> list[str]:
+    """Every package of rheo_shaping whose ``__init__`` declares a lazy public API."""
+    return sorted(".".join(p.parent.relative_to(PKG.parent).parts)
+                  for p in PKG.rglob("__init__.py") if "lazy_api(" in p.read_text())
+
+
+def test_every_lazy_public_name_resolves_to_its_definition():
+    """Each name a package's ``__all__`` lists resolves, and is defined where the package
+    says (a re-export from another module would be a second home for it)."""
+    import importlib
+    pkgs = _lazy_packages()
+    assert {"rheo_shaping", "rheo_shaping.sheet", "rheo_shaping.planning",
+            "rheo_shaping.safety"} <= set(pkgs)                   # sees the tree
+    bad = []
+    for name in pkgs:
+        pkg = importlib.import_module(name)
+        assert pkg.__all__, f"{name} lists no public name"
+        for attr in pkg.__all__:
+            try:
+                obj = getattr(pkg, attr)
+            except (AttributeError, ImportError) as exc:
+                bad.append(f"{name}.{attr}: {exc}")
+                continue
+            home = getattr(obj, "__module__", None)
+            if home is not None and not home.startswith(name):
+                bad.append(f"{name}.{attr} is defined in {home}")
+    assert not bad, "lazy public names that do not resolve: " + "; ".join(bad)

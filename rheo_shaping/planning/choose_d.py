@@ -19,7 +19,7 @@ import numpy as np
 from ..parallel import executor_from_spec, run_tasks
 from ..params.params import CellParams
 from ..params.validators import check_positive
-from ..planning.movement import run_movement
+from .movement import run_movement
 
 
 @dataclass(frozen=True)

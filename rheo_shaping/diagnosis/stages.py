@@ -1,0 +1,155 @@
+"""The diagnosis's stages before any effect: the nominal runs and noise, the calibrated
+baseline, the gap test and the sensor side (:mod:`engine` runs them in order)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..params.schema import ParameterError
+from . import replay, stats
+from .baseline import CHAIN, SHEET, with_sheet
+from .candidates import Explanation
+from .compare import RecordData, noise_level
+from .context import Baseline, FitContext, Group, forward_jacobian
+from .evaluate import Outcome, Runner, Task, all_ok
+from .linear import Solver
+
+#: Step of the baseline's forward differences, in tolerances (tried + then -).
+JACOBIAN_STEP = 0.5
+
+
+@dataclass(frozen=True)
+class Nominal:
+    """Stage 1: the written scenario's runs (every record) and the noise levels they show."""
+
+    outs: list[Outcome]
+    sp: float                       # m, profile noise
+    sf: float                       # N, tool force noise (1 N when the records have none)
+    J0: float                       # nominal misfit, fit records
+    J0_h: float                     # nominal misfit, holdout records (nan without)
+
+
+def nominal_stage(data: list[RecordData], nf: int, run: Runner) -> tuple[Nominal, FitContext]:
+    """Stage 1: the nominal models, the noise (MAD of second differences), the fit context."""
+    run.stage(1, len(data))
+    nominal = run([Task(d, d.record.scenario, keep_run=True) for d in data])
+    bad = [d.record.name for d, o in zip(data, nominal) if not o.ok]
+    if bad:
+        raise ValueError(f"the nominal model of record '{bad[0]}' does not run: "
+                         f"{next(o.error for o in nominal if not o.ok)}")
+    sp = float(np.nanmedian([noise_level(o.profile, d.point_frame)
+                             for d, o in zip(data, nominal)]))
+    sfs = [noise_level(o.force[:, k]) for o in nominal if o.force is not None for k in (0, 1)]
+    sf = float(np.nanmedian(sfs)) if sfs else math.nan
+    if not (sp > 0):
+        raise ValueError("the records' profile noise cannot be estimated "
+                         "(too few points per frame)")
+    sf = sf if sf > 0 else 1.0
+    fit_d, hold_d = data[:nf], data[nf:]
+    G = Group.of(fit_d, sp, sf, nominal[:nf])
+    H = Group.of(hold_d, sp, sf, nominal[nf:]) if hold_d else None
+    ctx = FitContext(fit_d, hold_d, G, H, run, sp, sf)
+    J0 = G.J(G.z(nominal[:nf]))
+    J0h = H.J(H.z(nominal[nf:])) if H else math.nan
+    return Nominal(nominal, sp, sf, J0, J0h), ctx
+
+
+def baseline_stage(ctx: FitContext, nominal: Nominal) -> Baseline:
+    """Stage 2: the sheet knobs' Jacobian (forward differences of half a tolerance), a
+    bounded least-squares step on it, checked by simulation, one chord step from there,
+    checked again; the best of the three points (nominal included) with the chain refitted."""
+    G, nf, n_s, run = ctx.G, ctx.nf, ctx.n_s, ctx.run
+    z0 = G.z(nominal.outs[:nf])
+
+    def at(j: int, h: float) -> list:
+        return [with_sheet(d.record.scenario, {SHEET[j].name: h}) for d in ctx.fit_d]
+
+    def invalid(j: int) -> list:
+        raise ValueError(f"baseline knob {SHEET[j].name}: no valid step of half a tolerance")
+    A_sheet = forward_jacobian(ctx, z0, at, [(JACOBIAN_STEP, -JACOBIAN_STEP)] * n_s, invalid,
+                               announce=lambda n: run.stage(2, n))
+    solver = G.solver(A_sheet)
+    chain_lim = ctx.chain_lim
+    lo = np.r_[-np.ones(n_s), -chain_lim]
+    hi = np.r_[np.ones(n_s), chain_lim]
+    chain_solver = Solver(G.chain)
+
+    u_lin, _ = solver.solve(z0, lo, hi)
+    tried = [(np.zeros(n_s), nominal.outs)]
+    run.stage(3, 2 * len(ctx.data))
+    for _it in range(2):
+        u_try = np.clip(u_lin[:n_s], -1, 1)
+        try:
+            outs = run([Task(d, ctx.params(d, u_try), keep_run=True) for d in ctx.data])
+        except ParameterError:
+            break
+        tried.append((u_try, outs))
+        if not all_ok(outs[:nf]):
+            break
+        zb = G.z(outs[:nf])
+        # chord step: same Jacobian from the new point
+        du, _ = solver.solve(zb, np.r_[-1 - u_try, -chain_lim], np.r_[1 - u_try, chain_lim])
+        u_lin = np.r_[u_try + du[:n_s], du[n_s:]]
+    best = None
+    for u_try, outs in tried:
+        if not all_ok(outs[:nf]) or (ctx.H and not all_ok(outs[nf:])):
+            continue
+        u, J = chain_solver.solve(G.z(outs[:nf]), -chain_lim, chain_lim)
+        if best is None or J < best[1]:
+            best = (u_try, J, outs, u)
+    u_s, J_base, base_outs, u_c = best
+    zB_raw = G.z(base_outs[:nf])
+    zB = zB_raw + G.chain @ u_c
+    H = ctx.H
+    J_base_h = H.J(H.z(base_outs[nf:]) + H.chain @ u_c) if H else math.nan
+    return Baseline(u_s, u_c, J_base, J_base_h, base_outs, zB_raw, zB, G.stack.J_parts(zB),
+                    G.n_eff(zB), A_sheet, solver, chain_solver)
+
+
+@dataclass(frozen=True)
+class GapTest:
+    """Stage 3: the baseline's excess against its calibrated effect-free null."""
+
+    p: float                        # p_gap
+    replay: tuple                   # (fit, holdout) draws of the replay misfit, or None each
+    below_tolerance: bool = False   # the baseline's remainder is below the user's tolerance
+
+    @property
+    def left(self) -> bool:
+        """A gap is left for an effect or the chain to explain (and worth naming)."""
+        return self.p <= stats.ALPHA and not self.below_tolerance
+
+
+def gap_stage(ctx: FitContext, base: Baseline) -> GapTest:
+    """Stage 3: p_gap; for a cell with a Kelvin dashpot the null plus the model's own replay
+    misfit, measured here (:mod:`replay`)."""
+    rp = (None, None)
+    if any(replay.kelvin(d.record.scenario) for d in ctx.data):
+        ctx.run.stage(4, (1 + replay.DRAWS) * len(ctx.data))
+        rp = tuple(replay.replay_misfit(dd, [ctx.params(d, base.u_s) for d in dd], ctx.run,
+                                        ctx.sp, ctx.sf)
+                   if dd else None for dd in (ctx.fit_d, ctx.hold_d))
+    return GapTest(stats.gap_p_value(base.J - 1.0, shift=rp[0]), rp)
+
+
+def outside(u_chain: np.ndarray) -> list[str]:
+    """The chain knobs beyond their tolerance (``u_chain`` in tolerances)."""
+    return [k.name for k, v in zip(CHAIN, u_chain) if abs(v) > 1.0 + 1e-6]
+
+
+def sensor_stage(ctx: FitContext, base: Baseline) -> Explanation:
+    """Stage 4, which side: the measurement chain's hypothesis (chain beyond its tolerance,
+    the sheet knobs refitted; linear, no simulation) and its likelihood ratio against the
+    baseline.  Checked by simulation with the effects (:func:`verdict.candidates_stage`)."""
+    n_s = ctx.n_s
+    free = ctx.chain_free
+    u_ch, J_ch = base.solver.solve(base.z_raw, np.r_[-1 - base.u_s, -free],
+                                   np.r_[1 - base.u_s, free])
+    chain_c = Explanation((), {}, J_ch,
+                          ctx.G.stack.J_parts(base.solver.residual(base.z_raw, u_ch)),
+                          baseline_u=u_ch, chain_free=True)
+    chain_c.k = max(len(outside(u_ch[n_s:])), 1)
+    chain_c.LR = stats.likelihood_ratio(base.parts, chain_c.J_parts, base.n_eff)
+    return chain_c

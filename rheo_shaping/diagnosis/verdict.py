@@ -1,0 +1,194 @@
+"""The diagnosis's stages from the effects on: probes and single fits, pairs, the verdict, and
+the verdict's runs (:mod:`engine` runs them in order)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from . import stats
+from .baseline import CHAIN
+from .candidates import (CHECKED, PAIRED, PROBES, Explanation, fit_pair, fit_single,
+                         rank_key)
+from .check import adequate, check, needs_numerics, numerics, refine_points, relinearise
+from .context import Baseline, FitContext
+from .evaluate import Outcome, Task, all_ok, apply
+from .result import num
+from .stages import GapTest, outside
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Stage 5: the single effects fitted on the linearised model (best first by p, J; the
+    ``CHECKED`` best checked by simulation and refined), their probe ``responses``, the
+    Bonferroni count ``m`` and the baseline's own numerics candidate ``base_c``."""
+
+    effects: list[Explanation]
+    responses: dict
+    m: int
+    base_c: Explanation | None
+
+
+def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explanation,
+                     library: Sequence[str]) -> Candidates:
+    """Stage 5: probe each library effect at the baseline, fit each on the linearised model,
+    check the best and the chain's hypothesis by simulation (chord refinement; the
+    candidate's own Jacobian and the model's numerics where it is significant yet refused)."""
+    if not gap.left:
+        return Candidates([], {}, 0, None)
+    run, G, nf = ctx.run, ctx.G, ctx.nf
+    if not library:
+        run.stage(6)
+        check([chain_c], ctx, base, m=1)
+        return Candidates([], {}, 0, None)
+    ptasks, index = [], []
+    for name in library:
+        kind, vals, _ = PROBES[name]
+        for v in vals:
+            vv = v if isinstance(v, tuple) else (v,)
+            for d in ctx.fit_d:
+                ptasks.append(Task(d, apply(ctx.params(d, base.u_s), ((name, vv),))))
+            index.append((name, vv))
+    run.stage(5, len(ptasks))
+    pouts = run(ptasks)
+    responses: dict = {}
+    for i, (name, vv) in enumerate(index):
+        o = pouts[i * nf:(i + 1) * nf]
+        responses.setdefault(name, []).append((vv, G.z(o) - base.z_raw if all_ok(o) else None))
+    lin = base.linear(ctx)
+    effects = []
+    for name in library:
+        c = fit_single(name, responses[name], lin)
+        if c is not None:
+            effects.append(c)
+    m = len(effects) + math.comb(min(PAIRED, len(effects)), 2)
+    for c in effects:
+        c.p = stats.bonferroni_p(c.LR, c.k, m)
+    effects.sort(key=lambda c: (c.p, c.J))
+    chain_c.p = stats.bonferroni_p(chain_c.LR, chain_c.k, m + 1)
+    run.stage(6)
+    check(effects[:CHECKED] + [chain_c], ctx, base, m=m, responses=responses)
+    base_c = Explanation((), {}, base.J, checked=True, baseline_u=np.r_[base.u_s, base.u_c])
+    base_c.search.z_raw = base.z_raw
+    base_c.search.zh_raw = ctx.H.z(base.outs[nf:]) if ctx.H else None
+    has_h = bool(ctx.hold_d)
+    need = [c for c in effects[:CHECKED] if needs_numerics(c, base.J_h, has_h, gap.replay)]
+    if need:
+        # a strong effect changes how the knobs act: refit from its own Jacobian
+        relinearise(need, ctx)
+        refine_points(need, ctx, base, m=m, responses=responses)
+        need = [c for c in need if needs_numerics(c, base.J_h, has_h, gap.replay)]
+    if need:
+        numerics(need + [base_c], ctx, base, responses)
+    return Candidates(effects, responses, m, base_c)
+
+
+def pairs_stage(ctx: FitContext, base: Baseline, gap: GapTest,
+                cands: Candidates) -> list[Explanation]:
+    """Stage 6: the pairs among the ``PAIRED`` best single effects on the linearised model;
+    the best checked by simulation and refined (its numerics where it needs them)."""
+    lin = base.linear(ctx)
+    pairs = []
+    top = sorted(cands.effects, key=lambda c: (c.p, c.J))[:PAIRED]
+    for i, a in enumerate(top):
+        for b in top[i + 1:]:
+            pc = fit_pair(a, b, cands.responses, lin)
+            if pc is not None:
+                pc.p = stats.bonferroni_p(pc.LR, pc.k, cands.m)
+                pairs.append(pc)
+    pairs.sort(key=lambda c: (c.p, c.J))
+    if pairs:
+        check(pairs[:1], ctx, base, m=cands.m, responses=cands.responses)
+        if needs_numerics(pairs[0], base.J_h, bool(ctx.hold_d), gap.replay):
+            # the baseline again, refined the same way as the pair
+            numerics([pairs[0], cands.base_c], ctx, base, cands.responses)
+    return pairs
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Stage 7: what the diagnosis says and the explanation it rests on."""
+
+    name: str                       # an effect (or pair), "none", "measurement chain", ...
+    fit: Explanation | None         # the named effect or pair
+    pairs: list[Explanation]
+    chain_side: bool                # the gap is put on the measurement chain
+    side: dict
+
+
+def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explanation,
+                  cands: Candidates, library: Sequence[str], rule=None) -> Verdict:
+    """Stage 7: name the best single effect if it is significant and adequate and beats the
+    chain's hypothesis; else the chain's hypothesis if it is; else the best pair; else
+    ``unexplained`` (``none`` when no gap is left).  ``rule(explanation) -> bool``: a
+    further condition on the named one (the model-form floor's, :func:`floor.clear_name`)."""
+    n_s, has_h, rp = ctx.n_s, bool(ctx.hold_d), gap.replay
+    effects, base_c = cands.effects, cands.base_c
+    pairs: list[Explanation] = []
+    verdict_fit = None
+    if not gap.left or not library:
+        chain_c.p = stats.bonferroni_p(chain_c.LR, chain_c.k)
+    out = outside(chain_c.baseline_u[n_s:])
+    chain_c.adequate = chain_c.checked and adequate(chain_c, base.J_h, has_h, replay=rp)
+    chain_ok = gap.left and chain_c.checked and chain_c.p <= stats.ALPHA and chain_c.adequate
+    for c in effects:
+        c.adequate = c.checked and adequate(c, base.J_h, has_h, base_c, rp)
+    ranked = sorted(effects, key=rank_key)
+    if gap.left and ranked:
+        lead = ranked[0]
+        if lead.checked and lead.p <= stats.ALPHA and lead.adequate and not (
+                chain_ok and chain_c.J < lead.J):
+            verdict_fit = lead
+        elif chain_ok:
+            pass
+        elif len(effects) >= 2:
+            pairs = pairs_stage(ctx, base, gap, cands)
+            if pairs:
+                bp = pairs[0]
+                bp.adequate = bp.checked and adequate(bp, base.J_h, has_h, base_c, rp)
+                # a pair must beat each of its parts significantly
+                if bp.checked and bp.p <= stats.ALPHA and bp.adequate:
+                    verdict_fit = bp
+    if (verdict_fit is not None and verdict_fit.J_parts and chain_ok
+            and chain_c.J < verdict_fit.J):
+        verdict_fit = None
+    if verdict_fit is not None and rule is not None and not rule(verdict_fit):
+        verdict_fit = None
+    chain_side = chain_ok and verdict_fit is None
+    name = ("none" if not gap.left else "+".join(verdict_fit.names) if verdict_fit
+            else "measurement chain" if chain_side else "unexplained")
+    side = {"side": ("measurement chain" if chain_side else "sheet" if gap.left
+                     else "neither"),
+            "chain_outside": out if chain_side else [],
+            "chain_candidate": {"J": chain_c.J, "J_holdout": num(chain_c.J_holdout),
+                                "p": num(chain_c.p), "adequate": chain_c.adequate,
+                                "outside": out,
+                                "values": {k.name: float(v * k.tolerance) for k, v in
+                                           zip(CHAIN, chain_c.baseline_u[n_s:])}},
+            "p_gap": gap.p}
+    return Verdict(name, verdict_fit, pairs, chain_side, side)
+
+
+@dataclass(frozen=True)
+class After:
+    """Stage 8: the runs of what the verdict names (every record; the baseline's when it names
+    nothing) and the chain values they are corrected by."""
+
+    fit: Explanation | None         # the named effect, pair or the chain's hypothesis
+    outs: list[Outcome]
+    u_c: np.ndarray
+
+
+def after_stage(ctx: FitContext, base: Baseline, verdict: Verdict,
+                chain_c: Explanation) -> After:
+    """Stage 8: the verdict's runs on the fit and holdout records, for the gap figures."""
+    fit = verdict.fit or (chain_c if verdict.chain_side else None)
+    if fit is None:
+        return After(None, base.outs, base.u_c)
+    u_v, n_s = fit.baseline_u, ctx.n_s
+    cand = verdict.fit.candidate if verdict.fit else ()
+    ctx.run.stage(7, len(ctx.data))
+    outs = ctx.run([Task(d, apply(ctx.params(d, u_v[:n_s]), cand)) for d in ctx.data])
+    return After(fit, outs, u_v[n_s:])
