@@ -37,6 +37,22 @@ def add_parser(sub) -> None:
                    help="write the calibrated baseline plus the verdict's effect as a params file "
                         "(accepted by simulate, reproduce --params and the planner); the report "
                         "then shows F_max, SF, Delta and d_opt against the nominal cell")
+    p.add_argument("--initial-state", default="auto", choices=("auto", "laid", "settled"),
+                   help="how each record's model starts: laid (the first profile frame's sheet, "
+                        "released then), settled (the scenario's drape settled before t = 0) or "
+                        "auto (laid when the records show the sheet moving before the tool "
+                        "touches; the default)")
+    p.add_argument("--floor", default="model-form", metavar="KIND",
+                   help="what a gap is judged against: model-form (the default: what the "
+                        "baseline leaves on effect-free records of a simulator of another form, "
+                        "calibrated per configuration), numerics (the model's own finer chain: "
+                        "numerics only) or a calibration file (benchmarks/diagnosis_floor.py)")
+    p.add_argument("--reference", nargs="+", default=[], metavar="RECORD",
+                   help="effect-free records of this cell (a commissioning run, at least two): "
+                        "the floor is scaled to what the baseline leaves on them")
+    p.add_argument("--tolerance", nargs=2, type=float, metavar=("PROFILE_MM", "FORCE_N"),
+                   help="practical tolerance: a baseline remainder below both (systematic "
+                        "profile RMS [mm], tool-force RMS [N]) is not worth naming")
     add_executor_arguments(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -96,9 +112,16 @@ def run(args: argparse.Namespace) -> int:
                             "expected some of " + ", ".join(EFFECT_NAMES))
     scen = output_path(args.write_scenario, args.force, "--write-scenario file")
     out = output_dir(args.out, args.force)
+    tol = None
+    if args.tolerance is not None:
+        if not all(v >= 0 for v in args.tolerance):
+            raise UserError(f"--tolerance {args.tolerance[0]} {args.tolerance[1]}: expected two "
+                            "numbers >= 0 (profile [mm], tool force [N])")
+        tol = (args.tolerance[0] * 1e-3, args.tolerance[1])
     try:
         fit = [read_record(p) for p in args.records]
         hold = [read_record(p) for p in args.holdout]
+        ref = [read_record(p) for p in args.reference]
     except RecordError as exc:
         raise UserError(str(exc)) from None
     from ..diagnosis.engine import diagnose
@@ -107,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         with executor_from_args(args) as executor:
             diag = diagnose(fit, hold, library=library, progress=progress,
-                            executor=executor)
+                            executor=executor, initial_state=args.initial_state,
+                            floor=args.floor, reference=ref, tolerance=tol)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     finally:
@@ -140,6 +164,20 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {n} = "
                   + ", ".join(f"{x:.4g} [{lo:.4g}, {hi:.4g}]" for x, (lo, hi) in zip(v, iv)))
         print(f"  p = {diag.verdict_fit.p:.3g}")
+    fl = diag.floor or {}
+    if fl.get("source") and fl["source"] != "numerics":
+        b = fl["baseline"]
+        print(f"floor ({fl['source']}): 95 % bound J - 1 = {fl['q95_fit']:.4f}; the baseline "
+              f"leaves {b['J_minus_1']:.4f} ({b['noise_units']:.2f} noise units, profile "
+              f"{b['profile_systematic_m'] * 1e3:.3f} mm, tool force "
+              f"{b['force_systematic_N'] * 1e3:.2f} mN)"
+              + (": below the practical tolerance" if fl.get("below_tolerance") else ""))
+        if "verdict" in fl:
+            v = fl["verdict"]
+            print(f"  the verdict leaves {v['J_minus_1']:.4f} ({v['noise_units']:.2f} noise "
+                  f"units, profile {v['profile_systematic_m'] * 1e3:.3f} mm, tool force "
+                  f"{v['force_systematic_N'] * 1e3:.2f} mN): "
+                  + ("beyond the floor" if v["beyond_floor"] else "within the floor"))
     print(f"gap test: baseline J - 1 = {diag.J_base - 1:.4f}, p_gap = {diag.p_gap:.3g}; "
           f"{diag.baseline_took_text()}; "
           f"side: {diag.side['side']}")

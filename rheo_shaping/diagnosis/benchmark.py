@@ -120,8 +120,9 @@ def check_world(world: str) -> str:
 
 def make_case(index: int, kind: str, seed: int, base: CellParams,
               measurement: MeasurementParams = MeasurementParams(),
-              world: str = "finer-chain") -> dict:
-    """Draw a case (its own seed) and record its three runs in ``world`` (:data:`WORLDS`)."""
+              world: str = "finer-chain", n_records: int = 3) -> dict:
+    """Draw a case (its own seed) and record its ``n_records`` runs (movements drawn from 1-4
+    without repeats) in ``world`` (:data:`WORLDS`)."""
     dynamic = check_world(world) == "dynamic"
     rng = random.Random(seed * 1000 + index)
     for _attempt in range(20):
@@ -158,7 +159,7 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
             lay = draw_lay((rng.random(), rng.random(), rng.random(), rng.random()))
         else:
             truth = true_numerics(truth)
-        movements = rng.sample((1, 2, 3, 4), 3)
+        movements = rng.sample((1, 2, 3, 4), n_records)
         records, ok = [], True
         nrng = np.random.default_rng(rng.randrange(2 ** 31))
         for mv in movements:
@@ -233,11 +234,19 @@ def score_case(case: dict, diag) -> dict:
     row["baseline_error_u"] = errs
     row["baseline_within_tolerance"] = all(not diag.baseline[k]["outside"] for k in diag.baseline
                                            if k in {s.name for s in SHEET})
+    fl = diag.floor or {}
+    row["floor_source"] = fl.get("source")
+    row["verdict_beyond_floor"] = (fl.get("verdict", {}).get("beyond_floor")
+                                   or fl.get("verdict_holdout", {}).get("beyond_floor")
+                                   if vf else None)
+    row["initial_state"] = (diag.initial_state or {}).get("mode")
     if case["kind"] == "single" and row["correct"]:
         n, v = case["truth"][0]
         fit = np.asarray(vf.values[n], float)
         true = np.asarray(v, float)
         row["param_rel_error"] = float(np.linalg.norm(fit - true) / np.linalg.norm(true))
+        ivs = vf.interval.get(n, [])
+        row["in_interval"] = bool(ivs) and all(lo <= t <= hi for t, (lo, hi) in zip(true, ivs))
         h = diag.gap_after.get("holdout")
         row["holdout_gap_shrink"] = h.get("shrink") if h else None
     return row
@@ -288,6 +297,25 @@ def summarise(rows: list[dict], wall: float) -> dict:
         "baseline_within_tolerance_rate": frac(rows, "baseline_within_tolerance"),
         "baseline_error_median_tolerances": float(np.median(sheet_err)) if sheet_err else None,
         "simulations_median": float(np.median([r["simulations"] for r in rows])) if rows else None,
+        # issue 26's list: effect-free records named from the library; out-of-library
+        # effects unexplained or named with a remainder flagged beyond the floor, or named
+        # without that flag; the truth within the named effect's interval; time
+        "no_effect_library_name_rate": (sum(r["verdict"] in EFFECT_NAMES or "+" in r["verdict"]
+                                            for r in by["none"]) / len(by["none"])
+                                        if by["none"] else None),
+        "out_of_library_unexplained_or_flagged_rate": (
+            sum(r["verdict"] == "unexplained" or bool(r.get("verdict_beyond_floor"))
+                for r in by["out_of_library"]) / len(by["out_of_library"])
+            if by["out_of_library"] else None),
+        "out_of_library_name_unflagged_rate": (
+            sum(r["verdict"] not in ("none", "unexplained", "measurement chain")
+                and not r.get("verdict_beyond_floor") for r in by["out_of_library"])
+            / len(by["out_of_library"]) if by["out_of_library"] else None),
+        "interval_coverage": frac(single, "in_interval"),
+        "diagnosis_wall_s_median": (float(np.median([r["diagnosis_wall_s"] for r in rows]))
+                                    if rows and "diagnosis_wall_s" in rows[0] else None),
+        "diagnosis_wall_s_max": (float(np.max([r["diagnosis_wall_s"] for r in rows]))
+                                 if rows and "diagnosis_wall_s" in rows[0] else None),
         "per_effect": per_effect, "wall_time_s": wall,
     }
 
@@ -295,7 +323,8 @@ def summarise(rows: list[dict], wall: float) -> dict:
 def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
                   progress: Callable[[int], None] | None = None, n_masses: int = 31,
                   process_time: float = 70.0, kinds: tuple[str, ...] | None = None,
-                  executor: Executor | None = None, world: str = "finer-chain") -> dict:
+                  executor: Executor | None = None, world: str = "finer-chain",
+                  floor: str | None = None, initial_state: str | None = None) -> dict:
     """Run ``n`` cases; returns the summary with every case under ``case_results``.
 
     The cases go to ``executor`` (:mod:`rheo_shaping.parallel`: a local pool, a Dask
@@ -307,12 +336,16 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
     base = base_cell(n_masses, process_time)
     t0 = time.monotonic()
     shared = {"seed": seed, "base": base, "pattern": kinds or KINDS_PATTERN,
-              "jobs": jobs if executor is None else 1, "world": world}
+              "jobs": jobs if executor is None else 1, "world": world,
+              "floor": floor or ("model-form" if world == "dynamic" else "numerics"),
+              "initial_state": initial_state or ("auto" if world == "dynamic" else "settled")}
     rows = run_tasks(executor, _case_task, shared, list(range(n)), progress,
                      chunks_per_worker=1 if executor is None else 2)
     out = summarise(rows, time.monotonic() - t0)
     true_n = WorldNumerics().n_masses if world == "dynamic" else 2 * n_masses + 1
-    out.update({"seed": seed, "world": world, "n_masses": n_masses, "true_n_masses": true_n,
+    out.update({"seed": seed, "world": world, "floor": shared["floor"],
+                "initial_state": shared["initial_state"], "n_masses": n_masses,
+                "true_n_masses": true_n,
                 "process_time_s": process_time, "case_results": rows})
     return out
 
@@ -330,7 +363,8 @@ def _case_task(shared: dict, i: int) -> dict:
         library = tuple(x for x in EFFECT_NAMES if x != case["truth"][0][0])
     t1 = time.monotonic()
     diag = diagnose(case["records"][:2], case["records"][2:], library=library,
-                    jobs=shared["jobs"])
+                    jobs=shared["jobs"], floor=shared.get("floor", "numerics"),
+                    initial_state=shared.get("initial_state", "settled"))
     row = score_case(case, diag)
     row["diagnosis_wall_s"] = time.monotonic() - t1
     row["library_size"] = len(library)

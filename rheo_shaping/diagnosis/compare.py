@@ -18,6 +18,7 @@ from ..sheet.metrics import residual_gap
 from ..params.params import CellParams
 from ..records.record import Record
 from ..sheet.simulation import PolylinePath, RunResult, run_scenario
+from .initial_state import InitialState, estimate
 
 #: Width [s] of the moving average applied to the measured pose before it drives the model.
 POSE_WINDOW = 0.4
@@ -73,13 +74,18 @@ class RecordData:
     point_xz: np.ndarray       # (P, 2) m, every measured profile point
     point_frame: np.ndarray    # (P,) index into profile_t
     last_frame: np.ndarray     # (M, 2) m, the last frame's points (Delta)
+    initial: InitialState | None = None   # the sheet's state when the records begin
 
     @classmethod
-    def of(cls, record: Record) -> "RecordData":
+    def of(cls, record: Record, initial: str = "settled") -> "RecordData":
+        """``initial``: how the model's initial state is taken (:mod:`.initial_state`:
+        ``settled``, the scenario's drape; ``laid``, the first frame released; ``auto``)."""
         pts = [np.asarray(f, float).reshape(-1, 2) for f in record.profiles]
         frame = np.concatenate([np.full(len(f), i)
                                for i, f in enumerate(pts)]) if pts else np.zeros(0, int)
-        return cls(record, tool_path(record), np.vstack(pts), frame.astype(int), pts[-1])
+        state = estimate(record, initial) if initial != "settled" else None
+        return cls(record, tool_path(record), np.vstack(pts), frame.astype(int), pts[-1],
+                   state)
 
 
 @dataclass(frozen=True)
@@ -96,8 +102,10 @@ class Residuals:
 
 
 def simulate(params: CellParams, data: RecordData) -> RunResult:
-    """The model ``params`` driven by the record's measured tool pose, to the record's end."""
-    return run_scenario(params, data.path, t_end=data.record.duration)
+    """The model ``params`` driven by the record's measured tool pose, to the record's end
+    (from the record's laid sheet when its initial state says so)."""
+    laid = data.initial.laid(params) if data.initial is not None else None
+    return run_scenario(params, data.path, t_end=data.record.duration, laid=laid)
 
 
 def polylines_at(run: RunResult, times: np.ndarray) -> np.ndarray:

@@ -45,16 +45,20 @@ verdict's runs); :func:`diagnose` calls them in order and assembles the :class:`
 """
 from __future__ import annotations
 
+import math
 from concurrent.futures import Executor
+from dataclasses import replace
 from typing import Callable, Sequence
 
 import numpy as np
 
 from ..records.record import Record
 from ..sheet.effects import EFFECT_NAMES
+from . import floor as fl_mod, stats
 from .compare import RecordData, residuals
 from .context import Baseline, FitContext
 from .evaluate import Runner, apply
+from .initial_state import initial_summary, pool
 from .result import Diagnosis, as_residuals, baseline_table, chain_correct
 from .stages import Nominal, baseline_stage, gap_stage, nominal_stage, sensor_stage
 from .verdict import After, Candidates, Verdict, after_stage, candidates_stage, verdict_stage
@@ -63,22 +67,108 @@ from .verdict import After, Candidates, Verdict, after_stage, candidates_stage, 
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
              library: Sequence[str] = EFFECT_NAMES, jobs: int | None = None,
              progress: Callable[[int], None] | None = None,
-             executor: Executor | None = None) -> Diagnosis:
-    """Diagnose the gap between ``records`` (fitted) and their scenario; check on ``holdout``."""
+             executor: Executor | None = None, initial_state: str = "settled",
+             floor: str = "numerics", reference: Sequence[Record] = (),
+             tolerance: tuple[float, float] | None = None) -> Diagnosis:
+    """Diagnose the gap between ``records`` (fitted) and their scenario; check on ``holdout``.
+
+    ``initial_state``: how each record's model starts (:mod:`.initial_state`: ``settled``,
+    the scenario's drape settled before t = 0; ``laid``, the first frame's sheet released;
+    ``auto``, laid when the records show the sheet moving before the tool touches).
+    ``floor``: what the gap and the adequacy are judged against (:mod:`.floor`:
+    ``numerics``, the stored finer-chain null; ``model-form``, the dynamic world's
+    calibration for this configuration, scaled to ``reference`` records' remainder when
+    given; or a calibration file's path).  ``tolerance`` (profile [m], tool force [N]): a
+    baseline remainder below both is not worth naming (``none``)."""
     if not records:
         raise ValueError("diagnose needs at least one record to fit")
+    if floor not in fl_mod.KINDS and not str(floor).endswith(".json"):
+        raise ValueError(f"floor {floor!r}: expected one of {', '.join(fl_mod.KINDS)} or a "
+                         "calibration file (.json)")
+    scale = (1.0, 1.0)
+    if reference:
+        if len(reference) < 2:
+            raise ValueError("--reference needs at least two effect-free records (one is "
+                             "held out)")
+        ref = diagnose(reference[:-1], reference[-1:], library=(), jobs=jobs,
+                       executor=executor, initial_state=initial_state)
+        path = floor if str(floor).endswith(".json") else fl_mod.FLOOR_FILE
+        scale = fl_mod.reference_scale(ref, reference[0].scenario.sheet.n_masses,
+                                       float(round(max(r.duration for r in reference))), path)
     library = tuple(library)
-    data = [RecordData.of(r) for r in list(records) + list(holdout)]
-    with Runner(executor, jobs, progress) as run:
+    data = [RecordData.of(r, initial_state) for r in list(records) + list(holdout)]
+    data = [replace(d, initial=s) for d, s in zip(data, pool(
+        [d.initial for d in data], initial_state == "auto"))]
+    with stats.using_null(None), Runner(executor, jobs, progress) as run:
         nominal, ctx = nominal_stage(data, len(records), run)
+        fl = _floor((floor, scale, bool(reference)), data, ctx.nf, len(ctx.hold_d), ctx.sp,
+                    ctx.sf)
+        stats.using_null_now(fl.sample)              # the gap test and adequacy use it
         base = baseline_stage(ctx, nominal)
         gap = gap_stage(ctx, base)
+        below = fl_mod.within_tolerance(base.parts, ctx.sp, ctx.sf, tolerance)
+        gap = replace(gap, below_tolerance=below)
         chain_c = sensor_stage(ctx, base)
         cands = candidates_stage(ctx, base, gap, chain_c, library)
-        verdict = verdict_stage(ctx, base, gap, chain_c, cands, library)
+        naming: dict = {}
+
+        def rule(c) -> bool:
+            """Beyond the floor: most of the excess on fit and holdout, clearly the best."""
+            if fl.source == "numerics":
+                return True
+            naming.update(fl_mod.clear_name(c, cands.effects, base.J, base.J_h,
+                                            bool(ctx.hold_d)))
+            return naming["most"] and naming["clear"]
+        verdict = verdict_stage(ctx, base, gap, chain_c, cands, library, rule)
         after = after_stage(ctx, base, verdict, chain_c)
         runs = run.runs
-    return _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs)
+    diag = _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs)
+    diag.initial_state = initial_summary(data)
+    diag.floor = _floor_report(fl, diag, verdict.fit, naming or None, below, tolerance, ctx.sp,
+                               ctx.sf, base.solver.A, cands.responses, base.parts)
+    return diag
+
+
+def _floor(spec, data, nf: int, nh: int, sp: float, sf: float) -> "fl_mod.Floor":
+    """The floor this diagnosis is judged against (``spec``: (kind or file, reference
+    scale, from reference records))."""
+    kind, scale, from_ref = spec
+    if kind == "numerics":
+        return fl_mod.numerics_floor()
+    path = kind if str(kind).endswith(".json") else fl_mod.FLOOR_FILE
+    sc = data[0].record.scenario
+    T = float(round(max(d.record.duration for d in data)))
+    src = (f"reference records (the stored dynamic-world floor scaled by {scale[0]:.2f} in "
+           f"profile, {scale[1]:.2f} in force)" if from_ref else None)
+    return fl_mod.stored_floor(sc.sheet.n_masses, T, nf, nh, sp, sf, path, scale, src)
+
+
+def _floor_report(floor, diag: Diagnosis, verdict_fit, naming, below_tol: bool, tolerance,
+                  sp: float, sf: float, A, responses, parts_B: dict) -> dict:
+    """The floor, what the baseline and the verdict leave against it, and the model-form
+    part of the verdict's interval."""
+    out = floor.as_dict()
+    out["baseline"] = fl_mod.remainder(diag.J_base, parts_B, sp, sf, floor)
+    if math.isfinite(diag.J_base_holdout):
+        out["baseline_holdout"] = {"J_minus_1": diag.J_base_holdout - 1.0,
+                                   "floor_q95": floor.quantile(True),
+                                   "beyond_floor": bool(diag.J_base_holdout - 1.0
+                                                        > floor.quantile(True))}
+    out["below_tolerance"] = below_tol
+    out["tolerance"] = None if tolerance is None else {"profile_m": tolerance[0],
+                                                       "force_N": tolerance[1]}
+    out["naming"] = naming
+    if verdict_fit is not None:
+        out["verdict"] = fl_mod.remainder(verdict_fit.J, verdict_fit.J_parts, sp, sf, floor)
+        if math.isfinite(verdict_fit.J_holdout):
+            out["verdict_holdout"] = {"J_minus_1": verdict_fit.J_holdout - 1.0,
+                                      "floor_q95": floor.quantile(True),
+                                      "beyond_floor": bool(verdict_fit.J_holdout - 1.0
+                                                           > floor.quantile(True))}
+        if floor.source != "numerics" and responses:
+            out["model_form_interval_width"] = fl_mod.model_form_interval(
+                verdict_fit, floor.quantile(), A, responses)
+    return out
 
 
 def _assemble(ctx: FitContext, nominal: Nominal, base: Baseline, p_gap: float, rp: tuple,

@@ -199,9 +199,45 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
              f"calibrated baseline {diag.J_base:.3f} "
              f"({_fmt(diag.J_base_holdout)} holdout).", "",
              f"## Verdict: **{diag.verdict}**", ""]
+    fl = diag.floor or {}
+    model_form = fl.get("source") not in (None, "numerics")
+    q95 = fl["q95_fit"] if model_form else stats.null_quantile()
     lines.append(f"Gap test: the baseline's excess J - 1 = {diag.J_base - 1:.4f} against "
                  f"effect-free records (95 % of them stay below "
-                 f"{stats.null_quantile():.4f}): p_gap = {diag.p_gap:.3g}.")
+                 f"{_fmt(q95, 1, 4)}): p_gap = {diag.p_gap:.3g}.")
+    ini = diag.initial_state or {}
+    if ini.get("mode") in ("laid", "mixed"):
+        laid = [r for r in ini["records"].values() if r.get("mode") == "laid"]
+        lines.append(f"Initial state from the records: {len(laid)} record(s) begin with the "
+                     f"sheet moving before the tool touches (median "
+                     f"{np.median([r['motion_noise_units'] for r in laid]):.1f} noise units), "
+                     f"so their models start from the first frame's sheet, released then, "
+                     f"with the laid length {laid[0]['laid_length_m'] * 1e3:.2f} +- "
+                     f"{laid[0]['laid_length_sd_m'] * 1e3:.2f} mm (median over the records).")
+    if model_form:
+        b = fl["baseline"]
+        lines.append(f"Floor ({fl['source']}; {fl['config']}): what the baseline leaves on "
+                     f"effect-free records of a simulator of another form, 95 % below "
+                     f"J - 1 = {_fmt(fl['q95_fit'], 1, 4)} (profile "
+                     f"{_fmt(fl['q95_profile_m'], 1e3, 3)} mm, tool force "
+                     f"{_fmt(fl['q95_force_N'], 1e3, 2)} mN). The baseline leaves "
+                     f"{b['J_minus_1']:.4f} ({b['noise_units']:.2f} noise units; profile "
+                     f"{b['profile_systematic_m'] * 1e3:.3f} mm, tool force "
+                     f"{_fmt(b['force_systematic_N'], 1e3, 2)} mN)"
+                     + ("; below the practical tolerance, not worth naming." if
+                        fl.get("below_tolerance") else "."))
+        if "verdict" in fl:
+            v = fl["verdict"]
+            lines.append(f"The verdict leaves {v['J_minus_1']:.4f} ({v['noise_units']:.2f} "
+                         f"noise units; profile {v['profile_systematic_m'] * 1e3:.3f} mm, tool "
+                         f"force {_fmt(v['force_systematic_N'], 1e3, 2)} mN): "
+                         + ("beyond the floor." if v["beyond_floor"] else "within the floor."))
+        if fl.get("naming"):
+            n = fl["naming"]
+            lines.append(f"Naming rule: explains {_fmt(n['explained_fit'], 100, 0)} % of the "
+                         f"baseline's excess (fit), {_fmt(n['explained_holdout'], 100, 0)} % "
+                         f"(holdout); best other effect {n['runner_up']}: "
+                         f"{_fmt(n['runner_up_explained_fit'], 100, 0)} %.")
     if diag.J_replay[0] is not None:
         y = np.asarray(diag.J_replay[0])
         lines.append(f"The written cell has a Kelvin dashpot (c1 > 0), whose force follows the "

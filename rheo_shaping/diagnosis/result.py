@@ -46,6 +46,8 @@ class Diagnosis:
     residual_maps: list = field(default_factory=list)
     numerics_base: Explanation | None = None   # the baseline's run against its refined run
     J_replay: tuple = (None, None)   # draws of the model's own replay misfit (fit, holdout)
+    initial_state: dict | None = None  # how each record's model started (initial_state.py)
+    floor: dict | None = None        # the model-form floor the verdict was judged against
 
     def explained(self, fr: Explanation, holdout: bool = False) -> float:
         """Fraction of the baseline's excess misfit the candidate removes."""
@@ -105,7 +107,8 @@ class Diagnosis:
                 "gap_before": self.gap_before, "gap_baseline": self.gap_baseline,
                 "gap_after": self.gap_after, "noise": self.noise, "records": self.records,
                 "holdout": self.holdout, "simulations": self.runs,
-                "J_numerics_baseline": self.numerics_json()}
+                "J_numerics_baseline": self.numerics_json(),
+                "initial_state": _finite(self.initial_state), "floor": _finite(self.floor)}
 
     def numerics_json(self) -> dict | None:
         """The baseline's numerics misfit (None when no candidate was checked)."""
@@ -114,6 +117,17 @@ class Diagnosis:
             return None
         return {"fit": num(b.J_num), "fit_unabsorbed": num(b.J_num_perp),
                 "holdout": num(b.J_num_holdout)}
+
+
+def _finite(x):
+    """``x`` with every non-finite float as None (plain JSON)."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    return x
 
 
 def num(v):

@@ -114,11 +114,12 @@ class GapTest:
 
     p: float                        # p_gap
     replay: tuple                   # (fit, holdout) draws of the replay misfit, or None each
+    below_tolerance: bool = False   # the baseline's remainder is below the user's tolerance
 
     @property
     def left(self) -> bool:
-        """A gap is left for an effect or the chain to explain."""
-        return self.p <= stats.ALPHA
+        """A gap is left for an effect or the chain to explain (and worth naming)."""
+        return self.p <= stats.ALPHA and not self.below_tolerance
 
 
 def gap_stage(ctx: FitContext, base: Baseline) -> GapTest:

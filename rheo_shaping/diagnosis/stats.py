@@ -32,8 +32,11 @@ from __future__ import annotations
 
 import json
 import math
+from contextlib import contextmanager
+from contextvars import ContextVar
 from functools import lru_cache
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -53,10 +56,32 @@ def _null_sample() -> dict:
             "holdout": np.sort(np.asarray(data["holdout"], float))}
 
 
+#: The null sample the tests use in this context (None: the stored numerics null); a
+#: diagnosis sets its model-form floor here (:mod:`.floor`, :func:`using_null`).
+_ACTIVE: ContextVar[dict | None] = ContextVar("diagnosis_null", default=None)
+
+
+@contextmanager
+def using_null(sample: dict | None) -> Iterator[None]:
+    """Within the block, the gap test and the adequacy bounds use ``sample`` ({"fit": sorted
+    excesses, "holdout": sorted excesses}) instead of the stored null (None: the stored)."""
+    token = _ACTIVE.set(sample)
+    try:
+        yield
+    finally:
+        _ACTIVE.reset(token)
+
+
+def using_null_now(sample: dict | None) -> None:
+    """From here on in this context (until the enclosing :func:`using_null` block ends), the
+    tests use ``sample``."""
+    _ACTIVE.set(sample)
+
+
 def _null(holdout: bool, shift: np.ndarray | None) -> np.ndarray:
-    """The stored null sample (sorted), or every sum of a stored value and a ``shift`` draw
-    (the model's own replay misfit, :mod:`replay`), sorted."""
-    x = _null_sample()["holdout" if holdout else "fit"]
+    """The null sample in use (sorted; :func:`using_null`), or every sum of one of its
+    values and a ``shift`` draw (the model's own replay misfit, :mod:`replay`), sorted."""
+    x = (_ACTIVE.get() or _null_sample())["holdout" if holdout else "fit"]
     if shift is None or np.size(shift) == 0:
         return x
     return np.sort((x[:, None] + np.asarray(shift, float)[None, :]).ravel())

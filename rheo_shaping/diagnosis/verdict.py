@@ -119,10 +119,11 @@ class Verdict:
 
 
 def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explanation,
-                  cands: Candidates, library: Sequence[str]) -> Verdict:
+                  cands: Candidates, library: Sequence[str], rule=None) -> Verdict:
     """Stage 7: name the best single effect if it is significant and adequate and beats the
     chain's hypothesis; else the chain's hypothesis if it is; else the best pair; else
-    ``unexplained`` (``none`` when no gap is left)."""
+    ``unexplained`` (``none`` when no gap is left).  ``rule(explanation) -> bool``: a
+    further condition on the named one (the model-form floor's, :func:`floor.clear_name`)."""
     n_s, has_h, rp = ctx.n_s, bool(ctx.hold_d), gap.replay
     effects, base_c = cands.effects, cands.base_c
     pairs: list[Explanation] = []
@@ -152,6 +153,8 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
                     verdict_fit = bp
     if (verdict_fit is not None and verdict_fit.J_parts and chain_ok
             and chain_c.J < verdict_fit.J):
+        verdict_fit = None
+    if verdict_fit is not None and rule is not None and not rule(verdict_fit):
         verdict_fit = None
     chain_side = chain_ok and verdict_fit is None
     name = ("none" if not gap.left else "+".join(verdict_fit.names) if verdict_fit

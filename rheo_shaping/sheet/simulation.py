@@ -66,22 +66,59 @@ class PolylinePath:
         return np.asarray(self.times, dtype=float)
 
 
-def build_chain(params: CellParams) -> tuple[ChainConstants, np.ndarray]:
-    """Chain constants and the initial (unstretched, draped) mass positions.
+@dataclass(frozen=True)
+class LaidSheet:
+    """The sheet as it was laid, released from rest at ``t0`` [s]: the model's initial state
+    taken from the records (:mod:`rheo_shaping.diagnosis.initial_state`) instead of the
+    scenario's drape settled before t = 0.
+
+    ``nodes`` (M, 2) [m]: the laid centreline from the cake-top bond to the workplane bond
+    (the chain's masses at equal arc length along it); ``rest_length`` [m]: the links' total
+    rest length (the laid length when the sheet was laid without strain); after ``t0`` the
+    first ``release_time`` [s] take inertial steps of at most ``solver.dt_settle`` (the fall),
+    then the process's steps."""
+
+    nodes: np.ndarray
+    rest_length: float
+    t0: float = 0.0
+    release_time: float = 1.0
+
+
+def _polyline_at(nodes: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Points of polyline ``nodes`` (M, 2) at arc lengths ``s`` [m]."""
+    cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(nodes, axis=0).T))))
+    return np.c_[np.interp(s, cum, nodes[:, 0]), np.interp(s, cum, nodes[:, 1])]
+
+
+def build_chain(params: CellParams,
+                laid: LaidSheet | None = None) -> tuple[ChainConstants, np.ndarray]:
+    """Chain constants and the initial (unstretched) mass positions: the scenario's drape,
+    or ``laid``'s centreline (masses at equal arc length, links of equal rest length).
 
     Effects (params.effects): ``kelvin_c1`` adds to c1; ``mass_error`` scales the masses.
     """
     s, m, c, eff = params.sheet, params.material, params.cake, params.effects
     r = 0.5 * s.thickness
-    drape = make_drape(c.height, c.fillet_radius, r, s.top_bond_x, s.bottom_bond_x,
-                       s.excess_length)
     n = s.n_masses
-    x0 = drape.points(np.arange(1, n + 1) * drape.length / (n + 1))
-    nodes = np.vstack((drape.top_bond, x0, drape.bottom_bond))
-    link_rest = np.hypot(*np.diff(nodes, axis=0).T)   # unstretched at t = 0
+    if laid is None:
+        drape = make_drape(c.height, c.fillet_radius, r, s.top_bond_x, s.bottom_bond_x,
+                           s.excess_length)
+        top, bottom = drape.top_bond, drape.bottom_bond
+        x0 = drape.points(np.arange(1, n + 1) * drape.length / (n + 1))
+        nodes = np.vstack((top, x0, bottom))
+        link_rest = np.hypot(*np.diff(nodes, axis=0).T)   # unstretched at t = 0
+    else:
+        line = np.asarray(laid.nodes, float).reshape(-1, 2)
+        total = float(np.hypot(*np.diff(line, axis=0).T).sum())
+        if not (laid.rest_length > 0 and total > 0):
+            raise ValueError(f"laid sheet: rest length {laid.rest_length!r} m and centreline "
+                             f"length {total!r} m: expected both > 0")
+        top, bottom = line[0].copy(), line[-1].copy()
+        x0 = _polyline_at(line, np.arange(1, n + 1) * total / (n + 1))
+        link_rest = np.full(n + 1, laid.rest_length / (n + 1))
     scale = m.specimen_length / link_rest              # k L0 / l (docs/paper.md, scaling)
     constants = ChainConstants(
-        anchor_top=drape.top_bond, anchor_bottom=drape.bottom_bond,
+        anchor_top=top, anchor_bottom=bottom,
         rest_length=link_rest, k1=m.k1 * scale, c1=(m.c1 + eff.kelvin_c1) * scale, c2=m.c2 * scale,
         mass=s.mass_per_length * (1.0 + eff.mass_error) * 0.5 * (link_rest[:-1] + link_rest[1:]),
         radius=r,
@@ -92,9 +129,10 @@ def build_chain(params: CellParams) -> tuple[ChainConstants, np.ndarray]:
 class Simulation:
     """The sheet of one cell, stepped under a tool pose."""
 
-    def __init__(self, params: CellParams, tool_start=None):
+    def __init__(self, params: CellParams, tool_start=None, laid: LaidSheet | None = None):
         self.params = params
-        self.constants, self.x0 = build_chain(params)
+        self.laid = laid
+        self.constants, self.x0 = build_chain(params, laid)
         obstacles = [
             Obstacle("cake", Cake.of(params.cake)),
             Obstacle("workplane", Workplane()),
@@ -107,8 +145,13 @@ class Simulation:
         self.reset()
 
     def reset(self) -> None:
-        """Back to t = 0: the settled sheet, tool at its start pose."""
-        self.state: SheetState = settled_state(self.params, self.model, self.x0, self.tool_start)
+        """Back to t = 0: the settled sheet, tool at its start pose (a laid sheet: at rest in
+        its laid shape at its release time)."""
+        if self.laid is not None:
+            self.state: SheetState = self.model.initial_state(self.x0, self.tool_start,
+                                                              float(self.laid.t0))
+        else:
+            self.state = settled_state(self.params, self.model, self.x0, self.tool_start)
         self.steps = 0
 
     def next_dt(self, t: float, t_end: float, tool_moving: bool) -> float:
@@ -293,13 +336,31 @@ class RunResult:
                 "wall_time_s": self.wall_time_s}
 
 
+def _fine_start(dts: np.ndarray, poses: np.ndarray, t0: float, pose0, span: float,
+                h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Steps ``dts`` (poses at their ends) from ``t0`` with those in the first ``span`` [s]
+    cut into pieces of at most ``h`` [s] (poses linear within a step)."""
+    out_dt, out_pose = [], []
+    t, prev = t0, np.asarray(pose0, float)
+    for dt, pose in zip(dts, poses):
+        k = int(math.ceil(dt / h - 1e-9)) if t < t0 + span else 1
+        for j in range(1, k + 1):
+            out_dt.append(dt / k)
+            out_pose.append(prev + (pose - prev) * (j / k))
+        t, prev = t + dt, pose
+    return np.array(out_dt, float), np.array(out_pose, float).reshape(-1, 2)
+
+
 def run_scenario(params: CellParams, path: ToolPath, t_end: float | None = None,
-                 progress: Callable[[float], None] | None = None) -> RunResult:
-    """Run the cell over a tool path from t = 0 to ``t_end`` (default: process time)."""
+                 progress: Callable[[float], None] | None = None,
+                 laid: LaidSheet | None = None) -> RunResult:
+    """Run the cell over a tool path from t = 0 to ``t_end`` (default: process time); with
+    ``laid``, from the laid sheet's release at ``laid.t0`` (:class:`LaidSheet`)."""
     t_end = params.movement.process_time if t_end is None else float(t_end)
-    sim = Simulation(params, tool_start=path.position(0.0))
+    t_start = 0.0 if laid is None else float(laid.t0)
+    sim = Simulation(params, tool_start=path.position(t_start), laid=laid)
     s0 = sim.state
-    knots = [k for k in np.asarray(path.knots(), float) if 0.0 < k < t_end] + [t_end]
+    knots = [k for k in np.asarray(path.knots(), float) if s0.t < k < t_end] + [t_end]
     wall = time.perf_counter()
     if progress is None:          # the whole path in one kernel call
         parts, t, pose = [], s0.t, s0.tool
@@ -310,9 +371,15 @@ def run_scenario(params: CellParams, path: ToolPath, t_end: float | None = None,
                 t = t + dt
             if len(dts):
                 pose = poses[-1]
-        recs = [sim.advance_path(np.concatenate([d for d, _ in parts]),
-                                 np.concatenate([q for _, q in parts]))]
+        dts = np.concatenate([d for d, _ in parts])
+        poses = np.concatenate([q for _, q in parts]).reshape(-1, 2)
+        if laid is not None:      # the fall after the release: inertial steps
+            dts, poses = _fine_start(dts, poses, s0.t, s0.tool, laid.release_time,
+                                     params.solver.dt_settle)
+        recs = [sim.advance_path(dts, poses)]
     else:
+        if laid is not None:
+            raise ValueError("run_scenario: a laid sheet runs without a progress callback")
         recs = []
         for k in knots:
             recs.append(sim.advance_record(k, path.position(k), tool_at=path.position))

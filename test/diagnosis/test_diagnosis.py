@@ -174,8 +174,10 @@ def test_diagnose_command_and_write_scenario(tmp_path, capsys):
         write_record(r, tmp_path / r.name)
     a, b = (tmp_path / r.name for r in case["records"][:2])
     out, scen = tmp_path / "report", tmp_path / "corrected.yaml"
+    # records of the model itself (a finer chain): its floor is numerics, its sheet settled
     code = main(["diagnose", str(a), "--holdout", str(b), "--out", str(out), "--json",
-                 "--write-scenario", str(scen)])
+                 "--write-scenario", str(scen), "--floor", "numerics",
+                 "--initial-state", "settled"])
     assert code == 0
     result = json.loads(capsys.readouterr().out)
     assert result["verdict"] == "none"

@@ -138,9 +138,10 @@ def test_record_cell_frames_are_the_sheet_seen_by_the_camera(recorded):
 
 def test_diagnose_a_recorded_cell_finds_no_effect(recorded):
     out, _ = recorded
+    # a record of the model itself (the simulator node): its floor is numerics
     proc = subprocess.run([str(BIN / "rheo-shaping"), "diagnose", str(out), "--json",
-                           "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                          text=True, timeout=1800)
+                           "--quiet", "--floor", "numerics"], stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, text=True, timeout=1800)
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     print(f"diagnose verdict on the recorded cell: {result['verdict']}")

@@ -1,0 +1,127 @@
+"""The model-form floor (issue 26, point 3): which calibration covers a diagnosis, what it
+refuses, the floor in the records' own noise, and the model-form part of an interval."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from rheo_shaping.diagnosis import floor as fl
+from rheo_shaping.diagnosis.candidates import Explanation
+from rheo_shaping.cli import main
+
+
+def _cfg(n, T, scale, cases=20, seed=0):
+    rng = np.random.default_rng(seed)
+    p = list(scale * 1e-4 * rng.uniform(0.5, 1.5, cases))
+    f = list(scale * 2e-3 * rng.uniform(0.5, 1.5, cases))
+    return {"n_masses": n, "process_time_s": T, "n_fit": 2, "n_holdout": 1, "cases": cases,
+            "fit": [], "holdout": [0.0] * cases, "profile_sys_m": p, "force_sys_N": f,
+            "profile_sys_holdout_m": p, "force_sys_holdout_N": f}
+
+
+@pytest.fixture()
+def floor_file(tmp_path):
+    """Four corners, N 31-63 and 60-120 s; the N = 63, 120 s corner has the largest
+    remainders."""
+    path = tmp_path / "floor.json"
+    path.write_text(json.dumps({"how": {}, "configs": [
+        _cfg(31, 60.0, 1.0, seed=1), _cfg(31, 120.0, 1.2, seed=2), _cfg(63, 60.0, 1.1, seed=3),
+        _cfg(63, 120.0, 1.5, seed=4)]}))
+    fl._stored.cache_clear()
+    return path
+
+
+def test_outside_the_calibration_is_refused_with_what_to_run(floor_file):
+    for n, T, nf in ((101, 70.0, 2), (31, 200.0, 2), (31, 70.0, 3), (15, 90.0, 2)):
+        with pytest.raises(fl.FloorError) as err:
+            fl.stored_floor(n, T, nf, 1, 2e-4, 5e-3, floor_file)
+        msg = str(err.value)
+        assert "\n" not in msg
+        assert f"n_masses = {n}" in msg and "benchmarks/diagnosis_floor.py" in msg
+        assert f"--n-masses {n} --process-times {T:g}" in msg and "--reference" in msg
+
+
+def test_between_calibrated_values_the_largest_corner_is_taken(floor_file):
+    """N = 47 and 70 s lie between all four corners: the floor is the one with the largest
+    95 % quantile (63, 120 s); N = 31, 70 s between (31, 60 s) and (31, 120 s)."""
+    f = fl.stored_floor(47, 70.0, 2, 1, 2e-4, 5e-3, floor_file)
+    assert (f.config["n_masses"], f.config["process_time_s"]) == (63, 120.0)
+    g = fl.stored_floor(31, 70.0, 2, 1, 2e-4, 5e-3, floor_file)
+    assert (g.config["n_masses"], g.config["process_time_s"]) == (31, 120.0)
+    assert f.quantile() > g.quantile()
+
+
+def test_the_floor_is_the_stored_remainder_in_the_records_noise(floor_file):
+    """Excess = (sys_p^2 / s_p^2 + sys_f^2 / s_f^2) / 2 per calibration case: halving both
+    noises quadruples it; reference scaling multiplies each remainder."""
+    cfg = json.loads(floor_file.read_text())["configs"][0]
+    f = fl.stored_floor(31, 60.0, 2, 1, 2e-4, 5e-3, floor_file)
+    p, q = np.asarray(cfg["profile_sys_m"]), np.asarray(cfg["force_sys_N"])
+    want = np.sort(0.5 * (p ** 2 / 2e-4 ** 2 + q ** 2 / 5e-3 ** 2))
+    assert np.allclose(f.fit, want, rtol=1e-12)
+    g = fl.stored_floor(31, 60.0, 2, 1, 1e-4, 2.5e-3, floor_file)
+    assert np.allclose(g.fit, 4 * want, rtol=1e-12)
+    h = fl.stored_floor(31, 60.0, 2, 1, 2e-4, 5e-3, floor_file, scale=(2.0, 1.0))
+    assert np.allclose(h.fit, np.sort(0.5 * (4 * p ** 2 / 2e-4 ** 2 + q ** 2 / 5e-3 ** 2)))
+    # the conformal bound: 20 cases, the largest is the 95 % quantile
+    assert f.quantile() == pytest.approx(want[-1])
+    assert f.p_value(want[-1] * 1.01) == pytest.approx(1 / 21)
+
+
+def test_the_practical_tolerance():
+    parts = {"profile": 1.25, "tool force": 1.16}         # sys 0.1 mm at 0.2 mm, 2 mN at 5 mN
+    assert fl.within_tolerance(parts, 2e-4, 5e-3, (1.01e-4, 2.01e-3))
+    assert not fl.within_tolerance(parts, 2e-4, 5e-3, (0.99e-4, 2.01e-3))
+    assert not fl.within_tolerance(parts, 2e-4, 5e-3, (1.01e-4, 1.99e-3))
+    assert not fl.within_tolerance(parts, 2e-4, 5e-3, None)
+
+
+def test_the_model_form_interval_is_the_largest_shift_a_floor_sized_discrepancy_causes():
+    """Least squares on [A, e]: a discrepancy d with d.d = q along e's part off A's columns
+    shifts the effect's value by exactly sqrt(q) / |e_perp|, the width added."""
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(400, 6))
+    e = rng.normal(size=400) + A @ rng.normal(size=6)
+    c = Explanation(("mass_error",), {"mass_error": (0.1,)}, 1.2)
+    c.interval = {"mass_error": [(0.09, 0.11)]}
+    q = 0.3
+    widths = fl.model_form_interval(c, q, A, {"mass_error": [((0.25,), 0.25 * e)]})
+    Q = np.linalg.qr(A, mode="reduced")[0]
+    perp = e - Q @ (Q.T @ e)
+    d = math.sqrt(q) * perp / np.linalg.norm(perp)
+    shift = np.linalg.lstsq(np.c_[A, e], d, rcond=None)[0][-1]
+    assert widths[0] == pytest.approx(abs(shift), rel=1e-9)
+    assert c.interval["mass_error"][0] == pytest.approx((0.09 - widths[0], 0.11 + widths[0]))
+
+
+def test_naming_needs_most_of_the_excess_and_a_clear_margin():
+    lead = Explanation(("friction_tool",), {}, 1.1, J_holdout=1.3)
+    other = Explanation(("bending",), {}, 1.6)
+    r = fl.clear_name(lead, [lead, other], 2.0, 2.0, True)
+    assert r["most"] and r["clear"] and r["explained_fit"] == pytest.approx(0.9)
+    close = Explanation(("bending",), {}, 1.2)
+    assert not fl.clear_name(lead, [lead, close], 2.0, 2.0, True)["clear"]
+    weak = Explanation(("friction_tool",), {}, 1.1, J_holdout=1.6)
+    assert not fl.clear_name(weak, [weak, other], 2.0, 2.0, True)["most"]
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--floor", "flat"], "floor 'flat'"),
+    (["--tolerance", "-1", "0.01"], "--tolerance -1.0 0.01"),
+])
+def test_bad_floor_options_are_one_line_errors(tmp_path, capsys, args, says):
+    rec = tmp_path / "r"
+    from rheo_shaping.records.measurement import synthesize_record
+    from rheo_shaping.records.records import write_record
+    from dataclasses import replace
+    from rheo_shaping.params.params import CellParams
+    p = CellParams()
+    p = replace(p, sheet=replace(p.sheet, n_masses=15),
+                movement=replace(p.movement, process_time=20.0))
+    write_record(synthesize_record(p, seed=1)[0], rec)
+    assert main(["diagnose", str(rec), "--quiet"] + args) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and says in err
