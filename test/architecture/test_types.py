@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 #: What is checked, under rheo_shaping/: the core but nodes/ and cli/ (the ROS side).
@@ -30,4 +32,5 @@ def test_core_subpackages_type_check():
     proc = subprocess.run(
         [sys.executable, "-m", "mypy", "--config-file", "setup.cfg", "--cache-dir", str(cache),
          *paths], cwd=ROOT, capture_output=True, text=True)
-    assert proc.returncode == 0, f"mypy (exit {proc.returncode}):\n{proc.stdout}{proc.stderr}"
+    if proc.returncode != 0:
+        pytest.fail(f"mypy (exit {proc.returncode}):\n{proc.stdout}{proc.stderr}", pytrace=False)
