@@ -136,7 +136,7 @@ def run_tasks(executor: Executor | None, fn: Callable[[Any, T], R], shared: Any,
     if not items:
         return []
     if executor is None or isinstance(executor, SerialExecutor):
-        results = []
+        results: list[R] = []
         for item in items:                          # in order, progress after every task
             results.append(fn(shared, item))
             if progress is not None:
@@ -146,10 +146,10 @@ def run_tasks(executor: Executor | None, fn: Callable[[Any, T], R], shared: Any,
     bounds = [round(i * len(items) / n_chunks) for i in range(n_chunks + 1)]
     futures = {executor.submit(_run_chunk, fn, shared, items[a:b]): (a, b)
                for a, b in zip(bounds[:-1], bounds[1:]) if b > a}
-    results: list = [None] * len(items)
+    chunks: dict[int, list[R]] = {}                 # first item's index -> the chunk's results
     for future in as_completed(futures):
         a, b = futures[future]
-        results[a:b] = future.result()
+        chunks[a] = future.result()
         if progress is not None:
             progress(b - a)
-    return results
+    return [r for a in sorted(chunks) for r in chunks[a]]

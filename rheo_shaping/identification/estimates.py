@@ -34,6 +34,9 @@ class Estimate:
 
     def relative_error(self, truth: float) -> float:
         """(value - truth)/truth, for comparisons with known constants."""
+        if self.value is None:
+            raise ValueError(f"no relative error of an estimate without a value "
+                             f"({self.note or 'not determined'})")
         return (self.value - truth) / truth
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Sequence
 
 import numpy as np
 
@@ -292,8 +293,8 @@ class PaperIdentification:
     creep: CreepResiduals | None = None
 
 
-def identify_paper(creep: CreepResiduals | None, tensile: list[TensileCurve] = (),
-                   creep_curves: list[CreepCurve] = ()) -> PaperIdentification:
+def identify_paper(creep: CreepResiduals | None, tensile: Sequence[TensileCurve] = (),
+                   creep_curves: Sequence[CreepCurve] = ()) -> PaperIdentification:
     """The three steps of Sec. 3.4 on the given data (creep residuals are required)."""
     tables = [creep] if creep is not None else []
     from_curves = residuals_from_creep_curves(list(creep_curves))

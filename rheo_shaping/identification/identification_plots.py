@@ -8,6 +8,7 @@ pull).
 from __future__ import annotations
 
 import os
+from typing import Sequence
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -23,8 +24,8 @@ from .model_choice import JointIdentification
 _COLOURS = {"maxwell": "tab:blue", "three-element": "tab:orange", "burgers": "tab:green"}
 
 
-def _discarded(ax, tensile: list[TensileCurve], offsets: list[float | None],
-               keeps: list[int]) -> None:
+def _discarded(ax, tensile: Sequence[TensileCurve], offsets: Sequence[float | None],
+               keeps: Sequence[int]) -> None:
     for c, off, keep in zip(tensile, offsets, keeps):
         ax.plot(c.t[keep:], c.force[keep:] - (off or 0.0), ".", ms=1.5, color="0.75")
 
@@ -36,7 +37,7 @@ def _save(fig: Figure, path: str | os.PathLike) -> None:
 
 
 def plot_joint(result: JointIdentification, path: str | os.PathLike,
-               tensile: list[TensileCurve] = ()) -> None:
+               tensile: Sequence[TensileCurve] = ()) -> None:
     """Data and fits of every model, their residuals, and the creep data, into ``path`` (PNG)."""
     fits = result.fits
     data = result.data
@@ -56,7 +57,7 @@ def plot_joint(result: JointIdentification, path: str | os.PathLike,
         for i, c in enumerate(data.curves):
             ax.plot(c.t, c.force - offs[i], ".", ms=2, color="k",
                     label="data (kept)" if i == 0 else None)
-            if c.crack.found:
+            if c.crack.t_crack is not None:           # found
                 ax.axvline(c.crack.t_crack, color="r", lw=0.5, ls=":")
         for m, f in fits.items():
             for i, c in enumerate(data.curves):
@@ -86,9 +87,11 @@ def plot_joint(result: JointIdentification, path: str | os.PathLike,
         c2 = result.params["c2"]
         ax.plot(np.arange(1, compliance.size + 1), 1.0 /
                 compliance, "o", color="k", label="F t1/x per test")
-        ax.axhline(c2.value, color="tab:red", label=f"c2 = {c2.value:.4g} N s/m")
-        if c2.ci95 is not None and None not in c2.ci95:
-            ax.axhspan(c2.ci95[0], c2.ci95[1], color="tab:red", alpha=0.15, label="95 % interval")
+        if c2.value is not None:
+            ax.axhline(c2.value, color="tab:red", label=f"c2 = {c2.value:.4g} N s/m")
+        lo, hi = c2.ci95 if c2.ci95 is not None else (None, None)
+        if lo is not None and hi is not None:
+            ax.axhspan(lo, hi, color="tab:red", alpha=0.15, label="95 % interval")
         ax.set_xlabel("creep test")
         ax.set_ylabel("c2 [N s/m] (Eq. 10)")
         ax.legend(fontsize=8)
@@ -97,23 +100,25 @@ def plot_joint(result: JointIdentification, path: str | os.PathLike,
     if data.creep_curves and ncol > 1:
         from ..material.response import force_response
         ax = fig.add_subplot(gs[2, 1:])
-        for c in data.creep_curves:
-            ax.plot(c.t, c.elongation * 1e3, ".", ms=2, color="k")
+        for cc in data.creep_curves:
+            ax.plot(cc.t, cc.elongation * 1e3, ".", ms=2, color="k")
             for m, f in fits.items():
-                x = force_response(f.material(c.length), c.t, c.force, c.hold).elongation
-                ax.plot(c.t, x * 1e3, color=_COLOURS[m], lw=1)
+                x = force_response(f.material(cc.length), cc.t, cc.force, cc.hold).elongation
+                ax.plot(cc.t, x * 1e3, color=_COLOURS[m], lw=1)
         ax.set_xlabel("t [s]")
         ax.set_ylabel("creep elongation [mm]")
     _save(fig, path)
 
 
 def plot_paper(result: PaperIdentification, path: str | os.PathLike,
-               tensile: list[TensileCurve] = ()) -> None:
+               tensile: Sequence[TensileCurve] = ()) -> None:
     """Eq. 5 against the curves, the Eq. 12-13 regression, residuals, creep spread, into
     ``path``."""
     fig = Figure(figsize=(11.0, 8.0))
     axs = fig.subplots(2, 2)
-    ok = result.k1.value is not None and result.c1.value is not None
+    k1, c1, c2, b = result.k1.value, result.c1.value, result.c2.value, result.b.value
+    # Eq. 5's constants once k1 and c1 are identified (c2 always is: the method needs creep data)
+    eq5 = None if k1 is None or c1 is None or c2 is None else ThreeElement(k1, c1, c2)
     ax = axs[0, 0]
     ax.set_title("tensile curves (offset removed) and Eq. 5")
     if tensile:
@@ -121,8 +126,8 @@ def plot_paper(result: PaperIdentification, path: str | os.PathLike,
                    c.crack.keep for c in result.curves])
     for i, c in enumerate(result.curves):
         ax.plot(c.t, c.zeroed_force, ".", ms=2, color="k", label="data (kept)" if i == 0 else None)
-        if ok:
-            m = ThreeElement(result.k1.value, result.c1.value, result.c2.value).scaled(c.length)
+        if eq5 is not None:
+            m = eq5.scaled(c.length)
             tt = np.linspace(0.0, c.t[-1], 300)
             ax.plot(tt, tensile_force(m, tt, c.speed),
                     color="tab:red", label="Eq. 5" if i == 0 else None)
@@ -132,19 +137,20 @@ def plot_paper(result: PaperIdentification, path: str | os.PathLike,
         ax.legend(fontsize=8)
     ax = axs[0, 1]
     ax.set_title("Eq. 12-13: Y + b X = 0")
-    if ok and result.curves:
-        X, Y = eq13_points(result.curves, result.c1.value, result.c2.value)
+    if eq5 is not None and result.curves:
+        X, Y = eq13_points(result.curves, eq5.c1, eq5.c2)
         ax.plot(X, Y, ".", ms=2, color="k")
-        xx = np.linspace(0.0, X.max(), 50)
-        ax.plot(xx, -result.b.value * xx, color="tab:red", label=f"b = {result.b.value:.4g} 1/s")
-        ax.legend(fontsize=8)
+        if b is not None:
+            xx = np.linspace(0.0, X.max(), 50)
+            ax.plot(xx, -b * xx, color="tab:red", label=f"b = {b:.4g} 1/s")
+            ax.legend(fontsize=8)
     ax.set_xlabel("X = t [s]")
     ax.set_ylabel("Y [-]")
     ax = axs[1, 0]
     ax.set_title("residuals F - Eq. 5")
-    if ok:
+    if eq5 is not None:
         for c in result.curves:
-            m = ThreeElement(result.k1.value, result.c1.value, result.c2.value).scaled(c.length)
+            m = eq5.scaled(c.length)
             p = c.pull
             ax.plot(c.t[p], c.zeroed_force[p] - tensile_force(m,
                     c.t[p], c.speed), ".", ms=2, color="k")

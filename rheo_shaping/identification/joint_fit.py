@@ -113,6 +113,7 @@ class ModelFit:
 
 # ----------------------------------------------------------- model curves
 def _material(model: str, p: dict, length: float) -> "ThreeElement | Burgers":
+    m: ThreeElement | Burgers
     if model == "maxwell":
         m = ThreeElement(p["k1"], 0.0, p["c2"], SPECIMEN_LENGTH_M)
     elif model == "three-element":
@@ -128,8 +129,10 @@ def model_tensile_force(m: "ThreeElement | Burgers", t: np.ndarray, speed: float
     """Model force [N] of a tensile test: 0 at rest (t <= 0), Eq. 5 / Burgers during the pull."""
     F = np.zeros_like(t, dtype=float)
     pull = t > 0.0
-    f = burgers_tensile_force if isinstance(m, Burgers) else tensile_force
-    F[pull] = f(m, t[pull], speed)
+    if isinstance(m, Burgers):
+        F[pull] = burgers_tensile_force(m, t[pull], speed)
+    else:
+        F[pull] = tensile_force(m, t[pull], speed)
     return F
 
 
@@ -175,9 +178,9 @@ class _Problem:
             out.append(cr.residual - cr.force * cr.t1 / c2)
         if d.creep_curves:
             r = []
-            for c in d.creep_curves:
-                m = _material(self.model, p, c.length)
-                r.append(c.elongation - force_response(m, c.t, c.force, c.hold).elongation)
+            for cc in d.creep_curves:
+                m = _material(self.model, p, cc.length)
+                r.append(cc.elongation - force_response(m, cc.t, cc.force, cc.hold).elongation)
             out.append(np.concatenate(r))
         return out
 
@@ -217,6 +220,7 @@ def _initial_sigma(problem: _Problem, data: FitData) -> np.ndarray:
         if name == "tensile":
             s.append(1.0)
         elif name == "creep residuals":
+            assert data.residuals is not None        # the block exists for them (_Problem)
             r = data.residuals.residual
             s.append(float(np.std(r, ddof=1)) if r.size >
                      1 and np.std(r) > 0 else 0.03 * float(np.mean(r)))
@@ -329,14 +333,15 @@ def _summarise(model, data, prob, res, sigma_ml, sizes, scale, lower) -> ModelFi
     se = np.sqrt(np.maximum(np.diag(cov_u), 0.0)) * scale
     dof = max(N - rank, 1)
     params: dict[str, Estimate] = {}
+    value = {n: float(v) for n, v in zip(names, theta)}
     for i, n in enumerate(names):
         if unident[i]:
-            params[n] = Estimate(float(theta[i]), None, None, UNITS[n],
+            params[n] = Estimate(value[n], None, None, UNITS[n],
                                  "not identifiable from these data")
         else:
-            params[n] = symmetric(float(theta[i]), float(se[i]), UNITS[n],
+            params[n] = symmetric(value[n], float(se[i]), UNITS[n],
                                   dof, f"joint fit ({model})", lower=0.0)
-    if model == "burgers" and params["j2"].value * params["k1"].value < 1e-6:
+    if model == "burgers" and value["j2"] * value["k1"] < 1e-6:
         # 1/k2 on its bound: the Burgers fit is the three-element fit, and at
         # j2 = 0 a small series compliance looks like a change of k1 and c1
         params["j2"] = Estimate(0.0, None, (0.0, None), UNITS["j2"],

@@ -29,6 +29,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Sequence, overload
 
 import numpy as np
 
@@ -150,7 +151,14 @@ def _parse(path: str | os.PathLike) -> tuple[dict, list[str], list[tuple[int, li
     return meta, header, rows, header_line
 
 
+@overload
+def _meta_float(path, meta: dict, key: str, default: float) -> float: ...
+@overload
+def _meta_float(path, meta: dict, key: str, default: None) -> float | None: ...
+
+
 def _meta_float(path, meta: dict, key: str, default: float | None) -> float | None:
+    """The positive number of metadata ``key``, else ``default``."""
     if key not in meta:
         return default
     value, no = meta[key]
@@ -297,7 +305,7 @@ def read_material_file(path: str | os.PathLike, speed: float | None = None,
                           f"{','.join(TENSILE_COLUMNS)})")
 
 
-def write_tensile_curve(path: str | os.PathLike, curve: TensileCurve, comments: list[str] = (),
+def write_tensile_curve(path: str | os.PathLike, curve: TensileCurve, comments: Sequence[str] = (),
                         overwrite: bool = False) -> None:
     """Write ``curve`` in the tensile format; refuses to replace a file unless ``overwrite``."""
     p = Path(path)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Sequence
 
 
 from .estimates import Estimate
@@ -48,7 +49,7 @@ class JointIdentification:
 
     def table(self) -> list[dict]:
         """One row per model: k, n, log-likelihood, AIC, BIC, their differences, Akaike weight."""
-        rows = []
+        rows: list[dict] = []
         if not self.fits:
             return rows
         amin = min(f.aic for f in self.fits.values())
@@ -63,8 +64,9 @@ class JointIdentification:
         return rows
 
 
-def identify_joint(tensile: list[TensileCurve] = (), residuals: list[CreepResiduals] = (),
-                   creep_curves: list[CreepCurve] = (), models: tuple[str, ...] = MODELS,
+def identify_joint(tensile: Sequence[TensileCurve] = (),
+                   residuals: Sequence[CreepResiduals] = (),
+                   creep_curves: Sequence[CreepCurve] = (), models: tuple[str, ...] = MODELS,
                    noise_rel: float = 0.01, noise_abs: float = 1e-3) -> JointIdentification:
     """Fit every model in ``models`` (in nesting order) and choose one by BIC."""
     curves: list[PreparedCurve] = [prepare_tensile(c) for c in tensile]

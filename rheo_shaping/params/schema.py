@@ -146,8 +146,19 @@ def iter_fields(cls_or_obj: Any, prefix: str = "") -> Iterator[FieldInfo]:
         if "spec" in f.metadata:
             yield FieldInfo(name, _kind_of(f.default), f.default, f.metadata["spec"])
         else:
-            sub = f.default_factory if f.default_factory is not dataclasses.MISSING else f.type
-            yield from iter_fields(sub if isinstance(sub, type) else type(sub()), name + ".")
+            yield from iter_fields(_group_class(f), name + ".")
+
+
+def _group_class(f: dataclasses.Field) -> type:
+    """The dataclass of a nested parameter group, from its default factory (every group
+    field is ``field(default_factory=GroupParams)``; a factory that is not a class is
+    called for its instance's type)."""
+    factory = f.default_factory
+    if factory is dataclasses.MISSING:
+        raise TypeError(f"parameter group '{f.name}' has no default_factory")
+    if isinstance(factory, type):
+        return factory
+    return type(factory())
 
 
 def from_flat(cls: type, values: dict[str, Any], prefix: str = "", *,
@@ -178,8 +189,7 @@ def _build(cls: type, values: dict[str, Any], prefix: str, where: str) -> Any:
                 except ParameterError as exc:
                     raise ParameterError(f"{exc}{f' (in {where})' if where else ''}") from None
         else:
-            sub_cls = f.default_factory if f.default_factory is not dataclasses.MISSING else f.type
-            kwargs[f.name] = _build(sub_cls, values, name + ".", where)
+            kwargs[f.name] = _build(_group_class(f), values, name + ".", where)
     try:
         return cls(**kwargs)
     except ParameterError:

@@ -9,6 +9,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
+#: A point (x, z) [m] as callers hold it: a pair of numbers or a (2,) array.
+PointLike = Sequence[float] | np.ndarray
+
 
 def show(value: Any) -> str:
     """``repr`` of a value, numpy scalars shown as plain numbers."""
@@ -62,7 +65,7 @@ def check_non_negative(name: str, value: Any) -> float:
     return v
 
 
-def check_point(name: str, p: Sequence[float]) -> np.ndarray:
+def check_point(name: str, p: PointLike) -> np.ndarray:
     """A point (x, z) [m] as a (2,) array of finite numbers."""
     try:
         arr = np.asarray(p, dtype=float).reshape(-1)

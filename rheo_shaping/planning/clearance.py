@@ -43,16 +43,15 @@ def plan_clearance(params: CellParams, plan: Plan, step: float = 2e-4,
     outline = tool_shape(params.tool).outline(n_outline)               # (K, 2) about the reference
     pts = (pos[:, None, :] + outline[None, :, :]).reshape(-1, 2)
     c = params.cake
-    best = None
+    nearest = []                                    # the nearest approach to each shape
     for name, shape in (("cake", Cake.of(c)),
                         ("workplane", Workplane())):
         d, _ = shape.signed_distance(pts)
         d = d.reshape(len(times), -1).min(axis=1)
         k = int(np.argmin(d))
-        if best is None or d[k] < best.gap:
-            best = Clearance(float(d[k]), (float(pos[k, 0]),
-                             float(pos[k, 1])), float(times[k]), name)
-    return best
+        nearest.append(Clearance(float(d[k]), (float(pos[k, 0]), float(pos[k, 1])),
+                                 float(times[k]), name))
+    return min(nearest, key=lambda cl: cl.gap)     # on a tie the first (the cake)
 
 
 def require_clearance(cell: CellParams, plan: Plan, factor: float) -> None:

@@ -9,12 +9,12 @@ become the :class:`Pieces` of each axis, which sample the motion exactly.  Share
 from __future__ import annotations
 
 import bisect
-from dataclasses import dataclass
-from typing import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
+from ..params.validators import PointLike
 from .limits import MotionLimits
 
 
@@ -29,6 +29,9 @@ class Pieces:
     v0: np.ndarray
     a0: np.ndarray
     j: np.ndarray
+    # made by __post_init__, for evaluate_one: t0 as a list, the rows (p0, v0, a0, j)
+    _t0_list: list[float] = field(init=False, repr=False)
+    _rows: list[tuple[float, float, float, float]] = field(init=False, repr=False)
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity, acceleration at times ``t`` (array) [s]."""
@@ -155,5 +158,5 @@ def append_trajectory(axes: tuple[AxisBuilder, AxisBuilder], traj: Trajectory,
     return end
 
 
-def as_point(p: Sequence[float]) -> tuple[float, float]:
+def as_point(p: PointLike) -> tuple[float, float]:
     return (float(p[0]), float(p[1]))

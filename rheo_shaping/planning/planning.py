@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
 import numpy as np
-from ..params.validators import check_finite, check_non_negative, check_point, check_positive
+from ..params.validators import (PointLike, check_finite, check_non_negative, check_point,
+                                 check_positive)
 from .limits import MotionLimits
 from .pieces import AxisBuilder, Pieces, append_trajectory, as_point, line_trajectory
 
@@ -182,7 +183,7 @@ class Plan:
 
 
 def plan_waypoints(
-    start_xz: Sequence[float],
+    start_xz: PointLike,
     waypoints: Sequence[Waypoint],
     limits: MotionLimits,
     *,
@@ -246,7 +247,7 @@ def rest_to_rest_time(distance: float, limits: MotionLimits) -> float:
 
 
 def assemble_plan(segments: list[Segment], duration: float, limits: MotionLimits,
-                  start_xz: Sequence[float], axes: tuple[AxisBuilder, AxisBuilder]) -> Plan:
+                  start_xz: PointLike, axes: tuple[AxisBuilder, AxisBuilder]) -> Plan:
     return Plan(tuple(segments), float(duration), limits, as_point(start_xz),
                 (axes[0].build(), axes[1].build()))
 

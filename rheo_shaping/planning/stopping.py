@@ -20,7 +20,8 @@ from typing import Optional, Sequence
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Synchronization
 
-from ..params.validators import check_finite, check_non_negative, check_point, check_positive
+from ..params.validators import (PointLike, check_finite, check_non_negative, check_point,
+                                 check_positive)
 from .pieces import AxisBuilder, append_trajectory, as_point, axis_scale, calculate
 from .planning import (DEFAULT_RETRACT_LIMITS, MotionLimits, Plan, Segment, Waypoint,
                        assemble_plan, plan_waypoints)
@@ -48,8 +49,8 @@ def stopping_distance(speed: float, limits: MotionLimits) -> float:
     return 0.5 * check_non_negative("speed [m/s]", speed) * stopping_time(speed, limits)
 
 
-def stop_from_state(position: Sequence[float], velocity: Sequence[float],
-                    acceleration: Sequence[float], limits: MotionLimits) -> Plan:
+def stop_from_state(position: PointLike, velocity: PointLike, acceleration: PointLike,
+                    limits: MotionLimits) -> Plan:
     """Jerk-limited stop to rest from ``position`` [m], ``velocity`` [m/s],
     ``acceleration`` [m/s^2] (each (x, z)), within ``limits`` (norms).
 
@@ -110,10 +111,23 @@ class TrajectoryStreamer:
     treated as the latest one seen), so the set-point never runs backwards.
     """
 
-    def __init__(self, home_xz: Optional[Sequence[float]] = None,
+    # the run's state, set by _clear() (the plans and times are None until they exist)
+    _state: str
+    _final_state: str
+    _main: Optional[Plan]
+    _stop: Optional[Plan]
+    _phase_plan: Optional[Plan]
+    _phase_t0: float
+    _queue: list[tuple[str, Plan]]
+    _t_last: float
+    _abort_time: Optional[float]
+    _abort_reason: str
+    _rest_time: Optional[float]
+
+    def __init__(self, home_xz: Optional[PointLike] = None,
                  retract_limits: MotionLimits = DEFAULT_RETRACT_LIMITS, *,
                  retract_via: Sequence[Waypoint] = (),
-                 initial_xz: Optional[Sequence[float]] = None,
+                 initial_xz: Optional[PointLike] = None,
                  jump_tolerance_m: float = 1e-6) -> None:
         self.home = None if home_xz is None else check_point("home_xz [m]", home_xz)
         self.retract_limits = retract_limits
@@ -212,13 +226,13 @@ class TrajectoryStreamer:
             self._state, self._final_state, self._rest_time = "holding", "holding", t
             return
         pos, vel, acc = self._phase_plan.sample(t - self._phase_t0)
-        retract = self._state != "retracting" and self.home is not None
+        home = self.home if self._state != "retracting" else None   # where to retract to
         self._stop = stop_from_state(pos, vel, acc, self._phase_plan.limits)
         self._rest_time = t + self._stop.duration
         self._queue = []
-        if retract:
+        if home is not None:
             waypoints = [*self.retract_via,
-                         Waypoint(float(self.home[0]), float(self.home[1]), label="home")]
+                         Waypoint(float(home[0]), float(home[1]), label="home")]
             rest = self._stop.end
             self._queue.append(("retracting", plan_waypoints(
                 rest, waypoints, self.retract_limits)))
@@ -238,22 +252,26 @@ class TrajectoryStreamer:
     # -- internals ----------------------------------------------------------
     def _clear(self) -> None:
         self._state, self._final_state = "idle", "idle"
-        self._main: Optional[Plan] = None
-        self._stop: Optional[Plan] = None
-        self._phase_plan: Optional[Plan] = None
+        self._main = None
+        self._stop = None
+        self._phase_plan = None
         self._phase_t0 = 0.0
-        self._queue: list[tuple[str, Plan]] = []
+        self._queue = []
         self._t_last = -math.inf
-        self._abort_time: Optional[float] = None
+        self._abort_time = None
         self._abort_reason = ""
-        self._rest_time: Optional[float] = None
+        self._rest_time = None
 
     def _advance(self, t: float) -> float:
         """Make ``t`` monotone and step the state machine to it; returns ``t``."""
         t = max(t, self._t_last)
         self._t_last = t
-        while self._state in _MOVING and t >= self._phase_t0 + self._phase_plan.duration:
+        while self._state in _MOVING:
+            # start() and abort() set the phase plan of every moving state
+            assert self._phase_plan is not None, f"no phase plan while {self._state!r}"
             t_next = self._phase_t0 + self._phase_plan.duration
+            if t < t_next:
+                break
             if self._queue:
                 self._state, self._phase_plan = self._queue.pop(0)
                 self._phase_t0 = t_next

@@ -20,6 +20,7 @@ made them): for benchmarks only, the diagnosis never reads it.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,6 +29,9 @@ from ..params.params import CellParams
 from .qos import RECORDED_QOS, to_rosbags
 from .record import Record
 from ..units import NS
+
+if TYPE_CHECKING:                      # rosbags is imported where a record is read or written
+    from rosbags.rosbag2 import Writer
 
 POSE, PROFILE, WRENCH = "/tool/pose", "/sheet/measured_profile", "/tool/wrench"
 TYPES = {POSE: "geometry_msgs/msg/PoseStamped", PROFILE: "geometry_msgs/msg/PoseArray",
@@ -73,16 +77,20 @@ def _with_distro(metadata: str) -> str:
     return text
 
 
-def _jazzy_writer(Writer):
+def _jazzy_writer() -> type[Writer]:
     """``rosbags``' Writer that names the distribution as rosbag2 on Jazzy does, in
     metadata.yaml and in the copy of it inside the MCAP file (its ``rosbag2`` record)."""
+    from rosbags.rosbag2 import Writer
 
     class JazzyWriter(Writer):
         def close(self):
             storage = self.storage
             if storage is not None:
                 close_storage = storage.close
-                storage.close = lambda version, text: close_storage(version, _with_distro(text))
+                # rosbags has no hook for the metadata it writes into the MCAP file: this
+                # writer's storage gets a close that rewrites it (a method replaced on purpose)
+                storage.close = lambda version, metadata: (  # type: ignore[method-assign]
+                    close_storage(version, _with_distro(metadata)))
             super().close()
             if storage is not None:
                 tmp = self.metapath.with_suffix(".yaml.tmp")
@@ -112,7 +120,7 @@ def write_record(record: Record, out_dir: str | Path, truth: CellParams | None =
     if not start_stamp:
         start_stamp = float(int(time.time()))
 
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import StoragePlugin
 
     out = Path(out_dir)
     if out.exists():
@@ -135,13 +143,15 @@ def write_record(record: Record, out_dir: str | Path, truth: CellParams | None =
         messages.append((t, PROFILE, PoseArray(header=_header(ts, start_stamp + t),
                                                poses=[_pose(ts, x, z) for x, z in pts])))
     if record.has_wrench:
+        # every maker of a Record gives the forces with the stamps
+        assert record.wrench_t is not None and record.wrench_xz is not None
         for t, (fx, fz) in zip(record.wrench_t, record.wrench_xz):
             w = Wrench(force=Vector3(x=float(fx), y=0.0, z=float(fz)),
                        torque=Vector3(x=0.0, y=0.0, z=0.0))
             messages.append((t, WRENCH, WrenchStamped(
                 header=_header(ts, start_stamp + t), wrench=w)))
     messages.sort(key=lambda m: m[0])
-    with _jazzy_writer(Writer)(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+    with _jazzy_writer()(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conns = {topic: writer.add_connection(
                      topic, TYPES[topic], typestore=ts,
                      offered_qos_profiles=[to_rosbags(q) for q in RECORDED_QOS[topic]])

@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
+from ..params.validators import PointLike
 from ..units import NS
 
 #: Set-points closer in time than this [ns] to the one before are judged for the jump only
@@ -113,7 +114,7 @@ class CommandGate:
         return ""
 
     # -- motion limits ----------------------------------------------------------------
-    def judge(self, t_ns: int, x: float, z: float, tool_now: Sequence[float]) -> str:
+    def judge(self, t_ns: int, x: float, z: float, tool_now: PointLike) -> str:
         """Why the set-point (x, z) [m] at ``t_ns`` breaks the limits; "" if it keeps them
         (it is then part of the executed path).  ``tool_now``: where the tool is [m], the
         reference of the first set-point of a path."""
@@ -123,22 +124,24 @@ class CommandGate:
         while path and path[-1][0] >= t_ns:         # newest wins for a time already commanded
             path.pop()
         lim = self.limits
-        prev = path[-1] if path else (None, float(tool_now[0]), float(tool_now[1]))
-        jump = math.hypot(x - prev[1], z - prev[2])
+        # the last accepted set-point (t [ns], x, z); the tool, at no time, before the first
+        t_prev, x_prev, z_prev = path[-1] if path else (None, float(tool_now[0]),
+                                                        float(tool_now[1]))
+        jump = math.hypot(x - x_prev, z - z_prev)
         if jump > lim.max_jump:
             return (f"a set-point {jump * 1e3:.3f} mm from the one before (max_tool_jump "
                     f"{lim.max_jump * 1e3:g} mm) at {t_ns / NS:.6f} s")
-        if path and t_ns - prev[0] >= MIN_GAP_NS:
-            dt = (t_ns - prev[0]) / NS
-            v = (x - prev[1]) / dt, (z - prev[2]) / dt
+        if t_prev is not None and t_ns - t_prev >= MIN_GAP_NS:
+            dt = (t_ns - t_prev) / NS
+            v = (x - x_prev) / dt, (z - z_prev) / dt
             speed = math.hypot(*v)
             if speed > lim.max_speed * (1 + 1e-9):
                 return (f"a set-point path at {speed * 1e3:.3f} mm/s (max_tool_speed "
                         f"{lim.max_speed * 1e3:g} mm/s) at {t_ns / NS:.6f} s")
-            if len(path) >= 2 and prev[0] - path[-2][0] >= MIN_GAP_NS:
-                p0 = path[-2]
-                dt0 = (prev[0] - p0[0]) / NS
-                v0 = (prev[1] - p0[1]) / dt0, (prev[2] - p0[2]) / dt0
+            if len(path) >= 2 and t_prev - path[-2][0] >= MIN_GAP_NS:
+                t0, x0, z0 = path[-2]
+                dt0 = (t_prev - t0) / NS
+                v0 = (x_prev - x0) / dt0, (z_prev - z0) / dt0
                 acc = 2.0 * math.hypot(v[0] - v0[0], v[1] - v0[1]) / (dt + dt0)
                 if acc > lim.max_accel * (1 + 1e-6) + 1e-9:
                     return (f"a set-point path accelerating at {acc * 1e3:.3f} mm/s^2 "

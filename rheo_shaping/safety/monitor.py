@@ -106,23 +106,23 @@ class TensionMonitor:
         """The link tensions [N] of one sample."""
         topic = self.tension_topics[0]
         self._rx[topic] = steady
-        values = np.asarray(values, dtype=float)
-        if values.size == 0:
+        tensions = np.asarray(values, dtype=float)
+        if tensions.size == 0:
             self.abort(f"empty {topic} message")
             return
-        bad = ~np.isfinite(values)
+        bad = ~np.isfinite(tensions)
         if bad.any():
             i = int(np.argmax(bad))
-            self.abort(f"non-finite tension ({values[i]}) in link {i + 1} on {topic}")
+            self.abort(f"non-finite tension ({tensions[i]}) in link {i + 1} on {topic}")
             return
-        if self.n_links is not None and values.size != self.n_links:
-            self.abort(f"{topic} has {values.size} links, expected {self.n_links} "
+        if self.n_links is not None and tensions.size != self.n_links:
+            self.abort(f"{topic} has {tensions.size} links, expected {self.n_links} "
                        f"(sheet.n_masses + 1): another sheet or a lying source")
             return
-        if self._implausible(values, topic):
+        if self._implausible(tensions, topic):
             return
-        i = int(np.argmax(values))
-        self.tension, self.link = float(values[i]), i + 1
+        i = int(np.argmax(tensions))
+        self.tension, self.link = float(tensions[i]), i + 1
         self.F_seen = max(self.F_seen, self.tension)
         self._check(self.tension, f"link {self.link}")
         self._check_trend(self.tension, clock)
@@ -255,7 +255,7 @@ class TensionMonitor:
         if stalled and stale:
             # excused only where the stream was fresh at the previous tick
             stale = [t for t in stale if previous is not None and (
-                self._rx[t] is None or (previous - self._rx[t]) / NS > s.max_data_age)]
+                (rx := self._rx[t]) is None or (previous - rx) / NS > s.max_data_age)]
         persist = [t for t in self._old if t in self._old_prev]   # old at two ticks running
         self._old_prev = set(self._old)
         if self.state == "ready" and self._old and (not stalled or persist):

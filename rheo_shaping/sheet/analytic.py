@@ -31,11 +31,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from ..params.validators import check_finite
+from ..params.validators import PointLike, check_finite
 
 __all__ = [
     "ChainEquilibrium",
@@ -110,9 +110,8 @@ def _chain_walk(hv: np.ndarray, a: np.ndarray, rest: np.ndarray, inv_k: np.ndarr
     return seg, t, end, j
 
 
-def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float],
-                        rest_lengths: Sequence[float],
-                        stiffness: Sequence[float], masses: Sequence[float], g: float = 9.81,
+def solve_elastic_chain(anchor_a: PointLike, anchor_b: PointLike, rest_lengths: ArrayLike,
+                        stiffness: ArrayLike, masses: ArrayLike, g: float = 9.81,
                         tol: float = 1e-15, max_iter: int = 200) -> ChainEquilibrium:
     """Exact equilibrium of N masses ``masses`` (N,) [kg] joined by N + 1 links
     of rest length ``rest_lengths`` (N+1,) [m] and stiffness ``stiffness``
@@ -204,9 +203,9 @@ def solve_elastic_chain(anchor_a: Sequence[float], anchor_b: Sequence[float],
                             V=float(hv[1]), mismatch=err, iterations=it)
 
 
-def elastic_chain_equilibrium(anchor_a: Sequence[float], anchor_b: Sequence[float],
-                              rest_lengths: Sequence[float], stiffness: Sequence[float],
-                              masses: Sequence[float], g: float = 9.81) -> np.ndarray:
+def elastic_chain_equilibrium(anchor_a: PointLike, anchor_b: PointLike,
+                              rest_lengths: ArrayLike, stiffness: ArrayLike,
+                              masses: ArrayLike, g: float = 9.81) -> np.ndarray:
     """Positions (N, 2) [m] of the masses at static equilibrium; see
     :func:`solve_elastic_chain` for the arguments and the tensions."""
     return solve_elastic_chain(anchor_a, anchor_b, rest_lengths, stiffness, masses, g).positions

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import brentq, root
 
 from ..params.validators import check_finite
@@ -37,16 +37,16 @@ class IrvineCable:
     H: float
     V: float
 
-    def position(self, s: Sequence[float] | float) -> tuple[np.ndarray, np.ndarray]:
+    def position(self, s: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """(x, z) [m] of the material point at Lagrangian coordinate s [m]."""
         return _irvine_xz(np.asarray(s, dtype=float), self.H, self.V, self.EA, self.w)
 
-    def tension(self, s: Sequence[float] | float) -> np.ndarray:
+    def tension(self, s: ArrayLike) -> np.ndarray:
         """Tension [N] at Lagrangian coordinate s [m]."""
         return np.hypot(self.H, self.w * np.asarray(s, dtype=float) - self.V)
 
 
-def _asinh_sum(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _asinh_sum(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """asinh(a) + asinh(b) without cancellation when a ~ -b."""
     a, b = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
     same = a * b >= 0.0
@@ -126,7 +126,7 @@ def solve_irvine(span: float, height_difference: float, unstretched_length: floa
 
 def irvine_catenary(span: float, height_difference: float, unstretched_length: float, EA: float,
                     weight_per_length: float,
-                    s: Sequence[float] | float) -> tuple[np.ndarray, np.ndarray]:
+                    s: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Positions (x, z) [m] at Lagrangian coordinates ``s`` in [0, L0] [m] of
     Irvine's elastic catenary between (0, 0) and (span, height_difference).
 
@@ -145,7 +145,7 @@ def irvine_catenary(span: float, height_difference: float, unstretched_length: f
 
 
 def inextensible_catenary(span: float, height_difference: float, length: float,
-                          x: Sequence[float] | float) -> np.ndarray:
+                          x: ArrayLike) -> np.ndarray:
     """z [m] at ``x`` [m] of the inextensible catenary of length ``length`` [m]
     between (0, 0) and (span, height_difference) (needs length > chord)."""
     l, h, big_l = float(span), float(height_difference), float(length)

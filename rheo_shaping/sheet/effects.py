@@ -10,7 +10,7 @@ true magnitudes from ``realistic`` (docs/diagnosis.md says why those ranges).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Sequence
+from typing import Any, Sequence
 
 from ..params.params import CellParams, EffectsParams
 
@@ -42,7 +42,9 @@ class Effect:
         if self.name == "tool_offset":
             eff = replace(eff, tool_offset=values)
         else:
-            eff = replace(eff, **{self.name: values[0]})
+            # a float field named at run time: mypy cannot pair the name with its type
+            change: dict[str, Any] = {self.name: values[0]}
+            eff = replace(eff, **change)
         return replace(params, effects=eff)
 
     def value(self, params: CellParams) -> tuple[float, ...]:

@@ -99,6 +99,8 @@ class SetpointRun:
     # -- stepping ---------------------------------------------------------------------
     def process_time_at(self, t_ns: int) -> float:
         """Process time [s] of node time ``t_ns`` (the run must have started)."""
+        if self.offset_ns is None:
+            raise RuntimeError("process_time_at() before the run started (no time offset)")
         return (t_ns - self.offset_ns) / NS
 
     def advance(self, target_ns: int) -> float | None:

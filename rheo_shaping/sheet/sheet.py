@@ -326,7 +326,9 @@ class SheetModel:
                                 f"(force residual {res:.3g} N)")
 
     @staticmethod
-    def _state_args(state: SheetState):
+    def _state_args(state: SheetState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                np.ndarray, np.ndarray, np.ndarray]:
+        """The kernel's state arguments (x, v, e1, p, tension, contact, tool), contiguous."""
         c = np.ascontiguousarray
         return (c(state.x, dtype=float), c(state.v, dtype=float), c(state.e1, dtype=float),
                 c(state.p, dtype=float), c(state.tension, dtype=float),

@@ -389,12 +389,12 @@ def run_scenario(params: CellParams, path: ToolPath, t_end: float | None = None,
     def series(name: str, first) -> np.ndarray:
         return np.concatenate([np.asarray(first)[None]] + [getattr(r, name) for r in recs])
 
-    t = series("t", s0.t)
+    times = series("t", s0.t)
     tension = series("tension", s0.tension)
     contact = series("contact", s0.contact)
-    peak = peak_tension(t, tension)
+    peak = peak_tension(times, tension)
     return RunResult(
-        t=t, x=series("x", s0.x), tension=tension,
+        t=times, x=series("x", s0.x), tension=tension,
         elastic=series("e1", s0.e1), plastic=series("p", s0.p),
         tool=series("tool", s0.tool), tool_force=-contact[:, TOOL].sum(axis=1),
         mould_force=contact[:, CAKE] + contact[:, WORKPLANE], tool_contact=contact[:, TOOL],

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from concurrent.futures import Executor
-from typing import Callable, Sequence
+from typing import Callable, Sequence, TypedDict
 
 import numpy as np
 
@@ -35,8 +35,26 @@ from ..planning.movement import movement_plan
 from ..sheet.metrics import touching_tool
 from ..sheet.simulation import RunResult, Simulation, run_scenario
 
+
+class PaperMovement(TypedDict):
+    """The paper's figures of one movement: F_max [N], SF [-], delta [m]."""
+
+    F_max: float
+    SF: float
+    delta: float
+
+
+class PaperFigures(TypedDict):
+    """The paper's figures the study is checked against (:data:`PAPER`)."""
+
+    movements: dict[str, PaperMovement]
+    d_opt: float                 # m
+    half_speed: dict[str, float]
+    delta_limit: float           # m
+
+
 #: The paper's numbers (Table 2, Fig. 18, Fig. 19); SF = F_break / F_max.
-PAPER = {
+PAPER: PaperFigures = {
     "movements": {
         "1": {"F_max": 0.845, "SF": 1.23, "delta": 2.67e-3},
         "2": {"F_max": 0.837, "SF": 1.24, "delta": 3.01e-3},
@@ -349,8 +367,8 @@ class Study:
         D = {k: r.delta for k, r in self.movements.items()}
         lim = PAPER["delta_limit"]
         return {
-            "F_max: movement 3 largest": max(F, key=F.get) == "3",
-            "F_max: movement 4 smallest": min(F, key=F.get) == "4",
+            "F_max: movement 3 largest": max(F, key=F.__getitem__) == "3",
+            "F_max: movement 4 smallest": min(F, key=F.__getitem__) == "4",
             "Delta of movements 1-4 below 5 mm": all(v < lim for v in D.values()),
             "half speed: F_max below movement 1": self.half_speed.F_max < F["1"],
             "half speed: Delta above 5 mm": self.half_speed.delta > lim,
@@ -379,6 +397,8 @@ def reproduce(params: CellParams | None = None, d_values: Sequence[float] = DEFA
     ``progress(k)`` is called as k more of the ``len(d_values) + 5`` runs finish.
     """
     params = CellParams() if params is None else params
+    # ("movement", label, number, speed [m/s], dwell [s]) or ("d", d [m]): _study_task's jobs
+    jobs: list[tuple[str, str, int, float | None, float | None] | tuple[str, float]]
     jobs = [("movement", str(n), n, None, None) for n in (1, 2, 3, 4)]
     jobs.append(("movement", "half_speed", 1, HALF_SPEED, 0.0))
     jobs += [("d", float(d)) for d in d_values]

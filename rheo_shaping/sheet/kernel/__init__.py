@@ -33,6 +33,7 @@ import hashlib
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 HERE = Path(__file__).resolve().parent
 
@@ -52,9 +53,12 @@ from numba.core import caching as _caching  # noqa: E402
 
 # the user-directory locator: UserProvidedCacheLocator in the numba of requirements-core
 # (0.68 here); numba 0.59, Ubuntu 24.04's python3-numba (what rosdep installs for Jazzy),
-# has it only as _UserProvidedCacheLocator
-_UserDirLocator = getattr(_caching, "UserProvidedCacheLocator", None) \
-    or _caching._UserProvidedCacheLocator
+# has it only as _UserProvidedCacheLocator.  The type check reads numba 0.68's types.
+if TYPE_CHECKING:
+    from numba.core.caching import UserProvidedCacheLocator as _UserDirLocator
+else:
+    _UserDirLocator = getattr(_caching, "UserProvidedCacheLocator", None) \
+        or _caching._UserProvidedCacheLocator
 
 
 def cache_folder() -> str:
@@ -82,7 +86,9 @@ class _ContentCacheLocator(_UserDirLocator):
 
     def __init__(self, py_func, py_file):
         super().__init__(py_func, py_file)
-        self._cache_path = os.path.join(_caching.config.CACHE_DIR, cache_folder())
+        # numba's config sets its options at run time (from the environment): getattr, as
+        # its types do not list them
+        self._cache_path = os.path.join(getattr(_caching.config, "CACHE_DIR"), cache_folder())
 
     @classmethod
     def from_function(cls, py_func, py_file):

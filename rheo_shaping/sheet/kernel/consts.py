@@ -2,6 +2,8 @@
 float parameters, numba options."""
 from __future__ import annotations
 
+from typing import Literal, TypedDict
+
 
 #: Obstacle kinds of the array description (``Shape.kernel_description``).
 CAKE_KIND, PLANE_KIND, POLYGON_KIND = 0, 1, 2
@@ -18,4 +20,15 @@ ST_NEWTON, ST_EVAL, ST_SOLVE, ST_SUBSTEPS, ST_FAILED = 0, 1, 2, 3, 4
  P_TOPX, P_TOPZ, P_BOTX, P_BOTZ, P_BENDING, P_SIZE) = range(16)
 
 TINY = 1e-300
-JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+
+
+class JitOptions(TypedDict):
+    """The numba options of every compiled function of the step (``@njit(**JIT)``)."""
+
+    cache: bool
+    nogil: bool
+    fastmath: bool
+    error_model: Literal["python", "numpy"]
+
+
+JIT: JitOptions = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")

@@ -24,7 +24,12 @@ def shape_table(verts) -> np.ndarray:
     return table
 
 
-def pack_model(constants, obstacles, reach, mu, kc: float, force_tol: float, effects):
+#: What :func:`pack_model` returns: (fpar, links, masses, ob_i, ob_f, ob_v).
+Packed = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def pack_model(constants, obstacles, reach, mu, kc: float, force_tol: float,
+               effects) -> Packed:
     """The arrays the kernel takes: (fpar, links (5, N+1), masses (2, N), ob_i, ob_f, ob_v)."""
     c = constants
     n = c.n_masses
