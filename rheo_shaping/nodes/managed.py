@@ -19,7 +19,8 @@ What each state means beyond that:
 * planner: ``activate`` is refused unless the monitor reports ready (the interlock, as the
   planner sees it: a fresh ``/shaping/ready`` true from the one monitor); ``deactivate``
   while the tool moves stops it first (the plain planner's abort: a planned stop from the
-  executed pose), and no set-point goes out while it is inactive (state ``inactive``).
+  executed pose, sent to its end at rest), and no set-point goes out while it is inactive
+  (state ``inactive``).
 
 A heartbeat (``~/heartbeat``, std_msgs/String, JSON ``{"state", "transitions", "instance"}``)
 goes out every :data:`~rheo_shaping.safety.lifecycle.HEARTBEAT_PERIOD` on the steady clock in
@@ -40,6 +41,7 @@ from std_msgs.msg import Bool, String
 
 from ..params.schema import ParameterError
 from ..safety.lifecycle import HEARTBEAT_PERIOD
+from ..units import NS
 from .monitor import MonitorNode
 from .planner import MOVING, PlannerNode
 from .simulator import SimulatorNode
@@ -67,6 +69,13 @@ class Managed(LifecycleNodeMixin):
         self._base = self._entities()
         self.get_logger().info("unconfigured: waiting for configure (lifecycle_manager, or "
                                "`ros2 lifecycle set`)")
+
+    def destroy_node(self) -> None:
+        """Node.destroy_node, and the lifecycle state machine, which holds the node's handle
+        (rclpy leaves it: the node would stay in the graph, where a new node of its name
+        waits for it to leave, nodes.guards.Presence)."""
+        Node.destroy_node(self)
+        self._state_machine.destroy_when_not_in_use()
 
     # -- heartbeat ----------------------------------------------------------------
     @property
@@ -229,7 +238,20 @@ class ManagedPlannerNode(Managed, PlannerNode):
     def _on_deactivating(self) -> None:
         if self.streamer is not None and self.streamer.state in MOVING:
             self._abort("planner: deactivated (lifecycle)")     # the planned stop
+            self._send_stop()
         self._set_state("inactive")
+
+    def _send_stop(self) -> None:
+        """The rest of the stop at once, to its end at rest (max_lead bounds how far ahead a
+        stream may run so that a later abort can stop from the executed pose; an inactive
+        planner has no later abort).  The simulator follows it in lockstep, its command gate
+        checking every set-point; the retract after it is not sent."""
+        st = self.streamer
+        if st.stop_plan is None or st.abort_time is None or self.grid is None:
+            return
+        end = int(round((st.abort_time + st.stop_plan.duration) * NS))
+        for t in self.grid.due(end, end, True):
+            self._publish_setpoint(t)
 
     def _stream(self) -> None:
         if self._active:
