@@ -216,3 +216,11 @@ def test_a_stall_of_the_manager_itself_defers_the_verdict_by_one_check():
     assert c.steps(late, previous_ns=t) == [] and c.phase == "active"
     steps = c.steps(late + S // 20, previous_ns=late)    # still none: now they are lost
     assert c.phase == "failed" and steps[0].action == "hold"
+
+
+def test_docs_lifecycle_manager_parameter_table_is_current():
+    from pathlib import Path
+    from rheo_shaping.params.node_params import LifecycleManagerParams, parameter_table
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "ros.md").read_text()
+    assert parameter_table(LifecycleManagerParams) in doc, \
+        "docs/ros.md: regenerate the `lifecycle_manager` table"
