@@ -163,9 +163,7 @@ class Managed(LifecycleNodeMixin):
         return self._done(SUCCESS, "active")
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        self._on_deactivating()
-        self._active = False
-        self._run_timers(False)
+        self._stop()
         return self._done(SUCCESS, "deactivated (inactive)")
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -173,20 +171,26 @@ class Managed(LifecycleNodeMixin):
         return self._done(SUCCESS, "cleaned up (unconfigured)")
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
-        if self._active:
-            self.on_deactivate(state)
+        self._stop()
         if self._work_timers is not None:
             self._destroy_built()
         return self._done(SUCCESS, "shut down (finalized)")
 
     def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
-        self.get_logger().error(f"a transition from {state.label} raised: the node holds what "
-                                f"it has and goes back to unconfigured")
-        if self._active:
-            self.on_deactivate(state)
+        self.get_logger().error(f"a transition from {state.label} raised: what it built is "
+                                f"stopped (as by deactivate) and destroyed; back to unconfigured")
+        self._stop()
         if self._work_timers is not None:
             self._destroy_built()
         return SUCCESS
+
+    def _stop(self) -> None:
+        """What deactivate does (nothing when not active): the node's own safe stop, then
+        its timers."""
+        if self._active:
+            self._on_deactivating()
+            self._active = False
+            self._run_timers(False)
 
     # -- what each node adds --------------------------------------------------------
     def _may_activate(self) -> str:

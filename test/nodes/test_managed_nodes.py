@@ -149,3 +149,14 @@ def test_the_planner_activates_only_behind_a_ready_monitor_and_a_run_stops_on_de
     for node in (sim, monitor, planner):
         assert node.trigger_shutdown() == SUCCESS
         assert node._state_machine.current_state[0] == State.PRIMARY_STATE_FINALIZED
+
+
+def test_shutdown_from_active_stops_first(ros):
+    sim = ros.add(ManagedSimulatorNode(
+        context=ros.context, parameter_overrides=[Parameter("real_time_factor", value=10.0)]))
+    assert sim.trigger_configure() == SUCCESS and sim.trigger_activate() == SUCCESS
+    assert sim.trigger_shutdown() == SUCCESS
+    assert sim.lifecycle_state == "finalized"
+    assert sim._transitions == 3                   # configure, activate, shutdown
+    assert not sim.has_parameter("material.k1")    # destroyed after the hold below
+    assert sim.gate.held.startswith("deactivated (lifecycle)")
