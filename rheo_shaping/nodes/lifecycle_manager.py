@@ -165,7 +165,7 @@ class LifecycleManagerNode(Node):
                 del self._calls[name]
                 ok = bool(future.result() and future.result().success)
                 self.core.answered(name, transition, ok, "" if ok else "the node refused it "
-                                   "(its log says why)")
+                                   "(its log says why)", steady_ns=now)
             elif now - asked > limit:
                 del self._calls[name]
                 self._change_state[name].remove_pending_request(future)

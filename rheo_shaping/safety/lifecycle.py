@@ -131,13 +131,16 @@ class CellLifecycle:
         """A ``/shaping/ready`` heartbeat."""
         self._ready = (bool(ready), steady_ns)
 
-    def answered(self, node: str, transition: str, success: bool, message: str = "") -> None:
+    def answered(self, node: str, transition: str, success: bool, message: str = "",
+                 steady_ns: int | None = None) -> None:
         """The reply to the ``transition`` of ``node`` asked for (False: refused, failed or
-        not answered in time)."""
+        not answered in time), received at ``steady_ns`` (a reply is a sign of life too)."""
         seen = self.seen[node]
         if seen.pending != transition:
             return                     # answered already (by a heartbeat): a late reply
         seen.pending = ""
+        if steady_ns is not None:
+            seen.beat_ns = max(seen.beat_ns or steady_ns, steady_ns)
         if success:
             seen.state, seen.refused = TRANSITIONS[transition], 0
             seen.transitions = seen.asked_at + 1
@@ -172,10 +175,14 @@ class CellLifecycle:
     # -- decisions -----------------------------------------------------------------
     def lost(self, steady_ns: int) -> list[tuple[str, float]]:
         """(node, silence [s]) of every node seen once whose heartbeat is older than
-        ``heartbeat_timeout``."""
+        ``heartbeat_timeout``; not a node in a transition the manager asked for (it runs in
+        the node's executor, which beats no more meanwhile: a configure may settle the sheet
+        or plan for seconds; ``transition_timeout`` bounds it)."""
         out = []
         for name in self.nodes:
             beat = self.seen[name].beat_ns
+            if self.seen[name].pending:
+                continue
             if beat is not None and (steady_ns - beat) / NS > self.heartbeat_timeout:
                 out.append((name, (steady_ns - beat) / NS))
         return out

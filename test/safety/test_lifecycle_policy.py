@@ -224,3 +224,17 @@ def test_docs_lifecycle_manager_parameter_table_is_current():
     doc = (Path(__file__).resolve().parents[2] / "docs" / "ros.md").read_text()
     assert parameter_table(LifecycleManagerParams) in doc, \
         "docs/ros.md: regenerate the `lifecycle_manager` table"
+
+
+def test_a_node_in_a_long_transition_is_not_lost_and_its_reply_is_a_sign_of_life():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    c.startup()
+    beat_all(c, 0)
+    assert c.steps(0) == [Step("configure", "simulator")]
+    # the simulator settles its sheet for 5 s: no beat from it meanwhile
+    for name in ("monitor", "planner"):
+        c.heartbeat(name, "unconfigured", 5 * S, 0, "p-" + name)
+    assert c.steps(5 * S) == [] and c.phase == "starting"
+    c.answered("simulator", "configure", True, steady_ns=5 * S)
+    assert c.steps(5 * S + S // 10) == [Step("configure", "monitor")]
+    assert c.phase == "starting"
