@@ -6,7 +6,8 @@ Two cells in two namespaces (``/cellA``, ``/cellB``), each ``simulator_managed``
 managers alone.  While both run, cell A's monitor is killed (SIGKILL: no goodbye; its
 participant stays in the DDS graph for its lease, so only the heartbeat tells).  Cell A must
 come to its safe state (its manager ``failed`` naming the monitor, the planner ``inactive``,
-the tool holding where it was), cell B must run on to ``done``.  Every wait is for a message.
+the tool holding where it was), cell B must run on to ``done``; then B's manager brings
+it down in order (``~/shutdown``).  Every wait is for a message or a reply.
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ pytest.importorskip("rclpy")
 
 from lifecycle_msgs.srv import GetState  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes import topics as T  # noqa: E402
@@ -151,9 +153,22 @@ def test_two_managed_cells_come_up_and_a_killed_monitor_brings_only_its_cell_dow
                for msg in rec["/cellB/lifecycle_manager/status"])
     assert _status(rec, "/cellB")["phase"] == "active"
     assert rec["/cellB/shaping/abort"] == []
+    # Cell B brought down in order through its manager's ~/shutdown.
+    shutdown = node.create_client(Trigger, "/cellB/lifecycle_manager/shutdown")
+    ros.spin_until(shutdown.service_is_ready, 30.0, "/cellB/lifecycle_manager/shutdown")
+    future = shutdown.call_async(Trigger.Request())      # acts: sent once (nodes/services.py)
+    ros.spin_until(lambda: _status(rec, "/cellB").get("phase") == "down", 60.0,
+                   "cell B down", every=alive)
+    if future.done():                # (a reply can be lost to discovery; the effect cannot)
+        assert future.result().success, future.result().message
+    assert _status(rec, "/cellB")["nodes"] == {n: "unconfigured" for n in CELL_ORDER}
+    log = cells["/cellB"]["lifecycle_manager"].text()
+    order = [log.index(f"{t} {n}\n") for t in ("deactivate", "cleanup")
+             for n in reversed(CELL_ORDER)]
+    assert order == sorted(order), log
     print(f"\nmonitor of /cellA SIGKILLed: its manager failed the cell after {silence:.2f} s of "
           f"heartbeat silence (seen by the test {took:.2f} s after the kill); first abort "
-          f"{aborts[0]!r}; /cellB ran to done")
+          f"{aborts[0]!r}; /cellB ran to done and was brought down")
     for ns, started in cells.items():
         for name, p in started.items():
             if p is not monitor:
