@@ -2,7 +2,7 @@
 
 A user of a Jazzy workspace runs ``colcon build`` then ``colcon test --packages-select
 rheo_shaping`` and ``colcon test-result --verbose``.  This script does exactly that in a
-temporary workspace on a copy of the committed tree (``git archive HEAD``), then collects
+temporary workspace on a clone of the committed tree (``git clone``, HEAD), then collects
 the suite's core and ros stages on the same copy (``pytest --collect-only --stage=core`` in
 ``.venv-core``, ``--stage=ros`` in ``.venv``, as ``python3 dev.py test`` splits them) and
 compares test by test: the tests colcon ran that the stages do not collect, and the other
@@ -51,13 +51,14 @@ def _run(cmd: list[str], cwd: Path, env: dict, timeout: float) -> subprocess.Com
 
 
 def copy_committed_tree(dest: Path) -> str:
-    """``git archive HEAD`` of the repository into ``dest``; returns the commit."""
+    """A clone of the repository's committed HEAD in ``dest`` (as a user checks it out into a
+    workspace's ``src``: a git checkout, which test_colcon_layout.py copies from); returns
+    the commit."""
     commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "HEAD"], check=True,
                             stdout=subprocess.PIPE, text=True).stdout.strip()
-    dest.mkdir(parents=True)
-    archive = subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", commit],
-                             check=True, stdout=subprocess.PIPE).stdout
-    subprocess.run(["tar", "-x", "-C", str(dest)], input=archive, check=True)
+    subprocess.run(["git", "clone", "--quiet", "--no-checkout", str(REPO), str(dest)],
+                   check=True)
+    subprocess.run(["git", "-C", str(dest), "checkout", "--quiet", commit], check=True)
     return commit
 
 

@@ -252,7 +252,7 @@ class LifecycleManagerParams:
         True, "bring the cell up at start (configure, then activate simulator, monitor and, "
         "once the monitor is ready, planner); else wait for ~/startup")
     heartbeat_timeout: float = param(
-        1.0, "wall-clock silence of a managed node's ~/heartbeat (sent every 0.1 s) after "
+        2.0, "wall-clock silence of a managed node's ~/heartbeat (sent every 0.1 s) after "
         "which the node counts as lost: the tool holds, the planner deactivates", "s", 0.1, 60.0,
         lo_open=True)
     transition_timeout: float = param(

@@ -38,7 +38,7 @@ MANAGED = {"simulator": "simulator_managed", "monitor": "monitor_managed",
 #: Eight processes share the busy machine: 10x real time, as test_namespaces.py.
 REAL_TIME_FACTOR = 10.0
 UP_TIMEOUT_S = 180.0        # eight processes start, settle their sheets and plan
-HEARTBEAT_TIMEOUT_S = 1.0   # the manager's default
+HEARTBEAT_TIMEOUT_S = 2.0   # the manager's default
 
 
 def _status(rec, ns: str) -> dict:
@@ -110,10 +110,9 @@ def test_two_managed_cells_come_up_and_a_killed_monitor_brings_only_its_cell_dow
     assert reason.startswith("monitor lost: no heartbeat for "), reason
     silence = float(reason.split("for ")[1].split(" s")[0])
     # the manager's own measure: the timeout, a check period (0.05 s) and, when the manager
-    # itself stood still (a busy machine), one more check after it (StallGuard)
-    # (the reason prints the silence to 0.01 s: more than the timeout, 1.00 when just over)
-    assert HEARTBEAT_TIMEOUT_S <= silence <= HEARTBEAT_TIMEOUT_S + 0.05 + 0.5 * 1.0 + 0.05, \
-        reason
+    # itself stood still (a busy machine) for up to half the timeout, one more check after it
+    # (StallGuard); printed to 0.01 s: more than the timeout reads 2.00 when just over
+    assert HEARTBEAT_TIMEOUT_S <= silence <= 1.5 * HEARTBEAT_TIMEOUT_S + 2 * 0.05, reason
 
     # Cell A's safe state: the planner inactive (its heartbeat and its lifecycle service),
     # the tool holding with the reason on /cellA/shaping/abort and in the diagnostics.
