@@ -52,7 +52,7 @@ SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FA
 
 
 class Managed(LifecycleNodeMixin):
-    """The lifecycle around a plain node class (the next class in the MRO): its ``_build``
+    """The lifecycle around the plain node class it is combined with: that class's ``_build``
     runs at ``configure``, its timers run only while ``active``."""
 
     def _managed_init(self, name: str, node_kwargs: dict, build_args: tuple) -> None:
