@@ -14,7 +14,8 @@ except ImportError:             # setuptools < 70 ships only distutils' (its own
     from distutils.command.build_scripts import build_scripts as _build_scripts
 
 package_name = 'rheo_shaping'
-NODES = ('simulator', 'planner', 'monitor')
+NODES = ('simulator', 'planner', 'monitor', 'simulator_managed', 'planner_managed',
+         'monitor_managed', 'lifecycle_manager')
 
 # The node executables.  A signal must end a node cleanly at any moment of its start-up
 # (rheo_shaping/nodes/entry.py), but CPython installs its own SIGINT handler and imports `site`

@@ -3,6 +3,7 @@
     ros2 launch rheo_shaping cell.launch.py
     ros2 launch rheo_shaping cell.launch.py namespace:=/cell2 rviz:=true
     ros2 launch rheo_shaping cell.launch.py params_file:=my_cell.yaml use_sim_time:=false
+    ros2 launch rheo_shaping cell.launch.py managed:=true namespace:=/cellA
 
 Arguments (docs/ros.md, "Launch"):
 
@@ -13,7 +14,11 @@ Arguments (docs/ros.md, "Launch"):
 * ``use_sim_time``: ``true`` (default) the simulator is the clock (its
   ``real_time_factor`` from the file) and planner and monitor follow it;
   ``false``: everything on the wall clock, the simulator at real time;
-* ``rviz``: ``true`` also starts RViz with the package's rviz/cell.rviz.
+* ``rviz``: ``true`` also starts RViz with the package's rviz/cell.rviz;
+* ``managed``: ``true`` starts the managed (lifecycle) nodes ``simulator_managed``,
+  ``monitor_managed``, ``planner_managed`` (node names simulator, monitor, planner) and the
+  ``lifecycle_manager``, which brings them up in order and down to a safe state when one
+  fails (docs/ros.md, "Managed start-up").
 
 Values given here reach the nodes as ``-p`` on their command line, which beats the
 params file's node sections (rheo_shaping/nodes/ros_params.py).
@@ -41,12 +46,26 @@ def _nodes(context):
     clock = [('/clock', 'clock')]
     common = dict(package=PACKAGE, namespace=namespace, parameters=[params_file],
                   output='screen', emulate_tty=True)
-    return [
-        Node(executable='simulator', name='simulator', ros_arguments=simulator_args, **common),
-        Node(executable='monitor', name='monitor', ros_arguments=follow, remappings=clock,
-             **common),
-        Node(executable='planner', name='planner', ros_arguments=follow, remappings=clock,
-             **common),
+    if LaunchConfiguration('managed').perform(context).lower() in ('true', '1'):
+        cell = [
+            Node(executable='simulator_managed', name='simulator',
+                 ros_arguments=simulator_args, **common),
+            Node(executable='monitor_managed', name='monitor', ros_arguments=follow,
+                 remappings=clock, **common),
+            Node(executable='planner_managed', name='planner', ros_arguments=follow,
+                 remappings=clock, **common),
+            Node(executable='lifecycle_manager', name='lifecycle_manager', **common),
+        ]
+    else:
+        cell = [
+            Node(executable='simulator', name='simulator', ros_arguments=simulator_args,
+                 **common),
+            Node(executable='monitor', name='monitor', ros_arguments=follow, remappings=clock,
+                 **common),
+            Node(executable='planner', name='planner', ros_arguments=follow, remappings=clock,
+                 **common),
+        ]
+    return cell + [
         Node(package='rviz2', executable='rviz2', name='rviz2', namespace=namespace,
              arguments=['-d', os.path.join(share, 'rviz', 'cell.rviz')],
              parameters=[{'use_sim_time': sim_time}], remappings=clock, output='screen',
@@ -68,5 +87,8 @@ def generate_launch_description():
             description='true: the simulator is the clock; false: wall clock, real time'),
         DeclareLaunchArgument(
             'rviz', default_value='false', description='true: start RViz with rviz/cell.rviz'),
+        DeclareLaunchArgument(
+            'managed', default_value='false',
+            description='true: the managed (lifecycle) nodes and the lifecycle_manager'),
         OpaqueFunction(function=_nodes),
     ])

@@ -1,4 +1,6 @@
-"""Entry points of the node executables (``simulator``, ``planner``, ``monitor``).
+"""Entry points of the node executables (``simulator``, ``planner``, ``monitor``; their
+managed variants ``simulator_managed``, ``planner_managed``, ``monitor_managed``; the
+``lifecycle_manager``).
 
 A signal must end a node cleanly at any moment of its start-up, with exit code 0 and
 no traceback.  Before ``rclpy.init`` nothing of ROS exists yet, so SIGINT and SIGTERM
@@ -25,7 +27,7 @@ def _early_exit(signum, frame) -> None:  # noqa: ARG001 - a signal handler's sig
     os._exit(0)
 
 
-def _run(module: str) -> int:
+def _run(module: str, function: str = "main") -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _early_exit)
     # the executable (setup.py's LAUNCHER) starts Python with both blocked: a signal that came
@@ -33,7 +35,7 @@ def _run(module: str) -> int:
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     import importlib
     node = importlib.import_module(f"rheo_shaping.nodes.{module}")
-    code = node.main()
+    code = getattr(node, function)()
     # The node is done (stopped, or it refused its parameters).  The interpreter's own
     # finalisation (numba, llvmlite, scipy) takes seconds on a busy machine and restores the
     # default signal handlers first, so a Ctrl-C then would end the process by the signal
@@ -56,6 +58,22 @@ def planner() -> int:
 
 def monitor() -> int:
     return _run("monitor")
+
+
+def simulator_managed() -> int:
+    return _run("managed", "simulator_main")
+
+
+def planner_managed() -> int:
+    return _run("managed", "planner_main")
+
+
+def monitor_managed() -> int:
+    return _run("managed", "monitor_main")
+
+
+def lifecycle_manager() -> int:
+    return _run("lifecycle_manager")
 
 
 if __name__ == "__main__":  # pragma: no cover - python -m rheo_shaping.nodes.entry NODE ...

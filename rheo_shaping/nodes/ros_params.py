@@ -191,9 +191,11 @@ class SchemaParameters:
                 fi = self.fields[name]
                 validate_value(name, value, fi.kind, fi.spec)   # raises ParameterError
                 flat[name] = value
-            elif name.split(".", 1)[0] in CELL_SECTIONS and "cell" in self.groups:
-                raise ParameterError(f"unknown parameter '{name}' for node "
-                                     f"'{self.node.get_name()}'")
+            elif name.split(".", 1)[0] in CELL_SECTIONS:
+                if "cell" in self.groups:
+                    raise ParameterError(f"unknown parameter '{name}' for node "
+                                         f"'{self.node.get_name()}'")
+                # the cell of a params file's /**: not this node's (the lifecycle manager)
             elif name not in ROS_BUILTIN_PARAMETERS and not name.startswith("qos_overrides."):
                 self.node.get_logger().warning(
                     f"parameter '{name}' is not a parameter of this node: ignored")

@@ -123,6 +123,12 @@ PRESENCE = Topic("shaping/presence", String,
                             durability=DurabilityPolicy.TRANSIENT_LOCAL,
                             history=HistoryPolicy.KEEP_LAST))
 
+#: A managed node's heartbeat (JSON: its lifecycle state, transitions done, process id):
+#: the lifecycle manager tells a dead or frozen node by its silence (rheo_shaping.nodes.managed).
+HEARTBEAT = Topic("~/heartbeat", String, HEARTBEAT_QOS)
+#: The lifecycle manager's state (JSON: phase, reason, what it waits for, each node's state).
+MANAGER_STATUS = Topic("~/status", String, LATCHED_QOS)
+
 #: Every topic of the cell, by its contract name.
 ALL: dict[str, Topic] = {t.contract: t for t in (
     PROFILE, MEASURED_PROFILE, TENSIONS, CONTACT_TENSION, TOOL_POSE, TOOL_WRENCH, MARKERS, CLOCK,

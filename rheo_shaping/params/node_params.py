@@ -243,6 +243,25 @@ class MonitorNodeParams:
         "the one-process cell uses: its nodes share a process, no link can stall between them)")
 
 
+@dataclass(frozen=True)
+class LifecycleManagerParams:
+    """The ``lifecycle_manager`` node: brings the managed cell up in order and down to a safe
+    state on a failure (rheo_shaping.safety.lifecycle)."""
+
+    autostart: bool = param(
+        True, "bring the cell up at start (configure, then activate simulator, monitor and, "
+        "once the monitor is ready, planner); else wait for ~/startup")
+    heartbeat_timeout: float = param(
+        2.0, "wall-clock silence of a managed node's ~/heartbeat (sent every 0.1 s) after "
+        "which the node counts as lost: the tool holds, the planner deactivates", "s", 0.1, 60.0,
+        lo_open=True)
+    transition_timeout: float = param(
+        120.0, "wall-clock time a transition (configure settles the sheet or plans) may take "
+        "before it counts as failed", "s", 0.0, 3600.0, lo_open=True)
+    period: float = param(0.05, "steady-clock period of the manager's checks", "s", 0.0, 1.0,
+                          lo_open=True)
+
+
 NODE_PARAMS = {"simulator": SimulatorNodeParams, "planner": PlannerNodeParams,
                "monitor": MonitorNodeParams}
 

@@ -23,7 +23,10 @@ pytest.importorskip("colcon_core", reason="colcon is not installed: run in the f
 REPO = Path(__file__).resolve().parents[2]
 PACKAGE = "rheo_shaping"
 NODES = ("simulator", "planner", "monitor")
-EXECUTABLES = (*NODES, "rheo-shaping")
+#: The managed executables (rheo_shaping/nodes/managed.py) and the node name each starts.
+MANAGED = {"simulator_managed": "simulator", "planner_managed": "planner",
+           "monitor_managed": "monitor", "lifecycle_manager": "lifecycle_manager"}
+EXECUTABLES = (*NODES, *MANAGED, "rheo-shaping")
 BUILD_TIMEOUT_S = 300
 START_TIMEOUT_S = 30
 STOP_TIMEOUT_S = 10
@@ -170,11 +173,15 @@ def observer(node_domain):
         rclpy.try_shutdown(context=context)
 
 
-def _wait_for_node(observer, name: str, proc: subprocess.Popen, timeout: float) -> bool:
-    """Poll the graph until ``name`` appears (True), the process dies or time runs out."""
+def _wait_for_node(observer, name: str, proc: subprocess.Popen, timeout: float,
+                   log: Path | None = None) -> bool:
+    """Poll the graph until ``name`` appears (True), the process dies or time runs out; with
+    ``log``, also until the node's logger has spoken there (a managed and a plain node share
+    a name: the graph may still list the one that has just exited)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        if name in observer.get_node_names():
+        if name in observer.get_node_names() and (log is None
+                                                  or f"[{name}]" in log.read_text()):
             return True
         if proc.poll() is not None:
             return False
@@ -182,11 +189,12 @@ def _wait_for_node(observer, name: str, proc: subprocess.Popen, timeout: float) 
     return False
 
 
-@pytest.mark.parametrize("node_name", NODES)
-def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain, node_name,
-                                         tmp_path):
-    exe = prefix / "lib" / PACKAGE / node_name
-    log = tmp_path / f"{node_name}.log"
+@pytest.mark.parametrize("exe_name, node_name",
+                         [(n, n) for n in NODES] + list(MANAGED.items()))
+def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain, exe_name,
+                                         node_name, tmp_path):
+    exe = prefix / "lib" / PACKAGE / exe_name
+    log = tmp_path / f"{exe_name}.log"
     with open(log, "w") as out:
         proc = subprocess.Popen(
             _sourced(install,
@@ -196,7 +204,7 @@ def test_node_starts_and_stops_on_sigint(install, prefix, observer, node_domain,
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
         )
         try:
-            seen = _wait_for_node(observer, node_name, proc, START_TIMEOUT_S)
+            seen = _wait_for_node(observer, node_name, proc, START_TIMEOUT_S, log)
             assert seen, (f"node {node_name!r} not in the ROS graph within {START_TIMEOUT_S} s "
                           f"(exit code {proc.poll()}); its output:\n{log.read_text()}")
             proc.send_signal(signal.SIGINT)  # bash exec'd the node: this pid is the node
@@ -306,7 +314,7 @@ def test_colcon_build_writes_nothing_into_the_source_folder(tmp_path, symlink):
     for exe in EXECUTABLES:
         path = ws / "install" / PACKAGE / "lib" / PACKAGE / exe
         assert path.is_file() and os.access(path, os.X_OK), path
-    for node in NODES:
+    for node in (*NODES, *MANAGED):
         text = (ws / "install" / PACKAGE / "lib" / PACKAGE / node).read_text()
         assert text.startswith("#!/bin/sh\n") and f"entry import {node}\n" in text, node
 

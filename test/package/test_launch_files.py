@@ -68,7 +68,8 @@ def test_launch_file_starts_only_installed_executables():
         else:
             assert pkg in declared, f"{pkg} (started by the launch file) not in package.xml"
         started.append(exe)
-    assert sorted(started) == ["monitor", "planner", "rviz2", "simulator"]
+    assert sorted(started) == ["lifecycle_manager", "monitor", "monitor_managed", "planner",
+                               "planner_managed", "rviz2", "simulator", "simulator_managed"]
 
 
 def test_launch_file_opens_only_shipped_files():
@@ -93,7 +94,7 @@ def test_launch_file_opens_only_shipped_files():
 def test_launch_arguments_are_documented():
     args = [n.args[0].value for n in ast.walk(_tree()) if isinstance(n, ast.Call)
             and getattr(n.func, "id", None) == "DeclareLaunchArgument"]
-    assert sorted(args) == ["namespace", "params_file", "rviz", "use_sim_time"]
+    assert sorted(args) == ["managed", "namespace", "params_file", "rviz", "use_sim_time"]
     doc = (REPO / "docs" / "ros.md").read_text()
     for name in args:
         assert f"| `{name}` |" in doc, f"docs/ros.md: launch argument `{name}` not in its table"
@@ -112,3 +113,23 @@ def test_rviz_config_shows_the_cell_in_frame_cake():
     topics_src = (REPO / "rheo_shaping" / "nodes" / "topics.py").read_text()
     for name in shown:
         assert f'Topic("{name}"' in topics_src, f"{name}: not a topic of nodes/topics.py"
+
+
+def test_managed_launch_starts_each_managed_node_under_its_plain_name_and_the_manager():
+    """``managed:=true``: simulator_managed, monitor_managed and planner_managed under the node
+    names the plain ones have (the lifecycle manager drives ``<name>/change_state`` of its
+    namespace), with the same arguments, remaps and params file, and the manager beside them."""
+    calls = {_kw(n, "executable"): n for n in ast.walk(_tree()) if isinstance(n, ast.Call)
+             and getattr(n.func, "id", None) == "Node"}
+    for plain in ("simulator", "monitor", "planner"):
+        managed = calls[f"{plain}_managed"]
+        assert _kw(managed, "name") == plain
+        kwargs = {kw.arg: ast.unparse(kw.value) for kw in managed.keywords
+                  if kw.arg != "executable"}
+        assert kwargs == {kw.arg: ast.unparse(kw.value) for kw in calls[plain].keywords
+                          if kw.arg != "executable"}, plain
+    manager = calls["lifecycle_manager"]
+    assert _kw(manager, "name") == "lifecycle_manager"
+    assert [ast.unparse(kw.value) for kw in manager.keywords if kw.arg is None] == ["common"]
+    from rheo_shaping.safety.lifecycle import CELL_ORDER
+    assert set(CELL_ORDER) == {"simulator", "monitor", "planner"}

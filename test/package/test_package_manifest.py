@@ -16,7 +16,7 @@ MODULE_KEYS = {
     "builtin_interfaces": "builtin_interfaces", "std_msgs": "std_msgs",
     "geometry_msgs": "geometry_msgs", "trajectory_msgs": "trajectory_msgs",
     "visualization_msgs": "visualization_msgs", "diagnostic_msgs": "diagnostic_msgs",
-    "rosgraph_msgs": "rosgraph_msgs", "std_srvs": "std_srvs",
+    "rosgraph_msgs": "rosgraph_msgs", "std_srvs": "std_srvs", "lifecycle_msgs": "lifecycle_msgs",
     "launch": "launch", "launch_ros": "launch_ros", "ament_index_python": "ament_index_python",
     "numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml",
     "matplotlib": "python3-matplotlib", "tqdm": "python3-tqdm", "numba": "python3-numba",
@@ -33,7 +33,8 @@ EXEC_DEPENDS = set(MODULE_KEYS.values()) | {"rviz2"}
 TEST_DEPENDS = {"python3-pytest"}
 CONSOLE_SCRIPTS = {"rheo-shaping": "rheo_shaping.cli:main"}
 #: The nodes' executables: setup.py's LAUNCHER (``scripts``), not console_scripts wrappers.
-NODES = ("simulator", "planner", "monitor")
+NODES = ("simulator", "planner", "monitor", "simulator_managed", "planner_managed",
+         "monitor_managed", "lifecycle_manager")
 
 
 def _manifest() -> ET.Element:

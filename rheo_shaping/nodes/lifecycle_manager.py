@@ -1,0 +1,201 @@
+"""The ``lifecycle_manager`` node: brings a managed cell up in order and down to a safe state
+when one of its nodes fails (docs/ros.md, "Managed start-up"), in the style of Nav2's.
+
+It drives ``simulator``, ``monitor`` and ``planner`` of its own namespace (the managed
+executables ``*_managed``, rheo_shaping.nodes.managed) through their lifecycle services
+(``<node>/change_state``, lifecycle_msgs/ChangeState).  What to ask and when is the core's
+:class:`~rheo_shaping.safety.lifecycle.CellLifecycle`: configure all, activate simulator and
+monitor, the planner once the monitor reports ready; on a failure (a node's ``~/heartbeat``
+silent for ``heartbeat_timeout``, a node that left ``active``, a failed transition) the
+reason goes out on ``shaping/abort`` (the simulator holds the tool, the planner stops) and
+the planner is deactivated.  ``~/status`` (JSON, latched) and ``/diagnostics`` say the phase,
+the reason and what it waits for.  ``~/startup`` and ``~/shutdown`` (std_srvs/Trigger) bring
+the cell up again (after a failure: restart the lost node first; the nodes' latched holds
+need their ``~/reset``) or down (deactivate in reverse order, then clean up).
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from std_msgs.msg import Bool, String
+from std_srvs.srv import Trigger
+
+from ..params.node_params import LifecycleManagerParams
+from ..safety.lifecycle import CELL_ORDER, CellLifecycle, Step
+from ..safety.watchdog import StallGuard
+from ..units import NS
+from . import messages as m
+from . import topics as T
+from .ros_params import SchemaParameters
+from .spin import build_or_destroy, run_node
+
+
+class LifecycleManagerNode(Node):
+    """Brings the managed cell of its namespace up and keeps it safe."""
+
+    def __init__(self, **node_kwargs):
+        super().__init__('lifecycle_manager', **node_kwargs)
+        build_or_destroy(self, self._build, node_kwargs)
+
+    def _build(self, node_kwargs: dict) -> None:
+        self.params = SchemaParameters(self, {"settings": LifecycleManagerParams},
+                                       cli_args=node_kwargs.get('cli_args'))
+        s = self.settings
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.core = CellLifecycle(heartbeat_timeout=s.heartbeat_timeout,
+                                  ready_timeout=s.heartbeat_timeout)
+        self._change_state = {}
+        self._calls: dict[str, tuple[str, object, int]] = {}   # node -> (transition, future, t)
+        self._waiting: dict[str, tuple[str, int]] = {}         # asked, service not seen yet
+        for name in CELL_ORDER:
+            self.create_subscription(T.HEARTBEAT.type, f"{name}/heartbeat",
+                                     lambda msg, n=name: self._on_heartbeat(n, msg),
+                                     T.HEARTBEAT.qos)
+            self._change_state[name] = self.create_client(ChangeState, f"{name}/change_state")
+        self.create_subscription(T.READY.type, T.READY.name, self._on_ready, T.READY.qos)
+        self.pub_abort = self.create_publisher(T.ABORT.type, T.ABORT.name, T.ABORT.qos)
+        self.pub_status = self.create_publisher(T.MANAGER_STATUS.type, T.MANAGER_STATUS.name,
+                                                T.MANAGER_STATUS.qos)
+        self.pub_diag = self.create_publisher(T.DIAGNOSTICS.type, T.DIAGNOSTICS.name,
+                                              T.DIAGNOSTICS.qos)
+        self.create_service(Trigger, '~/startup', self._on_startup)
+        self.create_service(Trigger, '~/shutdown', self._on_shutdown)
+        self._guard = StallGuard(0.5 * s.heartbeat_timeout)
+        self._status = ""
+        self._last_diag = None
+        if s.autostart:
+            self.core.startup()
+        self.create_timer(s.period, self._tick, clock=self._steady)
+        self.get_logger().info(
+            f"lifecycle manager up: {', '.join(CELL_ORDER)} in "
+            f"{self.get_namespace()}; heartbeat_timeout {s.heartbeat_timeout:g} s"
+            + ("" if s.autostart else "; waiting for ~/startup"))
+
+    @property
+    def settings(self) -> LifecycleManagerParams:
+        return self.params["settings"]
+
+    # -- observations ---------------------------------------------------------------
+    def _on_heartbeat(self, name: str, msg: String) -> None:
+        try:
+            beat = json.loads(msg.data)
+            state, transitions, instance = (str(beat["state"]), int(beat["transitions"]),
+                                            str(beat["instance"]))
+        except (ValueError, KeyError, TypeError):
+            self.get_logger().warning(f"{name}/heartbeat: not a heartbeat: {msg.data[:80]!r}",
+                                      throttle_duration_sec=5.0)
+            return
+        self.core.heartbeat(name, state, self._steady.now().nanoseconds, transitions, instance)
+
+    def _on_ready(self, msg: Bool) -> None:
+        self.core.monitor_ready(msg.data, self._steady.now().nanoseconds)
+
+    # -- services -------------------------------------------------------------------
+    def _on_startup(self, request, response):
+        why = self.core.startup()
+        if not why:
+            # the abort this manager latched (a failure) is dropped: late joiners do not get it
+            self.destroy_publisher(self.pub_abort)
+            self.pub_abort = self.create_publisher(T.ABORT.type, T.ABORT.name, T.ABORT.qos)
+        response.success, response.message = not why, why or "bringing the cell up"
+        self.get_logger().info(f"~/startup: {response.message}")
+        return response
+
+    def _on_shutdown(self, request, response):
+        why = self.core.shutdown()
+        response.success, response.message = not why, why or "bringing the cell down"
+        self.get_logger().info(f"~/shutdown: {response.message}")
+        return response
+
+    # -- the checks (steady clock) --------------------------------------------------
+    def _tick(self) -> None:
+        now = self._steady.now().nanoseconds
+        stalled = self._guard.check(now)
+        self._collect(now)
+        was = self.core.phase
+        for step in self.core.steps(now, self._guard.previous if stalled else None):
+            self._do(step, now)
+        if self.core.phase == "failed" and was != "failed":
+            self.get_logger().error(f"the cell failed: {self.core.reason}; the tool holds, the "
+                                    f"planner is deactivated")
+        elif self.core.phase != was:
+            self.get_logger().info(f"cell {self.core.phase}")
+        waiting = self.core.waiting_for(now)
+        if waiting:
+            self.get_logger().info(f"waiting for {waiting}", throttle_duration_sec=5.0)
+        self._publish_status(waiting, now)
+
+    def _do(self, step: Step, now: int) -> None:
+        if step.action == "hold":
+            self.pub_abort.publish(String(data=f"lifecycle_manager: {step.reason}"))
+            return
+        self.get_logger().info(f"{step.action} {step.node}")
+        self._waiting[step.node] = (step.action, now)
+        self._send(step.node, now)
+
+    def _send(self, name: str, now: int) -> None:
+        """Send a waiting transition once its service is seen (a request acts: sent once)."""
+        transition, asked = self._waiting[name]
+        client = self._change_state[name]
+        if not client.service_is_ready():
+            return
+        del self._waiting[name]
+        request = ChangeState.Request(transition=Transition(label=transition))
+        self._calls[name] = (transition, client.call_async(request), asked)
+
+    def _collect(self, now: int) -> None:
+        """Replies that came, requests whose service showed up, and those out of time."""
+        limit = self.settings.transition_timeout * NS
+        for name in list(self._waiting):
+            self._send(name, now)
+        for name, (transition, asked) in list(self._waiting.items()):
+            if now - asked > limit:
+                del self._waiting[name]
+                self.core.answered(name, transition, False,
+                                   f"no {name}/change_state service within "
+                                   f"{self.settings.transition_timeout:g} s")
+        for name, (transition, future, asked) in list(self._calls.items()):
+            if future.done():
+                del self._calls[name]
+                ok = bool(future.result() and future.result().success)
+                self.core.answered(name, transition, ok, "" if ok else "the node refused it "
+                                   "(its log says why)", steady_ns=now)
+            elif now - asked > limit:
+                del self._calls[name]
+                self._change_state[name].remove_pending_request(future)
+                self.core.answered(name, transition, False,
+                                   f"no reply within {self.settings.transition_timeout:g} s")
+
+    def _publish_status(self, waiting: str, now: int) -> None:
+        status = json.dumps({"phase": self.core.phase, "reason": self.core.reason,
+                             "waiting_for": waiting,
+                             "nodes": {n: s.state for n, s in self.core.seen.items()}})
+        if status != self._status:
+            self._status = status
+            self.pub_status.publish(String(data=status))
+        if self._last_diag is None or now - self._last_diag >= NS:
+            self._last_diag = now
+            phase = self.core.phase
+            level = {"failed": "ERROR", "active": "OK", "starting": "WARN"}.get(phase, "STALE")
+            message = {"failed": f"failed: {self.core.reason}",
+                       "starting": f"starting: waiting for {waiting}" if waiting else "starting"
+                       }.get(phase, phase)
+            values = {n: s.state or "unseen" for n, s in self.core.seen.items()}
+            self.pub_diag.publish(m.diagnostics_msg(time.time_ns(),
+                                                    "rheo_shaping/lifecycle_manager", level,
+                                                    message, values,
+                                                    m.hardware_id(self.get_namespace())))
+
+
+def main(args=None):
+    return run_node(LifecycleManagerNode, 'lifecycle_manager', args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,306 @@
+"""The managed cell's decisions without ROS (docs/ros.md, "Managed start-up").
+
+The managed nodes (``simulator_managed``, ``monitor_managed``, ``planner_managed``) are ROS 2
+lifecycle nodes: ``unconfigured`` -> configure -> ``inactive`` -> activate -> ``active``, and
+back by deactivate and cleanup; shutdown ends in ``finalized``.  The lifecycle manager
+(``lifecycle_manager``) drives them through their lifecycle services.  What it does and when
+is decided here, by :class:`CellLifecycle`, from what it has observed:
+
+* each node's heartbeat (``~/heartbeat``: its primary state, every
+  :data:`HEARTBEAT_PERIOD` on its steady clock), with the wall time it arrived;
+* the monitor's ``/shaping/ready`` heartbeat;
+* the replies to the transitions it asked for.
+
+Bring-up (``startup``): configure every node in :data:`CELL_ORDER` (simulator, monitor,
+planner), then activate them in the same order; the planner only once the monitor is
+``active`` and reports ready (:func:`interlock_refusal`: the monitor's interlock as states;
+the planner's own ``on_activate`` asks the same question of its own view and refuses
+otherwise).  Bring-down (``shutdown``): deactivate in the reverse order, then clean up.
+
+A failure: a node whose heartbeat stops for longer than ``heartbeat_timeout`` (a process that
+died or froze; a killed process stays in the DDS graph for its lease, ~20 s, so the heartbeat
+is what tells), a node that leaves ``active`` without being asked, or a transition that failed
+brings the cell to its safe state at once: the tool holds (an abort with the reason on
+``/shaping/abort``, which the simulator follows by holding the tool and the planner by
+stopping) and the planner is deactivated.  The failure latches with its reason until the
+next ``startup``.  Times are steady-clock nanoseconds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..units import NS
+
+#: The managed nodes of a cell, in the order they are configured and activated.
+CELL_ORDER: tuple[str, ...] = ("simulator", "monitor", "planner")
+#: The node whose readiness the interlocked node waits for, and that node.
+INTERLOCK: tuple[str, str] = ("monitor", "planner")
+#: A managed node's heartbeat period [s] (steady clock).
+HEARTBEAT_PERIOD = 0.1
+#: Refused activations of the interlocked node tried again before the cell fails (its view of
+#: the monitor's heartbeat may lag the manager's by a beat).
+ACTIVATE_RETRIES = 3
+
+UNCONFIGURED, INACTIVE, ACTIVE, FINALIZED = "unconfigured", "inactive", "active", "finalized"
+#: The primary states of the ROS 2 node lifecycle (design.ros2.org, "Managed nodes").
+PRIMARY_STATES = (UNCONFIGURED, INACTIVE, ACTIVE, FINALIZED)
+#: Each transition the manager asks for and the primary state it ends in.
+TRANSITIONS: dict[str, str] = {"configure": INACTIVE, "activate": ACTIVE,
+                               "deactivate": INACTIVE, "cleanup": UNCONFIGURED,
+                               "shutdown": FINALIZED}
+
+
+def interlock_refusal(monitor_state: str, monitor_ready: bool) -> str:
+    """Why the planner may not activate (or move) now; "" when it may: only while the monitor
+    is ``active`` and reports ready (safety principle 6 as lifecycle states)."""
+    if monitor_state != ACTIVE:
+        return f"the monitor is {monitor_state or 'not seen yet'}, not active"
+    if not monitor_ready:
+        return "the monitor is active but not ready (no fresh, valid tension data yet)"
+    return ""
+
+
+@dataclass(frozen=True)
+class Step:
+    """One thing the manager does now: ``transition`` (a key of :data:`TRANSITIONS`) of
+    ``node``, or ``hold`` (publish ``reason`` on /shaping/abort: the tool holds)."""
+
+    action: str
+    node: str = ""
+    reason: str = ""
+
+
+@dataclass
+class NodeSeen:
+    """What the manager knows of one managed node."""
+
+    state: str = ""                   # the primary state of its newest heartbeat ("" none yet)
+    beat_ns: int | None = None        # steady time of that heartbeat
+    instance: str = ""                # which process sent it (a restarted node is another)
+    transitions: int = 0              # transitions it had completed when it sent it
+    pending: str = ""                 # a transition asked for, not answered yet
+    asked_at: int = 0                 # its transition count when the pending one was asked
+    refused: int = 0                  # refused activations in a row
+    activated: bool = False           # activated by this bring-up (expected active since)
+
+
+@dataclass
+class CellLifecycle:
+    """The lifecycle manager's state machine: phases ``idle`` -> ``starting`` -> ``active``;
+    ``stopping`` -> ``down``; ``failed`` (latched with :attr:`reason`) from ``starting`` or
+    ``active``.  Feed it observations, ask :meth:`steps` what to do."""
+
+    heartbeat_timeout: float                       # [s] silence that counts as a lost node
+    ready_timeout: float = 1.0                     # [s] age beyond which /shaping/ready is old
+    nodes: tuple[str, ...] = CELL_ORDER
+    phase: str = "idle"
+    reason: str = ""                               # why the cell failed ("" while it has not)
+    seen: dict[str, NodeSeen] = field(default_factory=dict)
+    _ready: tuple[bool, int | None] = (False, None)
+    _hold_due: bool = False                        # the failure's hold is still to be sent
+
+    def __post_init__(self) -> None:
+        if self.heartbeat_timeout <= HEARTBEAT_PERIOD:
+            raise ValueError(f"heartbeat_timeout {self.heartbeat_timeout:g} s: expected more "
+                             f"than the heartbeat period {HEARTBEAT_PERIOD:g} s")
+        for name in self.nodes:
+            self.seen.setdefault(name, NodeSeen())
+
+    # -- observations --------------------------------------------------------------
+    def heartbeat(self, node: str, state: str, steady_ns: int, transitions: int = 0,
+                  instance: str = "") -> None:
+        """``node`` (process ``instance``) reported its primary ``state`` after
+        ``transitions`` completed transitions.  A beat sent before the reply to a transition
+        asked of the same process (fewer transitions than the reply implies) is old news:
+        only its time counts."""
+        seen = self.seen.get(node)
+        if seen is None:
+            return
+        seen.beat_ns = steady_ns
+        if instance == seen.instance and seen.pending and transitions > seen.asked_at:
+            # the transition asked for is done, its reply not here (lost or late): the beat
+            # tells its outcome
+            self.answered(node, seen.pending, state == TRANSITIONS[seen.pending],
+                          f"the node reports {state}")
+            return
+        if instance == seen.instance and (seen.pending or transitions < seen.transitions):
+            return
+        seen.state, seen.instance, seen.transitions = state, instance, transitions
+
+    def monitor_ready(self, ready: bool, steady_ns: int) -> None:
+        """A ``/shaping/ready`` heartbeat."""
+        self._ready = (bool(ready), steady_ns)
+
+    def answered(self, node: str, transition: str, success: bool, message: str = "",
+                 steady_ns: int | None = None) -> None:
+        """The reply to the ``transition`` of ``node`` asked for (False: refused, failed or
+        not answered in time), received at ``steady_ns`` (a reply is a sign of life too)."""
+        seen = self.seen[node]
+        if seen.pending != transition:
+            return                     # answered already (by a heartbeat): a late reply
+        seen.pending = ""
+        if steady_ns is not None:
+            seen.beat_ns = max(seen.beat_ns or steady_ns, steady_ns)
+        if success:
+            seen.state, seen.refused = TRANSITIONS[transition], 0
+            seen.transitions = seen.asked_at + 1
+            return
+        why = f"{transition} of the {node} failed" + (f": {message}" if message else "")
+        if (transition == "activate" and node == INTERLOCK[1] and self.phase == "starting"
+                and seen.refused + 1 < ACTIVATE_RETRIES):
+            seen.refused += 1          # tried again once the interlock allows (steps)
+        elif self.phase in ("starting", "active"):
+            self._fail(why)
+        elif self.phase == "stopping":
+            self.reason = why           # noted; the bring-down goes on with the others
+
+    def startup(self) -> str:
+        """Bring the cell up (again after a failure or a bring-down); "" or why not now."""
+        if self.phase in ("starting", "active"):
+            return f"already {self.phase}"
+        if any(s.pending for s in self.seen.values()):
+            return "a transition is still under way"
+        self.phase, self.reason, self._hold_due = "starting", "", False
+        for seen in self.seen.values():
+            seen.refused, seen.activated = 0, False
+        return ""
+
+    def shutdown(self) -> str:
+        """Bring the cell down (deactivate in reverse order, then clean up); "" or why not."""
+        if self.phase in ("stopping", "down"):
+            return f"already {self.phase}"
+        self.phase, self._hold_due = "stopping", False
+        return ""
+
+    # -- decisions -----------------------------------------------------------------
+    def lost(self, steady_ns: int) -> list[tuple[str, float]]:
+        """(node, silence [s]) of every node seen once whose heartbeat is older than
+        ``heartbeat_timeout``; not a node in a transition the manager asked for (it runs in
+        the node's executor, which beats no more meanwhile: a configure may settle the sheet
+        or plan for seconds; ``transition_timeout`` bounds it)."""
+        out = []
+        for name in self.nodes:
+            beat = self.seen[name].beat_ns
+            if self.seen[name].pending:
+                continue
+            if beat is not None and (steady_ns - beat) / NS > self.heartbeat_timeout:
+                out.append((name, (steady_ns - beat) / NS))
+        return out
+
+    def ready(self, steady_ns: int) -> bool:
+        """Whether the monitor's newest /shaping/ready said ready, within ``ready_timeout``."""
+        ready, at = self._ready
+        return ready and at is not None and (steady_ns - at) / NS <= self.ready_timeout
+
+    def waiting_for(self, steady_ns: int) -> str:
+        """What a ``starting`` cell waits for ("" when nothing)."""
+        if self.phase != "starting":
+            return ""
+        for name in self.nodes:
+            seen = self.seen[name]
+            if seen.state == "":
+                return f"the {name}'s heartbeat (is it started, as a managed node?)"
+            if seen.pending:
+                return f"the {name}'s reply to {seen.pending}"
+        monitor, planner = INTERLOCK
+        others = all(self.seen[n].state == ACTIVE for n in self.nodes if n != planner)
+        why = interlock_refusal(self.seen[monitor].state, self.ready(steady_ns))
+        if others and why and self.seen[planner].state != ACTIVE:
+            return f"the interlock before activating the {planner}: {why}"
+        return ""
+
+    def steps(self, steady_ns: int, previous_ns: int | None = None) -> list[Step]:
+        """What to do now (each transition asked is marked pending until :meth:`answered`).
+
+        ``previous_ns``: the manager itself stood still since its check at that time (a busy
+        machine; :class:`~rheo_shaping.safety.watchdog.StallGuard`), so beats may wait unread:
+        a node whose beat was fresh at that check is judged at the next one, not now."""
+        if self.phase in ("starting", "active"):
+            lost = [(n, age) for n, age in self.lost(steady_ns) if previous_ns is None
+                    or (previous_ns - self.seen[n].beat_ns) / NS > self.heartbeat_timeout]
+            left = [n for n in self.nodes if self._expects_active(n)
+                    and self.seen[n].state not in (ACTIVE, "")]
+            if lost:
+                name, silence = lost[0]
+                self._fail(f"{name} lost: no heartbeat for {silence:.2f} s "
+                           f"(heartbeat_timeout {self.heartbeat_timeout:g} s)")
+            elif left:
+                self._fail(f"{left[0]} left the active state unasked (now "
+                           f"{self.seen[left[0]].state})")
+        if self.phase == "starting":
+            steps = self._bring_up(steady_ns)
+            if self.phase != "failed":
+                return steps
+        if self.phase == "failed":
+            hold = [Step("hold", reason=self.reason)] if self._hold_due else []
+            self._hold_due = False
+            return hold + self._keep_safe(steady_ns)
+        if self.phase == "stopping":
+            return self._bring_down()
+        return []
+
+    # -- internals -----------------------------------------------------------------
+    def _expects_active(self, name: str) -> bool:
+        """Whether ``name`` should be active now: the cell is up, or this bring-up has
+        activated it (and no transition of it is under way)."""
+        seen = self.seen[name]
+        return not seen.pending and (self.phase == "active" or seen.activated)
+
+    def _ask(self, name: str, transition: str) -> list[Step]:
+        seen = self.seen[name]
+        seen.pending, seen.asked_at = transition, seen.transitions
+        return [Step(transition, name)]
+
+    def _bring_up(self, steady_ns: int) -> list[Step]:
+        if any(s.pending for s in self.seen.values()):
+            return []
+        if any(self.seen[n].state == "" for n in self.nodes):
+            return []                                  # not every node is up yet
+        for name in self.nodes:
+            state = self.seen[name].state
+            if state == FINALIZED:
+                self._fail(f"the {name} is finalized: restart its process")
+                return []
+            if state == UNCONFIGURED:
+                return self._ask(name, "configure")
+        monitor, planner = INTERLOCK
+        for name in self.nodes:
+            if self.seen[name].state == ACTIVE:
+                self.seen[name].activated = True
+                continue
+            if name == planner and interlock_refusal(self.seen[monitor].state,
+                                                     self.ready(steady_ns)):
+                return []                              # waits for the monitor (waiting_for)
+            return self._ask(name, "activate")
+        self.phase = "active"
+        return []
+
+    def _fail(self, reason: str) -> None:
+        """The cell fails: the hold and the planner's deactivation follow (:meth:`steps`)."""
+        if self.phase != "failed":
+            self.phase, self.reason, self._hold_due = "failed", reason, True
+        for seen in self.seen.values():
+            seen.activated = False
+
+    def _keep_safe(self, steady_ns: int) -> list[Step]:
+        """The planner is deactivated while it is alive and active (a lost planner: nothing
+        to ask, its stream has stopped and the tool holds)."""
+        name = INTERLOCK[1]
+        planner = self.seen.get(name)
+        if planner is None or planner.pending or planner.state != ACTIVE:
+            return []
+        if any(n == name for n, _ in self.lost(steady_ns)):
+            return []
+        return self._ask(name, "deactivate")
+
+    def _bring_down(self) -> list[Step]:
+        if any(s.pending for s in self.seen.values()):
+            return []
+        for name in reversed(self.nodes):
+            if self.seen[name].state == ACTIVE:
+                return self._ask(name, "deactivate")
+        for name in reversed(self.nodes):
+            if self.seen[name].state == INACTIVE:
+                return self._ask(name, "cleanup")
+        self.phase = "down"
+        return []

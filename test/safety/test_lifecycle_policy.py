@@ -1,0 +1,240 @@
+"""The managed cell's state-transition policy (rheo_shaping.safety.lifecycle), without ROS:
+the bring-up order, the interlock as states, the safe state on a lost or fallen node."""
+from __future__ import annotations
+
+import pytest
+
+from rheo_shaping.safety.lifecycle import (ACTIVATE_RETRIES, CELL_ORDER, CellLifecycle, Step,
+                                           interlock_refusal)
+
+S = 1_000_000_000          # ns per s
+
+
+def beat_all(c: CellLifecycle, t: int, states: dict | None = None) -> None:
+    for name in CELL_ORDER:
+        seen = c.seen[name]
+        state = (states or {}).get(name, seen.state or "unconfigured")
+        c.heartbeat(name, state, t, seen.transitions, "p-" + name)
+
+
+def answer(c: CellLifecycle, steps: list[Step], success: bool = True) -> None:
+    for step in steps:
+        if step.action != "hold":
+            c.answered(step.node, step.action, success)
+
+
+def bring_up(c: CellLifecycle, t: int = 0) -> tuple[list[Step], int]:
+    """Run the bring-up to the active cell; the transitions asked, in order."""
+    asked = []
+    c.startup()
+    for _ in range(20):
+        t += S // 10
+        beat_all(c, t)
+        c.monitor_ready(c.seen["monitor"].state == "active", t)
+        steps = c.steps(t)
+        asked += steps
+        answer(c, steps)
+        if c.phase == "active":
+            return asked, t
+    raise AssertionError(f"not active: {c.phase} {c.waiting_for(t)}")
+
+
+def test_the_cell_is_configured_then_activated_in_order():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    asked, _ = bring_up(c)
+    assert [(s.action, s.node) for s in asked] == [
+        ("configure", "simulator"), ("configure", "monitor"), ("configure", "planner"),
+        ("activate", "simulator"), ("activate", "monitor"), ("activate", "planner")]
+
+
+def test_nothing_is_asked_before_every_node_has_a_heartbeat():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    c.startup()
+    c.heartbeat("simulator", "unconfigured", 0, 0, "a")
+    assert c.steps(0) == []
+    assert "monitor's heartbeat" in c.waiting_for(0)
+
+
+def test_one_transition_at_a_time():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    c.startup()
+    beat_all(c, 0)
+    first = c.steps(0)
+    assert first == [Step("configure", "simulator")]
+    assert c.steps(0) == []                         # its reply is awaited
+    assert "simulator's reply to configure" in c.waiting_for(0)
+
+
+@pytest.mark.parametrize("state, ready, why", [
+    ("inactive", True, "the monitor is inactive, not active"),
+    ("", False, "the monitor is not seen yet, not active"),
+    ("active", False, "active but not ready"),
+    ("active", True, "")])
+def test_interlock_as_states(state, ready, why):
+    got = interlock_refusal(state, ready)
+    assert (why in got) if why else got == ""
+
+
+def test_the_planner_waits_until_the_monitor_is_active_and_ready():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    c.startup()
+    t = 0
+    for _ in range(10):                  # configure all, activate simulator and monitor
+        t += S // 10
+        beat_all(c, t)
+        answer(c, c.steps(t))
+    assert c.seen["monitor"].state == "active" and c.seen["planner"].state == "inactive"
+    c.monitor_ready(False, t)
+    assert c.steps(t) == []
+    assert "interlock before activating the planner" in c.waiting_for(t)
+    c.monitor_ready(True, t)
+    assert c.steps(t) == [Step("activate", "planner")]
+
+
+def test_an_old_ready_beat_does_not_open_the_interlock():
+    c = CellLifecycle(heartbeat_timeout=1.0, ready_timeout=1.0)
+    c.monitor_ready(True, 0)
+    assert c.ready(S) and not c.ready(S + 1)
+
+
+def test_a_refused_planner_activation_is_tried_again_then_fails_the_cell():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    c.startup()
+    t = 0
+    for _ in range(5):
+        t += S // 10
+        beat_all(c, t)
+        answer(c, c.steps(t))
+    c.monitor_ready(True, t)
+    for attempt in range(ACTIVATE_RETRIES):
+        steps = c.steps(t)
+        assert steps == [Step("activate", "planner")], attempt
+        answer(c, steps, success=False)
+    assert c.phase == "failed" and "activate of the planner failed" in c.reason
+    assert c.steps(t) == [Step("hold", reason=c.reason)]
+
+
+def test_a_silent_monitor_fails_the_cell_the_tool_holds_and_the_planner_deactivates():
+    c = CellLifecycle(heartbeat_timeout=0.5)
+    _, t = bring_up(c)
+    last = t
+    t += S // 10
+    for name in ("simulator", "planner"):           # the monitor's beats stop
+        c.heartbeat(name, "active", t, c.seen[name].transitions, "p-" + name)
+    assert c.steps(t) == []                         # within the timeout: nothing
+    t = last + int(0.51 * S)
+    for name in ("simulator", "planner"):
+        c.heartbeat(name, "active", t, c.seen[name].transitions, "p-" + name)
+    steps = c.steps(t)
+    assert c.phase == "failed"
+    assert c.reason.startswith("monitor lost: no heartbeat for 0.51 s")
+    assert steps == [Step("hold", reason=c.reason), Step("deactivate", "planner")]
+    answer(c, steps)
+    assert c.steps(t) == []                         # latched, nothing more to do
+    assert c.seen["planner"].state == "inactive"
+
+
+def test_a_lost_planner_is_not_asked_anything_but_the_tool_holds():
+    c = CellLifecycle(heartbeat_timeout=0.5)
+    _, t = bring_up(c)
+    t += S
+    for name in ("simulator", "monitor"):
+        c.heartbeat(name, "active", t, c.seen[name].transitions, "p-" + name)
+    steps = c.steps(t)
+    assert steps == [Step("hold", reason=c.reason)] and c.reason.startswith("planner lost")
+
+
+def test_a_node_that_leaves_active_unasked_fails_the_cell():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    _, t = bring_up(c)
+    t += S // 10
+    beat_all(c, t, {"monitor": "inactive"})
+    steps = c.steps(t)
+    assert c.reason == "monitor left the active state unasked (now inactive)"
+    assert steps == [Step("hold", reason=c.reason), Step("deactivate", "planner")]
+
+
+def test_a_beat_sent_before_a_transition_reply_is_old_news():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    _, t = bring_up(c)
+    # the planner's beat from before its activation (one transition fewer) arrives late
+    c.heartbeat("planner", "inactive", t, c.seen["planner"].transitions - 1, "p-planner")
+    assert c.steps(t) == [] and c.phase == "active"
+    # a restarted planner (another process) is news whatever it counts
+    c.heartbeat("planner", "unconfigured", t, 0, "p-planner-2")
+    c.steps(t)
+    assert c.phase == "failed" and "(now unconfigured)" in c.reason
+
+
+def test_bring_down_deactivates_in_reverse_then_cleans_up():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    _, t = bring_up(c)
+    assert c.shutdown() == ""
+    asked = []
+    for _ in range(10):
+        t += S // 10
+        beat_all(c, t)
+        steps = c.steps(t)
+        asked += steps
+        answer(c, steps)
+    assert [(s.action, s.node) for s in asked] == [
+        ("deactivate", "planner"), ("deactivate", "monitor"), ("deactivate", "simulator"),
+        ("cleanup", "planner"), ("cleanup", "monitor"), ("cleanup", "simulator")]
+    assert c.phase == "down"
+
+
+def test_startup_after_a_failure_clears_the_reason():
+    c = CellLifecycle(heartbeat_timeout=0.5)
+    _, t = bring_up(c)
+    beat_all(c, t, {"simulator": "inactive"})
+    answer(c, c.steps(t))
+    assert c.phase == "failed"
+    assert c.startup() == "" and c.reason == "" and c.phase == "starting"
+    assert c.steps(t) == [Step("activate", "simulator")]
+
+
+def test_a_heartbeat_timeout_not_above_the_beat_period_is_refused():
+    with pytest.raises(ValueError, match="heartbeat_timeout 0.1 s"):
+        CellLifecycle(heartbeat_timeout=0.1)
+
+
+def test_a_lost_reply_is_answered_by_the_next_heartbeat():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    c.startup()
+    beat_all(c, 0)
+    assert c.steps(0) == [Step("configure", "simulator")]
+    c.heartbeat("simulator", "inactive", 1, 1, "p-simulator")    # done; reply never comes
+    assert c.seen["simulator"].pending == "" and c.seen["simulator"].state == "inactive"
+    c.answered("simulator", "configure", True)                    # a late reply: no effect
+    assert c.steps(2) == [Step("configure", "monitor")]
+
+
+def test_a_stall_of_the_manager_itself_defers_the_verdict_by_one_check():
+    c = CellLifecycle(heartbeat_timeout=0.5)
+    _, t = bring_up(c)
+    late = t + 2 * S                      # the manager stood still 2 s; beats wait unread
+    assert c.steps(late, previous_ns=t) == [] and c.phase == "active"
+    steps = c.steps(late + S // 20, previous_ns=late)    # still none: now they are lost
+    assert c.phase == "failed" and steps[0].action == "hold"
+
+
+def test_docs_lifecycle_manager_parameter_table_is_current():
+    from pathlib import Path
+    from rheo_shaping.params.node_params import LifecycleManagerParams, parameter_table
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "ros.md").read_text()
+    assert parameter_table(LifecycleManagerParams) in doc, \
+        "docs/ros.md: regenerate the `lifecycle_manager` table"
+
+
+def test_a_node_in_a_long_transition_is_not_lost_and_its_reply_is_a_sign_of_life():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    c.startup()
+    beat_all(c, 0)
+    assert c.steps(0) == [Step("configure", "simulator")]
+    # the simulator settles its sheet for 5 s: no beat from it meanwhile
+    for name in ("monitor", "planner"):
+        c.heartbeat(name, "unconfigured", 5 * S, 0, "p-" + name)
+    assert c.steps(5 * S) == [] and c.phase == "starting"
+    c.answered("simulator", "configure", True, steady_ns=5 * S)
+    assert c.steps(5 * S + S // 10) == [Step("configure", "monitor")]
+    assert c.phase == "starting"
