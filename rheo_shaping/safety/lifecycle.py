@@ -216,8 +216,10 @@ class CellLifecycle:
         machine; :class:`~rheo_shaping.safety.watchdog.StallGuard`), so beats may wait unread:
         a node whose beat was fresh at that check is judged at the next one, not now."""
         if self.phase in ("starting", "active"):
+            # (a lost node has a beat: lost() judges only nodes seen once)
             lost = [(n, age) for n, age in self.lost(steady_ns) if previous_ns is None
-                    or (previous_ns - self.seen[n].beat_ns) / NS > self.heartbeat_timeout]
+                    or (previous_ns - (self.seen[n].beat_ns or 0)) / NS
+                    > self.heartbeat_timeout]
             left = [n for n in self.nodes if self._expects_active(n)
                     and self.seen[n].state not in (ACTIVE, "")]
             if lost:
