@@ -38,6 +38,8 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _machine import cpu_name  # noqa: E402
 sys.path.insert(0, str(REPO / "test"))
 from _support.domains import claim_domain_id  # noqa: E402  (stdlib only)
 TESTS = "test/nodes/test_attacks.py"
@@ -83,54 +85,18 @@ def one_run(attack: str, rtf: float, seed: int, domain: int) -> dict:
     return res
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs", type=int, default=50, help="runs per attack and rate")
-    ap.add_argument("--rates", default="1,10", help="real-time factors (default 1,10)")
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("-k", default="", help="only attacks whose name contains this")
-    ap.add_argument("--domain", type=int, default=None,
-                    help="the ROS domain of a one-job campaign (default: one claimed per job)")
-    ap.add_argument("--jobs", type=int, default=1, help="attacks run at once (default 1)")
-    ap.add_argument("--json", type=Path, default=None)
-    args = ap.parse_args(argv)
-    rng = random.Random(args.seed)
-    rates = [float(r) for r in args.rates.split(",")]
-    todo = [(a, r) for a in ATTACKS if args.k in a for r in rates for _ in range(args.runs)]
-    rng.shuffle(todo)
-    if args.jobs < 1:
-        ap.error(f"--jobs {args.jobs}: expected a whole number >= 1")
-    domains = [args.domain] if args.domain is not None and args.jobs == 1 else [
-        claim_domain_id() for _ in range(args.jobs)]
-    free = list(domains)
-    seeds = [rng.randrange(2**31) for _ in todo]
-    results, t0, loads = [], time.monotonic(), []
+def _commit() -> str:
+    p = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"],
+                       capture_output=True, text=True)
+    return p.stdout.strip()
 
-    def job(i):
-        domain = free.pop()
-        try:
-            return one_run(*todo[i], seeds[i], domain)
-        finally:
-            free.append(domain)
-    with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-        for i, res in enumerate(pool.map(job, range(len(todo))), 1):
-            results.append(res)
-            loads.append(os.getloadavg()[0])
-            if args.json:                   # what ran so far, should the campaign be cut short
-                args.json.write_text(json.dumps({"partial": True, "runs": results}, indent=1))
-            if "output" in res:
-                logs = (args.json or Path("attack_campaign.json")).with_suffix(".logs")
-                logs.mkdir(exist_ok=True)
-                (logs / f"{i:04d}_{res['attack'][:60]}_x{res['rtf']:g}.log").write_text(
-                    res.pop("output"))
-            el = time.monotonic() - t0
-            print(f"\r[{i}/{len(todo)}] {el:.0f} s, ETA {el / i * (len(todo) - i):.0f} s, "
-                  f"failed {sum(not r['passed'] for r in results)}, "
-                  f"tears {sum(r['tear'] for r in results)}", end="", flush=True)
-    print()
+
+def summarise(results: list[dict], meta: dict, loads: list[float]) -> dict:
+    """The campaign's figures per attack and rate (F_max median / max [N], the frozen
+    monitor's detection [s]) from its runs (a finished or a cut-short campaign)."""
     summary = {}
     for attack in ATTACKS:
-        for rtf in rates:
+        for rtf in sorted({r["rtf"] for r in results}):
             rs = [r for r in results if r["attack"] == attack and r["rtf"] == rtf]
             if not rs:
                 continue
@@ -145,16 +111,79 @@ def main(argv=None) -> int:
                 "seen_s_median": statistics.median(seen) if seen else None,
                 "seen_s_max": max(seen) if seen else None,
                 "failures": [r["failure"] for r in rs if not r["passed"]][:3]}
-    with open("/proc/cpuinfo") as f:
-        cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "")
-    report = {"machine": f"{cpu}, {os.cpu_count()} cores", "seed": args.seed,
-              "runs_per_attack_and_rate": args.runs, "rates": rates,
-              "tears": sum(r["tear"] for r in results),
-              "tracebacks": sum(r["traceback_in_nodes"] for r in results),
-              "failed": sum(not r["passed"] for r in results), "runs": len(results),
-              "wall_s": round(time.monotonic() - t0, 1), "jobs": args.jobs,
-              "load_average_median": round(statistics.median(loads), 2) if loads else None,
-              "attacks": summary}
+    return {"machine": f"{cpu_name()}, {os.cpu_count()} cores", **meta,
+            "tears": sum(r["tear"] for r in results),
+            "tracebacks": sum(r["traceback_in_nodes"] for r in results),
+            "failed": sum(not r["passed"] for r in results), "runs": len(results),
+            "load_average_median": round(statistics.median(loads), 2) if loads else None,
+            "attacks": summary}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=50, help="runs per attack and rate")
+    ap.add_argument("--rates", default="1,10", help="real-time factors (default 1,10)")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("-k", default="", help="only attacks whose name contains this")
+    ap.add_argument("--domain", type=int, default=None,
+                    help="the ROS domain of a one-job campaign (default: one claimed per job)")
+    ap.add_argument("--jobs", type=int, default=1, help="attacks run at once (default 1)")
+    ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--summarise", type=Path, nargs="+", default=None, metavar="JSON",
+                    help="print the figures of campaigns already run (their --json files, "
+                         "finished or cut short) and exit")
+    args = ap.parse_args(argv)
+    if args.summarise:
+        results, loads, metas = [], [], []
+        for path in args.summarise:
+            try:
+                d = json.loads(path.read_text())
+            except (OSError, ValueError) as exc:
+                ap.error(f"--summarise {path}: {exc}")
+            results += d.get("runs", [])
+            loads += d.get("loads", [])
+            metas.append(d.get("meta") or d.get("report", {}).get("seed"))
+        print(json.dumps(summarise(results, {"from": [str(p) for p in args.summarise],
+                                             "meta": metas}, loads), indent=1))
+        return 0
+    rng = random.Random(args.seed)
+    rates = [float(r) for r in args.rates.split(",")]
+    todo = [(a, r) for a in ATTACKS if args.k in a for r in rates for _ in range(args.runs)]
+    rng.shuffle(todo)
+    if args.jobs < 1:
+        ap.error(f"--jobs {args.jobs}: expected a whole number >= 1")
+    domains = [args.domain] if args.domain is not None and args.jobs == 1 else [
+        claim_domain_id() for _ in range(args.jobs)]
+    free = list(domains)
+    seeds = [rng.randrange(2**31) for _ in todo]
+    results, t0, loads = [], time.monotonic(), []
+    meta = {"seed": args.seed, "runs_per_attack_and_rate": args.runs, "rates": rates,
+            "jobs": args.jobs, "commit": _commit()}
+
+    def job(i):
+        domain = free.pop()
+        try:
+            return one_run(*todo[i], seeds[i], domain)
+        finally:
+            free.append(domain)
+    with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
+        for i, res in enumerate(pool.map(job, range(len(todo))), 1):
+            results.append(res)
+            loads.append(os.getloadavg()[0])
+            if args.json:                   # what ran so far, should the campaign be cut short
+                args.json.write_text(json.dumps({"partial": True, "meta": meta, "loads": loads,
+                                                 "runs": results}, indent=1))
+            if "output" in res:
+                logs = (args.json or Path("attack_campaign.json")).with_suffix(".logs")
+                logs.mkdir(exist_ok=True)
+                (logs / f"{i:04d}_{res['attack'][:60]}_x{res['rtf']:g}.log").write_text(
+                    res.pop("output"))
+            el = time.monotonic() - t0
+            print(f"\r[{i}/{len(todo)}] {el:.0f} s, ETA {el / i * (len(todo) - i):.0f} s, "
+                  f"failed {sum(not r['passed'] for r in results)}, "
+                  f"tears {sum(r['tear'] for r in results)}", end="", flush=True)
+    print()
+    report = summarise(results, meta | {"wall_s": round(time.monotonic() - t0, 1)}, loads)
     print(json.dumps(report, indent=1))
     if args.json:
         args.json.write_text(json.dumps({"report": report, "runs": results}, indent=1))
