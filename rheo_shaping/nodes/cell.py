@@ -22,6 +22,7 @@ from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 
+from ..planning.states import AT_REST
 from .monitor import MonitorNode
 from .planner import PlannerNode
 from .simulator import SimulatorNode
@@ -128,7 +129,7 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
                     f"planner {planner.state}, monitor {monitor.state}")
                 while next_report <= t:
                     next_report += progress_period
-            if sim.summary is not None and planner.state in ("done", "holding"):
+            if sim.summary is not None and planner.state in AT_REST:
                 finished = True
                 break
         wall = time.monotonic() - t_wall

@@ -53,6 +53,7 @@ from ..planning.movement import approach_plan, autostart_refusal, movement_plan
 from ..params.schema import ParameterError
 from ..planning.run_state import (SetpointGrid, StartInputs, lead_limit, running_decision,
                                   start_decision)
+from ..planning.states import MOVING
 from ..planning.stopping import TrajectoryStreamer
 from ..safety.clock_guard import ClockGuard
 from ..safety.watchdog import StallGuard
@@ -62,8 +63,6 @@ from .guards import CellCheck, Presence, clock_publishers, guard_clock
 from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
 from ..units import NS
-
-MOVING = ("running", "stopping", "retracting")
 
 
 class PlannerNode(Node):

@@ -34,6 +34,7 @@ from ..params.params import CellParams
 from ..records.qos import QosSpec, offered_qos
 from ..records.record import Record
 from ..records.records import write_record
+from ..planning.states import AT_REST, MOVING
 from ..params.schema import iter_fields
 from . import messages as m
 from . import topics as T
@@ -114,7 +115,7 @@ class CellRecorder(Node):
 
     def _on_state(self, msg) -> None:
         self.buf.planner_state = msg.data
-        if msg.data in ("running", "stopping", "retracting"):
+        if msg.data in MOVING:
             self.buf.ran = True
 
     # -- the record ----------------------------------------------------------------------
@@ -259,7 +260,7 @@ def record_cell(out: Path, *, namespace: str = "", scenario: CellParams | None =
                     say(f"  recorded {t:6.1f} / {end_time:g} s of process time{eta} "
                         f"({len(node.buf.profile)} frames), planner {node.buf.planner_state}")
                     next_report += 10.0
-                done = node.buf.planner_state in ("done", "holding") and node.buf.ran
+                done = node.buf.planner_state in AT_REST and node.buf.ran
                 if t >= end_time and (done or duration is not None):
                     break
                 if (node.buf.start_ns is not None

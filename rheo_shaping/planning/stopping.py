@@ -25,6 +25,7 @@ from ..params.validators import (PointLike, check_finite, check_non_negative, ch
 from .pieces import AxisBuilder, append_trajectory, as_point, axis_scale, calculate
 from .planning import (DEFAULT_RETRACT_LIMITS, MotionLimits, Plan, Segment, Waypoint,
                        assemble_plan, plan_waypoints)
+from .states import MOVING, STREAM_STATES
 
 __all__ = ["stop_from_state", "stopping_time", "stopping_distance", "TrajectoryStreamer", "STATES"]
 
@@ -91,9 +92,8 @@ def stop_from_state(position: PointLike, velocity: PointLike, acceleration: Poin
     return assemble_plan([seg], traj.duration, limits, p, axes)
 
 
-#: States of :class:`TrajectoryStreamer`.
-STATES = ("idle", "running", "stopping", "retracting", "holding", "done")
-_MOVING = ("running", "stopping", "retracting")
+#: States of :class:`TrajectoryStreamer` (:mod:`rheo_shaping.planning.states`).
+STATES = STREAM_STATES
 
 
 class TrajectoryStreamer:
@@ -243,7 +243,7 @@ class TrajectoryStreamer:
     def reset(self) -> None:
         """Back to ``idle`` (clears the abort).  Only when the tool is at rest
         (``idle``, ``done`` or ``holding``); it then holds where it is."""
-        if self._state in _MOVING:
+        if self._state in MOVING:
             raise RuntimeError(f"reset() refused while {self._state!r}: the tool is moving")
         if self._phase_plan is not None:
             self._hold, self._known_hold = np.asarray(self._phase_plan.end, dtype=float), True
@@ -266,7 +266,7 @@ class TrajectoryStreamer:
         """Make ``t`` monotone and step the state machine to it; returns ``t``."""
         t = max(t, self._t_last)
         self._t_last = t
-        while self._state in _MOVING:
+        while self._state in MOVING:
             # start() and abort() set the phase plan of every moving state
             assert self._phase_plan is not None, f"no phase plan while {self._state!r}"
             t_next = self._phase_t0 + self._phase_plan.duration

@@ -11,19 +11,13 @@ sheet would move only for that wall time.  Times are steady-clock nanoseconds.
 """
 from __future__ import annotations
 
+from ..planning.states import BEFORE_RUN, MOVING
 from ..units import NS
 from .watchdog import Freshness
 
 #: The planner state in which it streams its plan (any other: stopped, stopping or
 #: not started).
 RUNNING = "running"
-#: States of a planner that is moving the tool: it leaves them only through a stop
-#: (stopping, retracting, holding, done, error), never back to a state before a run.
-MOVING = ("running", "stopping", "retracting")
-#: States of a planner that has not started a plan.  Reported while another planner moves
-#: the tool, they are that other planner's (a twin starting up, which then yields): the
-#: one that moves cannot have gone there, so they do not change what the monitor knows.
-BEFORE_RUN = ("starting", "idle", "waiting", "waiting_for_monitor", "tool_away")
 
 
 class Acknowledgements:
@@ -60,6 +54,9 @@ class Acknowledgements:
         the attack campaign at x10: a twin's "starting" made the monitor believe no plan
         ran, the abort withheld nothing, and the sheet was stretched past F_break before
         the simulator held)."""
+        # states before a run reported while the known planner moves the tool are another
+        # planner's (a twin starting up, which then yields): the one that moves cannot have
+        # gone there, so they do not change what the monitor knows
         if self.planner_state in MOVING and state in BEFORE_RUN:
             return None
         self.planner_state = state

@@ -83,3 +83,35 @@ def test_rewind_sends_again_from_the_executed_time():
     assert g.rewind(NS // 2 + 7) == [NS // 2 + 7]       # the stop from the executed pose
     want = [NS // 2 + NS // 50, NS // 2 + NS // 25]
     assert g.due(NS // 2 + NS // 25, 10 * NS, sim_time=False) == want
+
+
+def test_every_state_the_planner_reports_is_in_the_one_vocabulary():
+    """The states the planner node sets (its source, read as text) and those start_decision
+    returns on any input are the ones planning.states names, so the monitor and the
+    recorder know each."""
+    import ast
+    import itertools
+    from pathlib import Path
+
+    import rheo_shaping
+    from rheo_shaping.planning.run_state import StartInputs, start_decision
+    from rheo_shaping.planning.states import AT_REST, BEFORE_RUN, MOVING, PLANNER_STATES
+    pkg = Path(rheo_shaping.__file__).parent
+    tree = ast.parse((pkg / "nodes" / "planner.py").read_text())
+    used = {c.value for n in ast.walk(tree) if isinstance(n, ast.Call)
+            and getattr(n.func, "attr", "") == "_set_state" and n.args
+            for c in ast.walk(n.args[0]) if isinstance(c, ast.Constant)
+            and isinstance(c.value, str)}
+    assert {"starting", "error", "done", "running"} <= used              # sees the calls
+    for a, w, r, p, m, s, c, n in itertools.product((False, True), repeat=8):
+        for refusal in ("", "the cell differs", "two clocks"):
+            state, _ = start_decision(StartInputs(
+                aborted=a, wants_start=w, start_requested=r, pose_unknown=p,
+                tool_away="away" if s else "", monitor_ok=m, refusal=refusal,
+                lead="lead" if a and s else "", now_ns=int(c), subscribers=int(n)))
+            used.add(state)
+    used.discard("start")                                  # a decision, not a state
+    assert {"waiting_for_pose", "waiting_for_cell", "waiting_for_subscriber"} <= used
+    assert used <= set(PLANNER_STATES), used - set(PLANNER_STATES)
+    assert set(BEFORE_RUN) - {"starting", "waiting"} <= used
+    assert not set(MOVING) & set(BEFORE_RUN) and not set(AT_REST) & set(MOVING)

@@ -3,6 +3,7 @@ withheld after an abort until the planner is off its plan or the hold's limit; a
 simulator's side (MonitorLead): a step waits while ``lead`` samples are unacknowledged."""
 from __future__ import annotations
 
+from rheo_shaping.planning.states import BEFORE_RUN
 from rheo_shaping.safety.acknowledge import Acknowledgements, MonitorLead
 from rheo_shaping.units import NS
 
@@ -37,7 +38,7 @@ def test_a_twin_planners_state_neither_lifts_nor_prevents_the_hold():
             assert a.on_planner_state("starting") is None
         a.on_abort(0)
         assert a.holding
-        for state in ("starting", "idle", "waiting", "waiting_for_monitor", "tool_away"):
+        for state in BEFORE_RUN:
             assert a.on_planner_state(state) is None and a.holding, state
         assert a.on_judged(4) is None
         assert a.on_planner_state("stopping") == 4 and not a.holding   # the real reaction
