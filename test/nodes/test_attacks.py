@@ -283,9 +283,11 @@ def test_a_second_planner_yields_and_a_start_is_served_once(ros, procs, tmp_path
     procs.all.remove(twin)
     # the first planner ran on: its plan goes on, or the tear plan met the monitor's
     # threshold meanwhile (the twin takes seconds of wall time to start: tens of seconds of
-    # process time at x10); nothing stopped it on the twin's account
+    # process time at x10), or a busy machine's data went stale (seen at x1, load 15);
+    # nothing stopped it on the twin's account (a second commander, heartbeat or clock)
     reasons = a.aborts()
-    assert a.c.state() == "running" or all("abort threshold" in r for r in reasons), reasons
+    assert a.c.state() == "running" or all(
+        "abort threshold" in r or r.startswith("stale data") for r in reasons), reasons
     assert len(a.c.rec["/tool/planned_trajectory"]) == 1        # one pass, the first one
     if reasons:
         a.check(a.peak_after_hold())
