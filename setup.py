@@ -14,7 +14,7 @@ except ImportError:             # setuptools < 70 ships only distutils' (its own
     from distutils.command.build_scripts import build_scripts as _build_scripts
 
 package_name = 'rheo_shaping'
-NODES = ('simulator', 'planner', 'monitor')
+NODES = ('simulator', 'planner', 'monitor', 'gap_watch')
 
 # The node executables.  A signal must end a node cleanly at any moment of its start-up
 # (rheo_shaping/nodes/entry.py), but CPython installs its own SIGINT handler and imports `site`

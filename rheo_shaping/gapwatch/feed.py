@@ -15,6 +15,7 @@ import time
 from concurrent.futures import Executor, Future
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -30,9 +31,11 @@ FEED_STEP_S = 0.1
 
 def watch_record(record: Record, model: CellParams | None = None, floor: Floor | None = None,
                  settings: GapWatchNodeParams = GapWatchNodeParams(),
-                 step: float = FEED_STEP_S) -> GapWatch:
+                 step: float = FEED_STEP_S,
+                 on_warn: Callable[[Record], None] | None = None) -> GapWatch:
     """A :class:`GapWatch` of ``model`` (default: the record's scenario) fed ``record`` in stamp
-    order, updated every ``step`` [s] of process time and once more at the end."""
+    order, updated every ``step`` [s] of process time and once more at the end; ``on_warn``
+    gets the watch's record of the run so far at the first WARN (what the node diagnoses)."""
     gw = GapWatch(model if model is not None else record.scenario,
                   floor if floor is not None else Floor.load(), settings)
     gw.start(0.0)
@@ -54,7 +57,10 @@ def watch_record(record: Record, model: CellParams | None = None, floor: Floor |
             iw += 1
         if t > end:
             break
+        warned = gw.first_warn is not None
         gw.update()
+        if on_warn is not None and not warned and gw.first_warn is not None:
+            on_warn(gw.record())
         t += step
     gw.update(final=True)
     return gw

@@ -42,8 +42,8 @@ class Floor:
     def __post_init__(self) -> None:
         for f in fields(self):
             v = getattr(self, f.name)
-            if f.name.endswith("_z") and not (isinstance(v, (int, float)) and math.isfinite(v)
-                                             and v >= 1.0):
+            ok = isinstance(v, (int, float)) and math.isfinite(v) and v >= 1.0
+            if f.name.endswith("_z") and not ok:
                 raise FloorError(f"floor field '{f.name}' = {v!r} is invalid: expected a finite "
                                  f"number >= 1 (residual RMS in units of the noise)")
         if not (math.isfinite(self.window_s) and self.window_s > 0):

@@ -61,6 +61,8 @@ NOISE_SAMPLES = 20000
 HISTORY_S = 5.0
 #: Tool speed [share of movement.speed] above which the tool counts as moving (phases).
 MOVING_SHARE = 0.1
+#: The run's residuals are judged against the floor from this many windows into the run on.
+RUN_WINDOWS = 2
 #: Frames needed in the window before a state other than STALE is given.
 MIN_FRAMES = 3
 
@@ -134,6 +136,7 @@ class GapWatch:
         self._win_p: deque = deque()              # (t, sum r^2, n) per frame
         self._win_f: deque = deque()              # (t, sum r^2, n, |F meas|, |F model|)
         self._win_delta: deque = deque()          # (t, Delta measured - model [m], model [m])
+        self.delta_diffs: list[float] = []        # m, Delta measured - model of every frame
         self.run_p, self.run_f = _Sums(), _Sums()
         self.phase_p = {p: _Sums() for p in PHASES}
         self.phase_f = {p: _Sums() for p in PHASES}
@@ -279,9 +282,7 @@ class GapWatch:
             return
         if self.sim is None:
             self.sim = Simulation(self.model, tool_start=self._knot_xz[0])
-            st = self.sim.state
             self._remember(0.0, self.sim.nodes(), self.sim.tool_force(), False)
-            del st
         t_avail = self._knot_t[-1]
         t_now = self.sim.state.t
         if t_avail <= t_now + 1e-9:
@@ -359,6 +360,7 @@ class GapWatch:
         dm, dmod = residual_gap(frame.points, th), residual_gap(nodes, th)
         if math.isfinite(dm) and math.isfinite(dmod):
             self._win_delta.append((frame.t, dm - dmod, dmod))
+            self.delta_diffs.append(dm - dmod)
         self.judged_t = max(self.judged_t, frame.t)
         return True
 
@@ -445,17 +447,21 @@ class GapWatch:
         fl = self.floor
         zpw = wp.figures(sp)["z"]
         zfw = wf.figures(sf)["z"] if wf.n else None
-        zpr = self.run_p.figures(sp)["z"]
-        zfr = self.run_f.figures(sf)["z"] if self.run_f.n else None
+        # the run's figures count once they hold RUN_WINDOWS windows (before, they are the
+        # window's, with its spread)
+        mature = t >= RUN_WINDOWS * self.settings.window
+        zpr = self.run_p.figures(sp)["z"] if mature else None
+        zfr = self.run_f.figures(sf)["z"] if self.run_f.n and mature else None
         self.trace.append((t, zpw, zfw, zpr, zfr, f_share, d_share))
-        above = [name for name, z, lim in (
-            ("profile (window)", zpw, fl.profile_window_z), ("force (window)", zfw,
-                                                             fl.force_window_z),
-            ("profile (run)", zpr, fl.profile_run_z), ("force (run)", zfr, fl.force_run_z))
-            if z is not None and z > lim]
+        checks = (("profile (window)", zpw, fl.profile_window_z),
+                  ("force (window)", zfw, fl.force_window_z),
+                  ("profile (run)", zpr, fl.profile_run_z),
+                  ("force (run)", zfr, fl.force_run_z))
+        above = [f"{name} {z:.2f} > {lim:.2f}" for name, z, lim in checks
+                 if z is not None and z > lim]
         share = self.settings.error_share
-        big = [f"{name} {v:.0%}" for name, v in (("F_max (tool force)", f_share),
-                                                  ("Delta", d_share)) if v > share]
+        shares = (("F_max (tool force)", f_share), ("Delta", d_share))
+        big = [f"{name} {v:.0%}" for name, v in shares if v > share]
         self._above_since = (self._above_since if self._above_since is not None else t) \
             if above else None
         self._error_since = (self._error_since if self._error_since is not None else t) \

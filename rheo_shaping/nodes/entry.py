@@ -1,4 +1,5 @@
-"""Entry points of the node executables (``simulator``, ``planner``, ``monitor``).
+"""Entry points of the node executables (``simulator``, ``planner``, ``monitor``,
+``gap_watch``).
 
 A signal must end a node cleanly at any moment of its start-up, with exit code 0 and
 no traceback.  Before ``rclpy.init`` nothing of ROS exists yet, so SIGINT and SIGTERM
@@ -58,9 +59,13 @@ def monitor() -> int:
     return _run("monitor")
 
 
+def gap_watch() -> int:
+    return _run("gap_watch")
+
+
 if __name__ == "__main__":  # pragma: no cover - python -m rheo_shaping.nodes.entry NODE ...
     name = sys.argv.pop(1) if len(sys.argv) > 1 else ""
-    if name not in ("simulator", "planner", "monitor"):
-        sys.exit(
-            "usage: python -m rheo_shaping.nodes.entry simulator|planner|monitor [--ros-args ...]")
+    if name not in ("simulator", "planner", "monitor", "gap_watch"):
+        sys.exit("usage: python -m rheo_shaping.nodes.entry simulator|planner|monitor|gap_watch "
+                 "[--ros-args ...]")
     sys.exit(_run(name))
