@@ -1,4 +1,5 @@
-"""The shaping cell: simulator, planner and monitor (and RViz) from one params file.
+"""The shaping cell: simulator, planner and monitor (and RViz, the gap watch) from one params
+file.
 
     ros2 launch rheo_shaping cell.launch.py
     ros2 launch rheo_shaping cell.launch.py namespace:=/cell2 rviz:=true
@@ -13,7 +14,9 @@ Arguments (docs/ros.md, "Launch"):
 * ``use_sim_time``: ``true`` (default) the simulator is the clock (its
   ``real_time_factor`` from the file) and planner and monitor follow it;
   ``false``: everything on the wall clock, the simulator at real time;
-* ``rviz``: ``true`` also starts RViz with the package's rviz/cell.rviz.
+* ``rviz``: ``true`` also starts RViz with the package's rviz/cell.rviz;
+* ``gap_watch``: ``true`` also starts the gap watch (the model beside the cell,
+  docs/gapwatch.md), its settings from ``/**/gap_watch`` of the params file.
 
 Values given here reach the nodes as ``-p`` on their command line, which beats the
 params file's node sections (rheo_shaping/nodes/ros_params.py).
@@ -47,6 +50,9 @@ def _nodes(context):
              **common),
         Node(executable='planner', name='planner', ros_arguments=follow, remappings=clock,
              **common),
+        Node(executable='gap_watch', name='gap_watch', ros_arguments=follow,
+             remappings=clock, condition=IfCondition(LaunchConfiguration('gap_watch')),
+             **common),
         Node(package='rviz2', executable='rviz2', name='rviz2', namespace=namespace,
              arguments=['-d', os.path.join(share, 'rviz', 'cell.rviz')],
              parameters=[{'use_sim_time': sim_time}], remappings=clock, output='screen',
@@ -68,5 +74,8 @@ def generate_launch_description():
             description='true: the simulator is the clock; false: wall clock, real time'),
         DeclareLaunchArgument(
             'rviz', default_value='false', description='true: start RViz with rviz/cell.rviz'),
+        DeclareLaunchArgument(
+            'gap_watch', default_value='false',
+            description='true: also start the gap watch (the model beside the cell)'),
         OpaqueFunction(function=_nodes),
     ])
