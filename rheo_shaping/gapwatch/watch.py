@@ -32,7 +32,10 @@ frames, corrected by the floor's ``delta_bias_m``) against the model's;
 Samples are refused, each with a reason counted in :attr:`GapWatch.refused`
 (never an exception): a non-finite value, a stamp that goes back, a stamp more
 than ``max_stamp_jump`` beyond the newest pose (or before the start), a frame
-with fewer than 3 or more than ``max_points`` points.  Times are stamps in
+with fewer than 3 or more than ``max_points`` points.  A pose stream that goes on
+after a gap longer than ``max_stamp_jump`` (``RESUME_POSES`` poses in a row, each
+following the one before) is taken up again and the gap bridged, so an outage of
+the cell's stream never locks the watch out.  Times are stamps in
 seconds on the cell's clock; process time is seconds since :meth:`GapWatch.start`.
 """
 from __future__ import annotations
@@ -63,6 +66,9 @@ HISTORY_S = 5.0
 MOVING_SHARE = 0.1
 #: The run's residuals are judged against the floor from this many windows into the run on.
 RUN_WINDOWS = 2
+#: Poses in a row beyond max_stamp_jump (each following the one before) after which the
+#: stream counts as resumed after a gap (a real outage), not as stamps of another clock.
+RESUME_POSES = 10
 #: Frames needed in the window before a state other than STALE is given.
 MIN_FRAMES = 3
 
@@ -119,6 +125,7 @@ class GapWatch:
     def __post_init__(self) -> None:
         self.t0: float | None = None              # stamp [s] of process time 0
         self.refused: Counter = Counter()         # reason -> count
+        self._jumped: list[float] = []            # poses in a row beyond max_stamp_jump
         self.pose_t: list[float] = []             # process time [s]
         self.pose_xz: list[tuple[float, float]] = []
         self.frames: list[_Frame] = []            # every accepted frame (for the record)
@@ -185,12 +192,31 @@ class GapWatch:
         t = max(t, 0.0)
         ref = self.pose_t[-1] if self.pose_t else 0.0
         if t > ref + self.settings.max_stamp_jump:
-            return self._refuse(f"{topic}: stamp more than max_stamp_jump after the newest pose")
+            if topic == "pose" and self._resumes(t):
+                self.refused["pose: the stream resumed after a gap (bridged)"] += 1
+            else:
+                return self._refuse(f"{topic}: stamp more than max_stamp_jump after the newest "
+                                    f"pose")
         if last is not None and t <= last:
             return self._refuse(f"{topic}: stamp not after the previous one")
         if t > self.settings.max_record:
             return self._refuse(f"{topic}: beyond max_record")
         return t
+
+    def _resumes(self, t: float) -> bool:
+        """Whether a pose beyond ``max_stamp_jump`` continues a stream that has gone on after a
+        gap (``RESUME_POSES`` such poses in a row, each within ``max_stamp_jump`` after the
+        one before) rather than being a lone stamp from another clock; the gap is then
+        bridged (the model's tool moves linearly across it)."""
+        last = self._jumped[-1] if self._jumped else None
+        if last is None or not (last < t <= last + self.settings.max_stamp_jump):
+            self._jumped = [t]
+            return False
+        self._jumped.append(t)
+        if len(self._jumped) >= RESUME_POSES:
+            self._jumped = []
+            return True
+        return False
 
     # -- the inputs -------------------------------------------------------------------------
     def pose(self, stamp: float, x: float, z: float) -> str | None:

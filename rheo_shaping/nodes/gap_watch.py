@@ -54,8 +54,17 @@ from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
 
 
+#: Reader history of the measured streams (messages): 2 s of a x10 cell's 50 Hz pose.
+READER_DEPTH = 1000
 #: Samples fed to the core between two of its updates while the queue is long.
 UPDATE_EVERY = 200
+
+
+def replace_depth(qos, depth: int):
+    """``qos`` with a history of ``depth`` (the depth is not part of QoS matching)."""
+    from rclpy.qos import QoSProfile
+    return QoSProfile(history=qos.history, depth=depth, reliability=qos.reliability,
+                      durability=qos.durability)
 
 
 class GapWatchNode(Node):
@@ -82,9 +91,11 @@ class GapWatchNode(Node):
                                                             "rheo_shaping_gapwatch"))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._queue: deque = deque()
+        self._early: deque = deque(maxlen=s.queue_limit)   # samples before the start
         self._wake = threading.Event()
         self._stop = threading.Event()
         self.dropped = {"queue full": 0, "waited longer than max_lag": 0}
+        self.received: dict[str, int] = {}
         self.core: GapWatch | None = None
         self.start_stamp: float | None = None
         self.snapshot: dict = {"level": "STALE", "message": "waiting for the process start "
@@ -95,11 +106,14 @@ class GapWatchNode(Node):
         self.jobs: DiagnosisJobs | None = None
         self.verdicts = 0
         self._warned_run = False
+        for topic, callback in ((T.TOOL_POSE, self._on_pose),
+                                (T.MEASURED_PROFILE, self._on_profile),
+                                (T.TOOL_WRENCH, self._on_wrench)):
+            # a deep reader history: a burst waits in DDS (which takes it on its own threads)
+            # while this process is busy, instead of overwriting the keep-last 10 samples
+            self.create_subscription(topic.type, topic.name, callback,
+                                     replace_depth(topic.qos, READER_DEPTH))
         sub = self.create_subscription
-        sub(T.TOOL_POSE.type, T.TOOL_POSE.name, self._on_pose, T.TOOL_POSE.qos)
-        sub(T.MEASURED_PROFILE.type, T.MEASURED_PROFILE.name, self._on_profile,
-            T.MEASURED_PROFILE.qos)
-        sub(T.TOOL_WRENCH.type, T.TOOL_WRENCH.name, self._on_wrench, T.TOOL_WRENCH.qos)
         sub(T.PLANNED_TRAJECTORY.type, T.PLANNED_TRAJECTORY.name, self._on_plan,
             T.PLANNED_TRAJECTORY.qos)
         self.pub_gap = self.create_publisher(T.GAP.type, T.GAP.name, T.GAP.qos)
@@ -131,6 +145,7 @@ class GapWatchNode(Node):
             self._queue.popleft()
             self.dropped["queue full"] += 1
         self._queue.append(item + (time.monotonic(),))
+        self.received[item[0]] = self.received.get(item[0], 0) + 1
         self._wake.set()
 
     def _on_pose(self, msg) -> None:
@@ -177,7 +192,11 @@ class GapWatchNode(Node):
                 continue
             core = self.core
             if core is None:
-                continue                      # before the process start: the cell at rest
+                if s.wait_for_plan:           # kept until the process start is known
+                    self._early.append((kind, stamp, value, rx))
+                    continue
+                self._new_run(stamp)
+                core = self.core
             if kind == "profile":
                 if core.profile(stamp, value) is None:
                     self.frame = value
@@ -197,6 +216,17 @@ class GapWatchNode(Node):
     def _new_run(self, stamp: float) -> None:
         self.core = GapWatch(self.model, self.floor, self.settings)
         self.core.start(stamp)
+        # samples of this run that came before its start (the plan is latched and may
+        # arrive after the first states): fed now; the rest is the cell at rest before it
+        early = [e for e in self._early if e[1] >= stamp - 1e-9]
+        self._early.clear()
+        for kind, t, value, _ in early:
+            if kind == "profile":
+                self.core.profile(t, value)
+            elif kind == "pose":
+                self.core.pose(t, *value)
+            else:
+                self.core.wrench(t, *value)
         self.start_stamp = stamp
         self._warned_run = False
         self.get_logger().info(f"process start at stamp {stamp:.3f} s: watching a new run")
@@ -232,6 +262,7 @@ class GapWatchNode(Node):
         self.verdicts += 1
         rec_dir = self.report_dir / name / "record"
         try:
+            rec_dir.parent.mkdir(parents=True, exist_ok=True)
             write_record(rec, rec_dir, start_stamp=self.start_stamp)
         except (OSError, ValueError) as exc:
             return False, f"cannot write the record to {rec_dir}: {exc}"
@@ -277,7 +308,7 @@ class GapWatchNode(Node):
         refused = snap.get("residuals", {}).get("refused", {})
         if refused:
             message += f"; {sum(refused.values())} samples refused"
-        body = {**snap, "lag": lag, "dropped": dict(self.dropped),
+        body = {**snap, "lag": lag, "dropped": dict(self.dropped), "received": dict(self.received),
                 "diagnoses": self.verdicts}
         now = self.get_clock().now().nanoseconds
         self.pub_gap.publish(String(data=json.dumps(json_safe(body))))
@@ -310,8 +341,12 @@ class GapWatchNode(Node):
     def destroy_node(self):
         self._stop.set()
         self._wake.set()
-        if self._pool is not None:
+        if self._pool is not None:             # a diagnosis still running ends with the node
+            workers = list((getattr(self._pool, "_processes", None) or {}).values())
             self._pool.shutdown(wait=False, cancel_futures=True)
+            for w in workers:
+                if w.is_alive():
+                    w.terminate()
         return super().destroy_node()
 
 

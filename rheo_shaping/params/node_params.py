@@ -254,6 +254,9 @@ class GapWatchNodeParams:
     floor_file: str = param(
         "", "JSON floor of the residuals (rheo_shaping.gapwatch.floor.Floor: largest residual "
         "in noise units of runs the model fits); empty: the one shipped in the package")
+    wait_for_plan: bool = param(
+        True, "the process starts at the stamp of the planner's tool/planned_trajectory (a "
+        "later plan starts a new run); false: at the first tool/pose (a replayed record)")
     window: float = param(
         10.0, "process time over which the windowed residuals are taken", "s", 0.0, 600.0,
         lo_open=True)

@@ -58,11 +58,17 @@ def test_gap_watch_survives_rogue_and_malformed_inputs(ros, procs, tmp_path):
     pub = {name: node.create_publisher(t.type, t.name, t.qos) for name, t in (
         ("pose", T.TOOL_POSE), ("profile", T.MEASURED_PROFILE), ("wrench", T.TOOL_WRENCH),
         ("plan", T.PLANNED_TRAJECTORY))}
-    rogue_pose = ros.node("gw_rogue", namespace=NSP).create_publisher(
-        PoseStamped, T.TOOL_POSE.name, T.TOOL_POSE.qos)
+    # the rogue's own writers (a second publisher of each topic): the feeder's keep-last
+    # history never overwrites a rogue sample before the node has read it
+    rogue = ros.node("gw_rogue", namespace=NSP)
+    rogue_pose = rogue.create_publisher(PoseStamped, T.TOOL_POSE.name, T.TOOL_POSE.qos)
+    rogue_wrench = rogue.create_publisher(WrenchStamped, T.TOOL_WRENCH.name, T.TOOL_WRENCH.qos)
+    rogue_profile = rogue.create_publisher(PoseArray, T.MEASURED_PROFILE.name,
+                                           T.MEASURED_PROFILE.qos)
     clock = node.create_publisher(Clock, "clock", T.CLOCK.qos)
     rx = Recorder(node, {f"{NSP}/shaping/gap": String, "/diagnostics": DiagnosticArray})
-    for p in (pub["pose"], pub["profile"], pub["wrench"], rogue_pose, clock):
+    for p in (pub["pose"], pub["profile"], pub["wrench"], rogue_pose, rogue_wrench,
+              rogue_profile, clock):
         wait_for_subscribers(ros, p, timeout=60.0)
     ros.spin_until(lambda: rx[f"{NSP}/shaping/gap"], 60.0, "the gap watch's first report")
 
@@ -95,13 +101,13 @@ def test_gap_watch_survives_rogue_and_malformed_inputs(ros, procs, tmp_path):
                 for n in (0, 1, 20000):
                     msg = PoseArray(header=m.header(now))
                     msg.poses = [Pose() for _ in range(n)]
-                    pub["profile"].publish(msg)
+                    rogue_profile.publish(msg)
                     rogue_sent += 1
             elif k == 1:                            # NaN and infinity
-                pub["pose"].publish(m.pose_msg((math.nan, 0.05), now + 1))
-                pub["wrench"].publish(m.wrench_msg((math.inf, 0.0), now + 1))
+                rogue_pose.publish(m.pose_msg((math.nan, 0.05), now + 1))
+                rogue_wrench.publish(m.wrench_msg((math.inf, 0.0), now + 1))
                 bad = m.profile_msg(np.array([[0.0, 0.01], [np.nan, 0.02], [0.0, 0.03]]), now)
-                pub["profile"].publish(bad)
+                rogue_profile.publish(bad)
                 rogue_sent += 3
             elif k == 2:                            # a second publisher, lying stamps
                 for stamp in (0, ns(3600.0), ns(t - 5.0)):
@@ -112,10 +118,10 @@ def test_gap_watch_survives_rogue_and_malformed_inputs(ros, procs, tmp_path):
                     clock.publish(m.clock_msg(c))
             elif k == 4:                            # a wrench from another clock
                 w = WrenchStamped(header=m.header(ns(t) + int(1e6 * NS)))
-                pub["wrench"].publish(w)
+                rogue_wrench.publish(w)
                 rogue_sent += 1
         clock.publish(m.clock_msg(ns(t)))
-        ros.spin_for(0.01)
+        ros.spin_for(0.02)
         t += 0.1
         step += 1
 
@@ -124,16 +130,19 @@ def test_gap_watch_survives_rogue_and_malformed_inputs(ros, procs, tmp_path):
         return json.loads(msgs[-1].data) if msgs else {}
 
     # the model caught up with the stream (its time within a step and the pose window)
-    ros.spin_until(lambda: (last_gap().get("residuals") or {}).get("model_time_s", 0.0)
-                   >= FED_S - 1.0, 120.0, "the model to reach the fed stream's end",
-                   every=lambda: None)
+    def caught_up():
+        return (last_gap().get("residuals") or {}).get("model_time_s", 0.0) >= FED_S - 1.0
+    try:
+        ros.spin_until(caught_up, 120.0, "the model to reach the fed stream's end")
+    finally:
+        (tmp_path / "last_gap.json").write_text(json.dumps(last_gap()))  # for a failure
     g = last_gap()
     refused = g["residuals"]["refused"]
     assert sum(refused.values()) >= 5, refused
     for reason in ("profile: fewer than 3 or more than max_points points",
                    "pose: non-finite position", "wrench: non-finite force",
                    "profile: non-finite point", "pose: stamp before the process start"):
-        assert refused.get(reason, 0) >= 1, (reason, refused)
+        assert refused.get(reason, 0) >= 1, (reason, json.dumps(g))
     # the good stream was judged: profile residuals over the run
     assert g["residuals"]["run"]["profile_m"]["n"] > 1000
     # the node reports on the absolute /diagnostics with its cell's hardware id
