@@ -62,6 +62,8 @@ NOISE_SAMPLES = 20000
 #: A frame's residuals and a force sample are judged once the model has passed their time;
 #: model states older than this [s] behind the model are forgotten.
 HISTORY_S = 5.0
+#: Process time [s] the model steps before what it has passed is judged (> the longest step).
+CHUNK_S = 2.0
 #: Tool speed [share of movement.speed] above which the tool counts as moving (phases).
 MOVING_SHARE = 0.1
 #: The run's residuals are judged against the floor from this many windows into the run on.
@@ -303,33 +305,38 @@ class GapWatch:
         self.model_nodes = nodes
         self.peak_force = max(self.peak_force, float(np.hypot(*force)))
 
-    def _step_model(self, final: bool) -> None:
+    def _step_model(self, final: bool, until: float) -> bool:
+        """Whole solver steps up to ``until`` [s] (at most the newest knot); whether it moved."""
         if self.failed or not self._knot_t:
-            return
+            return False
         if self.sim is None:
             self.sim = Simulation(self.model, tool_start=self._knot_xz[0])
             self._remember(0.0, self.sim.nodes(), self.sim.tool_force(), False)
-        t_avail = self._knot_t[-1]
+        last = self._knot_t[-1]
+        t_avail = min(last, until)
         t_now = self.sim.state.t
         if t_avail <= t_now + 1e-9:
-            return
-        horizon = t_avail if final else t_avail + self._full_dt
+            return False
+        # steps end where an offline run's would: the schedule runs one step beyond what is
+        # taken (the last one to the final pose only when the streams have ended)
+        horizon = t_avail if (final and t_avail >= last) else t_avail + self._full_dt
         dts, tools = self.sim.schedule(horizon, self.tool_at(horizon), self.tool_at)
         ends = t_now + np.cumsum(dts)
         n = int(np.searchsorted(ends, t_avail + 1e-9, side="right"))
         if n == 0:
-            return
+            return False
         try:
             rec = self.sim.advance_path(dts[:n], tools[:n])
         except (ConvergenceError, FloatingPointError, ValueError) as exc:
             self.failed = f"the model's solver failed at t = {self.sim.state.t:.2f} s: {exc}"
-            return
+            return False
         anchors = (self.sim.constants.anchor_top, self.sim.constants.anchor_bottom)
         contact = rec.contact[:, TOOL]
         for k in range(len(rec)):
             nodes = np.vstack((anchors[0], rec.x[k], anchors[1]))
             force = -contact[k].sum(axis=0)
             self._remember(float(rec.t[k]), nodes, force, bool(np.any(contact[k] != 0.0)))
+        return True
 
     def _model_at(self, t: float):
         """(nodes, tool force, touching) of the model at ``t`` [s], linear between steps; None
@@ -422,21 +429,33 @@ class GapWatch:
             lo = bisect.bisect_left(self.pose_t, self.pose_t[-1] - POSE_WINDOW / 2)
             self._knot_t.append(self.pose_t[-1])
             self._knot_xz.append(np.mean(np.asarray(self.pose_xz[lo:], float), axis=0))
-        self._step_model(final)
-        if self._hist:
-            t_model = self._hist[-1][0]
-            while self._pending_frames and self._pending_frames[0].t <= t_model + 1e-12:
-                fr = self._pending_frames.popleft()
-                if not self._judge_frame(fr):
-                    self.refused["profile: older than the model's history (late)"] += 1
-                    continue
-                self._judge_wrenches(fr.t)
-                events += self._evaluate(fr.t)
-            self._judge_wrenches(t_model)
+        # in chunks of CHUNK_S, judging after each: a long queue taken at once never steps
+        # the model past frames it has not judged yet (the model's history is HISTORY_S)
+        while True:
+            moved = self._step_model(final, (self.sim.state.t if self.sim else 0.0) + CHUNK_S)
+            events += self._judge()
+            if not moved:
+                break
         if self.failed and self.level != "FAILED":
             self.level, self.reason = "FAILED", self.failed
             events.append(f"FAILED: {self.failed}")
         self.cpu_s += time.process_time() - c0
+        return events
+
+    def _judge(self) -> list[str]:
+        """Judge the frames and forces the model has passed; the state changes."""
+        events: list[str] = []
+        if not self._hist:
+            return events
+        t_model = self._hist[-1][0]
+        while self._pending_frames and self._pending_frames[0].t <= t_model + 1e-12:
+            fr = self._pending_frames.popleft()
+            if not self._judge_frame(fr):
+                self.refused["profile: older than the model's history (late)"] += 1
+                continue
+            self._judge_wrenches(fr.t)
+            events += self._evaluate(fr.t)
+        self._judge_wrenches(t_model)
         return events
 
     # -- the state --------------------------------------------------------------------------
@@ -521,6 +540,7 @@ class GapWatch:
             return {"profile_m": p.figures(sp), "force_N": f.figures(sf)}
         return {"process_time_s": t,
                 "model_time_s": self._hist[-1][0] if self._hist else 0.0,
+                "newest_pose_s": self.pose_t[-1] if self.pose_t else 0.0,
                 "noise": {"profile_m": sp, "force_N": sf},
                 "window_s": self.settings.window,
                 "window": both(wp, wf), "run": both(self.run_p, self.run_f),
