@@ -325,7 +325,8 @@ def parameter_table(cls: type) -> str:
         default = list(fi.default) if isinstance(fi.default, tuple) else fi.default
         if isinstance(default, bool):
             default = str(default).lower()
-        valid = "" if fi.kind is bool else spec.range_text()
+        valid = "" if fi.kind is bool or (fi.kind is str and not spec.choices) \
+            else spec.range_text()
         if spec.unit and valid.endswith(f" {spec.unit}"):
             valid = valid[:-len(spec.unit) - 1]
         rows.append(f"| `{fi.name}` | {default} | {spec.unit} | {valid} | {spec.description} |")

@@ -22,7 +22,7 @@ pytest.importorskip("colcon_core", reason="colcon is not installed: run in the f
 
 REPO = Path(__file__).resolve().parents[2]
 PACKAGE = "rheo_shaping"
-NODES = ("simulator", "planner", "monitor")
+NODES = ("simulator", "planner", "monitor", "gap_watch")
 EXECUTABLES = (*NODES, "rheo-shaping")
 BUILD_TIMEOUT_S = 300
 START_TIMEOUT_S = 30

@@ -68,7 +68,7 @@ def test_launch_file_starts_only_installed_executables():
         else:
             assert pkg in declared, f"{pkg} (started by the launch file) not in package.xml"
         started.append(exe)
-    assert sorted(started) == ["monitor", "planner", "rviz2", "simulator"]
+    assert sorted(started) == ["gap_watch", "monitor", "planner", "rviz2", "simulator"]
 
 
 def test_launch_file_opens_only_shipped_files():
@@ -93,7 +93,7 @@ def test_launch_file_opens_only_shipped_files():
 def test_launch_arguments_are_documented():
     args = [n.args[0].value for n in ast.walk(_tree()) if isinstance(n, ast.Call)
             and getattr(n.func, "id", None) == "DeclareLaunchArgument"]
-    assert sorted(args) == ["namespace", "params_file", "rviz", "use_sim_time"]
+    assert sorted(args) == ["gap_watch", "namespace", "params_file", "rviz", "use_sim_time"]
     doc = (REPO / "docs" / "ros.md").read_text()
     for name in args:
         assert f"| `{name}` |" in doc, f"docs/ros.md: launch argument `{name}` not in its table"

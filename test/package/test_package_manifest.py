@@ -33,7 +33,7 @@ EXEC_DEPENDS = set(MODULE_KEYS.values()) | {"rviz2"}
 TEST_DEPENDS = {"python3-pytest"}
 CONSOLE_SCRIPTS = {"rheo-shaping": "rheo_shaping.cli:main"}
 #: The nodes' executables: setup.py's LAUNCHER (``scripts``), not console_scripts wrappers.
-NODES = ("simulator", "planner", "monitor")
+NODES = ("simulator", "planner", "monitor", "gap_watch")
 
 
 def _manifest() -> ET.Element:
