@@ -25,6 +25,8 @@ from ..records.record import Record
 from .floor import Floor
 from .watch import GapWatch
 
+#: A baseline knob is reported with a verdict when it moved this share of its tolerance.
+BASELINE_SHOWN = 0.5
 #: Process time [s] between the watch's updates when a record is replayed into it.
 FEED_STEP_S = 0.1
 
@@ -77,6 +79,9 @@ class Verdict:
     record: str = ""                      # the record it read
     wall_time_s: float = 0.0
     error: str = ""                       # why it failed (then verdict is "failed")
+    baseline: dict = field(default_factory=dict)   # the calibrated baseline's knobs moved by
+    # at least BASELINE_SHOWN of their tolerance: name -> (value, written, unit, u)
+    p_gap: float | None = None            # the gap test's p-value
 
 
 def diagnose_record(record_dir: str, out_dir: str) -> dict:
@@ -93,8 +98,12 @@ def diagnose_record(record_dir: str, out_dir: str) -> dict:
         fit = diag.verdict_fit
         params = {} if fit is None else {k: [float(x) for x in v] for k, v in fit.values.items()}
         report = next((str(p) for p in paths if str(p).endswith(".md")), str(out_dir))
+        moved = {k: [b.get("value"), b.get("written"), b.get("unit", ""), b.get("u")]
+                 for k, b in diag.baseline.items()
+                 if isinstance(b, dict) and abs(b.get("u") or 0.0) >= BASELINE_SHOWN}
         v = Verdict(diag.verdict, params, None if fit is None else float(fit.p), report,
-                    str(record_dir), time.monotonic() - t0)
+                    str(record_dir), time.monotonic() - t0, baseline=moved,
+                    p_gap=float(diag.p_gap))
     except Exception as exc:  # noqa: BLE001 - a failed diagnosis is reported, not raised
         v = Verdict("failed", record=str(record_dir), wall_time_s=time.monotonic() - t0,
                     error=f"{type(exc).__name__}: {exc}")
