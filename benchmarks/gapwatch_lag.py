@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -38,6 +39,8 @@ sys.path.insert(0, str(HERE.parent / "test"))
 from _support.domains import claim_domain_id  # noqa: E402  (stdlib only)
 
 BIN = Path(sys.executable).parent
+#: Where in the run (share of its wall time) --stall stops the gap watch.
+STALL_AT = 0.3
 
 
 def cpu_s(pid: int) -> float:
@@ -46,7 +49,8 @@ def cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def run(rate: float, params: str, timeout: float, max_data_age: float) -> dict:
+def run(rate: float, params: str, timeout: float, max_data_age: float,
+        stall: float = 0.0) -> dict:
     import rclpy
     from std_msgs.msg import String
     from rheo_shaping.nodes import topics as T
@@ -78,6 +82,9 @@ def run(rate: float, params: str, timeout: float, max_data_age: float) -> dict:
     pid = procs["gap_watch"].pid
     t_start = c_start = None
     t_end = c_end = None
+    stalled = resumed = None
+    from rheo_shaping.params.config import load_cell
+    process = load_cell(params).movement.process_time
     deadline = time.monotonic() + timeout
     try:
         while time.monotonic() < deadline:
@@ -85,6 +92,13 @@ def run(rate: float, params: str, timeout: float, max_data_age: float) -> dict:
             state = states[-1][1] if states else ""
             if t_start is None and state == "running":
                 t_start, c_start = time.monotonic(), cpu_s(pid)
+            if stall and t_start is not None and stalled is None and \
+                    time.monotonic() > t_start + STALL_AT * process / rate:
+                os.kill(pid, signal.SIGSTOP)      # the whole gap_watch process stands still
+                stalled = time.monotonic()
+            if stalled is not None and resumed is None and time.monotonic() > stalled + stall:
+                os.kill(pid, signal.SIGCONT)
+                resumed = time.monotonic()
             if t_start is not None and state in ("done", "holding"):
                 t_end, c_end = time.monotonic(), cpu_s(pid)
                 break
@@ -126,7 +140,20 @@ def run(rate: float, params: str, timeout: float, max_data_age: float) -> dict:
             "warned": any(r.get("first_warn_s") is not None for r in during),
             "dropped": last.get("dropped"), "received": last.get("received"),
             "refused": (last.get("residuals") or {}).get("refused"),
-            "tracebacks": tracebacks, "logs": str(logdir)}
+            "tracebacks": tracebacks, "logs": str(logdir),
+            "stall_s": stall, "caught_up_s": _caught_up(reports, resumed, rate)}
+
+
+def _caught_up(reports, resumed, rate) -> float | None:
+    """Wall seconds from the end of a stall until the model trails the newest pose by less
+    than 3 s of process time again (None without a stall)."""
+    if resumed is None:
+        return None
+    for t, r in reports:
+        res = r.get("residuals") or {}
+        if t > resumed and res and res["newest_pose_s"] - res["model_time_s"] < 3.0:
+            return t - resumed
+    return None
 
 
 def main() -> None:
@@ -137,6 +164,9 @@ def main() -> None:
                     help="wall seconds per run (default: 3 x process time / rate + 120)")
     ap.add_argument("--max-data-age", type=float, default=2.0,
                     help="the monitor's max_data_age [s] in these runs (default 2)")
+    ap.add_argument("--stall", type=float, default=0.0, metavar="S",
+                    help="stop the gap_watch process (SIGSTOP) for S wall seconds at 30 %% of "
+                         "the run, then let it go on (the cell must not notice)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -147,7 +177,7 @@ def main() -> None:
     out = []
     for rate in (float(r) for r in a.rates.split(",")):
         timeout = a.timeout or 3 * process / rate + 120
-        out.append(run(rate, a.params, timeout, a.max_data_age))
+        out.append(run(rate, a.params, timeout, a.max_data_age, a.stall))
         if not a.json:
             print(json.dumps(out[-1]), flush=True)
     if a.json:

@@ -35,8 +35,10 @@ than ``max_stamp_jump`` beyond the newest pose (or before the start), a frame
 with fewer than 3 or more than ``max_points`` points.  A pose stream that goes on
 after a gap longer than ``max_stamp_jump`` (``RESUME_POSES`` poses in a row, each
 following the one before) is taken up again and the gap bridged, so an outage of
-the cell's stream never locks the watch out.  Times are stamps in
-seconds on the cell's clock; process time is seconds since :meth:`GapWatch.start`.
+the cell's stream never locks the watch out; the run is then no longer judged (STALE,
+with the span lost): the model's sheet did not see the tool's path over the gap.
+Times are stamps in seconds on the cell's clock; process time is seconds since
+:meth:`GapWatch.start`.
 """
 from __future__ import annotations
 
@@ -128,6 +130,7 @@ class GapWatch:
         self.t0: float | None = None              # stamp [s] of process time 0
         self.refused: Counter = Counter()         # reason -> count
         self._jumped: list[float] = []            # poses in a row beyond max_stamp_jump
+        self.lost = ""                            # why the run is no longer judged
         self.pose_t: list[float] = []             # process time [s]
         self.pose_xz: list[tuple[float, float]] = []
         self.frames: list[_Frame] = []            # every accepted frame (for the record)
@@ -196,6 +199,8 @@ class GapWatch:
         if t > ref + self.settings.max_stamp_jump:
             if topic == "pose" and self._resumes(t):
                 self.refused["pose: the stream resumed after a gap (bridged)"] += 1
+                self.lost = (f"the tool pose was lost from {ref:.1f} s to {t:.1f} s: the model's "
+                             f"sheet no longer follows the cell's; judged again at the next run")
             else:
                 return self._refuse(f"{topic}: stamp more than max_stamp_jump after the newest "
                                     f"pose")
@@ -485,6 +490,11 @@ class GapWatch:
         return wp, wf, f_share, d_share
 
     def _evaluate(self, t: float) -> list[str]:
+        if self.lost:
+            if self.level != "STALE":
+                self.level, self.reason = "STALE", self.lost
+                return [f"STALE at {t:.1f} s: {self.lost}"]
+            return []
         wp, wf, f_share, d_share = self._window(t)
         if sum(1 for e in self._win_p if e[0] <= t) < MIN_FRAMES:
             return []
