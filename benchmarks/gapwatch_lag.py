@@ -50,7 +50,7 @@ def cpu_s(pid: int) -> float:
 
 
 def run(rate: float, params: str, timeout: float, max_data_age: float,
-        stall: float = 0.0) -> dict:
+        stall: float = 0.0, model_file: str = "", verdict_wait: float = 0.0) -> dict:
     import rclpy
     from std_msgs.msg import String
     from rheo_shaping.nodes import topics as T
@@ -65,7 +65,8 @@ def run(rate: float, params: str, timeout: float, max_data_age: float,
     logdir = Path(os.environ.get("TMPDIR", "/tmp")) / f"gapwatch_lag_x{rate:g}"
     logdir.mkdir(parents=True, exist_ok=True)
     procs = {}
-    for name, extra in (("gap_watch", follow), ("monitor", monitor), ("simulator", sim),
+    watch = follow + (["-p", f"model_file:={model_file}"] if model_file else [])
+    for name, extra in (("gap_watch", watch), ("monitor", monitor), ("simulator", sim),
                         ("planner", follow)):
         log = open(logdir / f"{name}.log", "w")
         procs[name] = subprocess.Popen(
@@ -77,6 +78,9 @@ def run(rate: float, params: str, timeout: float, max_data_age: float,
     reports, states = [], []
     node.create_subscription(String, T.GAP.name, lambda m: reports.append(
         (time.monotonic(), json.loads(m.data))), 10)
+    verdicts: list = []
+    node.create_subscription(String, T.GAP_DIAGNOSIS.name, lambda m: verdicts.append(
+        json.loads(m.data)), T.GAP_DIAGNOSIS.qos)
     node.create_subscription(String, T.PLANNER_STATE.name, lambda m: states.append(
         (time.monotonic(), m.data)), T.PLANNER_STATE.qos)
     pid = procs["gap_watch"].pid
@@ -105,6 +109,10 @@ def run(rate: float, params: str, timeout: float, max_data_age: float,
         # the reports after the end: the model catches up with the last poses
         settle = time.monotonic() + 5.0
         while time.monotonic() < settle:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        # a diagnosis the watch started: wait for its verdict
+        settle = time.monotonic() + verdict_wait
+        while verdicts and verdicts[-1].get("state") != "done" and time.monotonic() < settle:
             rclpy.spin_once(node, timeout_sec=0.05)
     finally:
         for p in procs.values():
@@ -141,7 +149,10 @@ def run(rate: float, params: str, timeout: float, max_data_age: float,
             "dropped": last.get("dropped"), "received": last.get("received"),
             "refused": (last.get("residuals") or {}).get("refused"),
             "tracebacks": tracebacks, "logs": str(logdir),
-            "stall_s": stall, "caught_up_s": _caught_up(reports, resumed, rate)}
+            "stall_s": stall, "caught_up_s": _caught_up(reports, resumed, rate),
+            "first_warn_s": next((r.get("first_warn_s") for r in reversed(during)
+                                  if r.get("first_warn_s") is not None), None),
+            "verdict": verdicts[-1] if verdicts else None}
 
 
 def _caught_up(reports, resumed, rate) -> float | None:
@@ -167,6 +178,11 @@ def main() -> None:
     ap.add_argument("--stall", type=float, default=0.0, metavar="S",
                     help="stop the gap_watch process (SIGSTOP) for S wall seconds at 30 %% of "
                          "the run, then let it go on (the cell must not notice)")
+    ap.add_argument("--model-file", default="",
+                    help="the gap watch's model cell (default: the cell of --params); with an "
+                         "effect on in --params, the watch should WARN and diagnose")
+    ap.add_argument("--verdict-wait", type=float, default=300.0,
+                    help="wall seconds to wait after the run for a diagnosis the watch started")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -177,7 +193,8 @@ def main() -> None:
     out = []
     for rate in (float(r) for r in a.rates.split(",")):
         timeout = a.timeout or 3 * process / rate + 120
-        out.append(run(rate, a.params, timeout, a.max_data_age, a.stall))
+        out.append(run(rate, a.params, timeout, a.max_data_age, a.stall, a.model_file,
+                       a.verdict_wait))
         if not a.json:
             print(json.dumps(out[-1]), flush=True)
     if a.json:

@@ -35,8 +35,9 @@ than ``max_stamp_jump`` beyond the newest pose (or before the start), a frame
 with fewer than 3 or more than ``max_points`` points.  A pose stream that goes on
 after a gap longer than ``max_stamp_jump`` (``RESUME_POSES`` poses in a row, each
 following the one before) is taken up again and the gap bridged, so an outage of
-the cell's stream never locks the watch out; the run is then no longer judged (STALE,
-with the span lost): the model's sheet did not see the tool's path over the gap.
+the cell's stream never locks the watch out; after a gap longer than ``LOST_JUMPS``
+``max_stamp_jump`` the run is no longer judged (STALE, with the span lost): the
+model's tool crossed it on a straight line, the cell's may not have.
 Times are stamps in seconds on the cell's clock; process time is seconds since
 :meth:`GapWatch.start`.
 """
@@ -73,6 +74,9 @@ RUN_WINDOWS = 2
 #: Poses in a row beyond max_stamp_jump (each following the one before) after which the
 #: stream counts as resumed after a gap (a real outage), not as stamps of another clock.
 RESUME_POSES = 10
+#: A gap in the tool pose longer than this many max_stamp_jump leaves the run unjudged (STALE):
+#: the model's tool crossed it on a straight line, the cell's may not have.
+LOST_JUMPS = 3
 #: Frames needed in the window before a state other than STALE is given.
 MIN_FRAMES = 3
 
@@ -130,7 +134,9 @@ class GapWatch:
         self.t0: float | None = None              # stamp [s] of process time 0
         self.refused: Counter = Counter()         # reason -> count
         self._jumped: list[float] = []            # poses in a row beyond max_stamp_jump
+        self._resumed_from = 0.0                  # s, the first pose after the newest gap
         self.lost = ""                            # why the run is no longer judged
+        self.first_refused: dict[str, float] = {}  # reason -> the first refused stamp [s]
         self.pose_t: list[float] = []             # process time [s]
         self.pose_xz: list[tuple[float, float]] = []
         self.frames: list[_Frame] = []            # every accepted frame (for the record)
@@ -179,8 +185,10 @@ class GapWatch:
         the cell at rest and are not kept."""
         self.t0 = float(stamp)
 
-    def _refuse(self, reason: str) -> str:
+    def _refuse(self, reason: str, stamp: float | None = None) -> str:
         self.refused[reason] += 1
+        if stamp is not None and reason not in self.first_refused:
+            self.first_refused[reason] = stamp
         return reason
 
     def _time(self, topic: str, stamp: float, last: float | None) -> float | str:
@@ -193,17 +201,22 @@ class GapWatch:
             self.start(stamp)
         t = stamp - self.t0
         if t < -1e-9:
-            return self._refuse(f"{topic}: stamp before the process start")
+            return self._refuse(f"{topic}: stamp before the process start", stamp)
         t = max(t, 0.0)
         ref = self.pose_t[-1] if self.pose_t else 0.0
         if t > ref + self.settings.max_stamp_jump:
             if topic == "pose" and self._resumes(t):
+                self.first_refused.setdefault("pose: the stream resumed after a gap (bridged)",
+                                              stamp)
                 self.refused["pose: the stream resumed after a gap (bridged)"] += 1
-                self.lost = (f"the tool pose was lost from {ref:.1f} s to {t:.1f} s: the model's "
-                             f"sheet no longer follows the cell's; judged again at the next run")
+                first = self._resumed_from
+                if first - ref > LOST_JUMPS * self.settings.max_stamp_jump:
+                    self.lost = (f"the tool pose was lost from {ref:.1f} s to {first:.1f} s: the "
+                                 f"model's sheet no longer follows the cell's; judged again at "
+                                 f"the next run")
             else:
                 return self._refuse(f"{topic}: stamp more than max_stamp_jump after the newest "
-                                    f"pose")
+                                    f"pose", stamp)
         if last is not None and t <= last:
             return self._refuse(f"{topic}: stamp not after the previous one")
         if t > self.settings.max_record:
@@ -221,6 +234,7 @@ class GapWatch:
             return False
         self._jumped.append(t)
         if len(self._jumped) >= RESUME_POSES:
+            self._resumed_from = self._jumped[0]
             self._jumped = []
             return True
         return False
@@ -562,7 +576,7 @@ class GapWatch:
                           "force_window_z": self.floor.force_window_z,
                           "profile_run_z": self.floor.profile_run_z,
                           "force_run_z": self.floor.force_run_z},
-                "refused": dict(self.refused)}
+                "refused": dict(self.refused), "first_refused_stamp_s": dict(self.first_refused)}
 
     def status(self) -> Status:
         return Status(self.level, self.reason, self.judged_t,

@@ -281,9 +281,11 @@ class GapWatchNodeParams:
         5000, "a camera frame with more points than this (or fewer than 3) is refused as "
         "malformed", "", 3, 1000000)
     max_stamp_jump: float = param(
-        5.0, "a sample stamped more than this after the newest tool pose (or before the "
-        "process start) is refused: the model would step through time no pose covers", "s",
-        0.0, 3600.0, lo_open=True)
+        10.0, "a sample stamped more than this after the newest tool pose (or before the "
+        "process start) is refused: the model would step through time no pose covers; a pose "
+        "stream that goes on from there (10 poses) is taken up again, the gap bridged "
+        "linearly, and after a gap of more than 3 max_stamp_jump the run is no longer "
+        "judged", "s", 0.0, 3600.0, lo_open=True)
     max_record: float = param(
         1800.0, "process time kept for the record a diagnosis reads (from the process start: "
         "the model's state depends on the whole history)", "s", 1.0, 86400.0)

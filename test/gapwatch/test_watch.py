@@ -156,8 +156,9 @@ def test_the_shipped_floor_loads_and_bad_floors_are_one_line_errors(tmp_path):
 def test_a_stream_that_resumes_after_a_gap_is_taken_up_and_the_run_no_longer_judged(own):
     rec, _, _ = own
     from rheo_shaping.gapwatch.feed import watch_record as feed
-    # poses, frames and forces from 40 s to 60 s lost (a stalled link): 20 s > max_stamp_jump
-    keep = lambda t: (t < 40.0) | (t > 60.0)                       # noqa: E731
+    # poses, frames and forces from 40 s to 75 s lost (a stalled link): 35 s, more than
+    # max_stamp_jump (10 s) and than 3 of them
+    keep = lambda t: (t < 40.0) | (t > 75.0)                       # noqa: E731
     kf = keep(rec.profile_t)
     cut = replace(rec, pose_t=rec.pose_t[keep(rec.pose_t)],
                   pose_xz=rec.pose_xz[keep(rec.pose_t)],
@@ -169,5 +170,20 @@ def test_a_stream_that_resumes_after_a_gap_is_taken_up_and_the_run_no_longer_jud
     assert gw.refused["pose: the stream resumed after a gap (bridged)"] == 1
     assert gw.refused["pose: stamp more than max_stamp_jump after the newest pose"] == 9
     assert r["model_time_s"] == pytest.approx(rec.duration, abs=0.25)   # it went on
-    assert gw.level == "STALE" and "lost from 40.0 s" in gw.reason
+    assert gw.level == "STALE" and "lost from 40.0 s to 75.0" in gw.reason
     assert gw.first_warn is None
+
+
+def test_a_short_gap_is_bridged_and_the_run_judged_on(own):
+    rec, _, _ = own
+    from rheo_shaping.gapwatch.feed import watch_record as feed
+    keep = lambda t: (t < 40.0) | (t > 52.0)                       # noqa: E731  12 s lost
+    kf = keep(rec.profile_t)
+    cut = replace(rec, pose_t=rec.pose_t[keep(rec.pose_t)],
+                  pose_xz=rec.pose_xz[keep(rec.pose_t)],
+                  wrench_t=rec.wrench_t[keep(rec.wrench_t)],
+                  wrench_xz=rec.wrench_xz[keep(rec.wrench_t)], profile_t=rec.profile_t[kf],
+                  profiles=tuple(f for f, k in zip(rec.profiles, kf) if k))
+    gw = feed(cut)
+    assert gw.refused["pose: the stream resumed after a gap (bridged)"] == 1
+    assert gw.level == "OK" and gw.first_warn is None       # a straight move, bridged
