@@ -274,12 +274,17 @@ class GapWatchNode(Node):
         return True, f"diagnosing {rec_dir}"
 
     def _on_verdict(self, future) -> None:
+        if self._stop.is_set():               # the node is stopping: its worker was ended
+            return
         try:
             v = future.result()
         except Exception as exc:  # noqa: BLE001 - a worker that died is reported
             v = {"verdict": "failed", "error": f"{type(exc).__name__}: {exc}"}
         v["state"] = "done"
-        self.pub_verdict.publish(String(data=json.dumps(json_safe(v))))
+        try:
+            self.pub_verdict.publish(String(data=json.dumps(json_safe(v))))
+        except Exception:  # noqa: BLE001 - the node was destroyed meanwhile (the pool's thread)
+            return
         self.get_logger().info(f"diagnosis: {v.get('verdict')} {v.get('parameters', '')} "
                                f"report {v.get('report', '')} {v.get('error', '')}")
 
