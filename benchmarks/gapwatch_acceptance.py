@@ -6,7 +6,8 @@ for tool_offset and mass_error), --effect-runs runs (seeds 1..): how many say WA
 end of the run, and the time from the effect becoming visible (the noise-free truth one noise
 std away from the nominal model in a profile node or a force axis) to WARN.  With --diagnose K,
 the first K WARN runs of each effect also run the diagnosis the node starts (the run up to WARN,
-as the watch keeps it) and count a verdict naming the effect as right.  The floor is the
+as the watch keeps it) and count a verdict naming the effect as right; --diagnose-end K the
+diagnosis the node starts at the end of a run that warned (the whole run).  The floor is the
 shipped one (rheo_shaping/data/gapwatch_floor.json, calibrated on other seeds) or --floor FILE.
 """
 from __future__ import annotations
@@ -35,6 +36,9 @@ def main() -> None:
     ap.add_argument("--effects", default=",".join(EFFECT_NAMES))
     ap.add_argument("--diagnose", type=int, default=0, metavar="K",
                     help="diagnose the first K WARN runs of each effect (default 0)")
+    ap.add_argument("--diagnose-end", type=int, default=0, metavar="K",
+                    help="diagnose the whole run (the node's diagnosis at the end of a run that "
+                         "warned) for the first K WARN runs of each effect (default 0)")
     ap.add_argument("--floor", default=None, help="floor file (default: the shipped one)")
     ap.add_argument("--executor", default="local:2")
     ap.add_argument("--json", action="store_true")
@@ -44,8 +48,8 @@ def main() -> None:
     shared = default_shared(cell, floor)
     effects = [e.strip() for e in a.effects.split(",") if e.strip()]
     cases = [Case("", 1 + i) for i in range(a.runs)]
-    cases += [Case(e, 1 + i, diagnose=i < a.diagnose) for e in effects
-              for i in range(a.effect_runs)]
+    cases += [Case(e, 1 + i, diagnose=i < a.diagnose, diagnose_end=i < a.diagnose_end)
+              for e in effects for i in range(a.effect_runs)]
     t0 = time.monotonic()
     with executor_from_spec(a.executor) as ex:
         res = run_tasks(ex, run_case, shared, cases)
@@ -73,19 +77,25 @@ def main() -> None:
             "diagnosed": len(diag), "right": sum(d["right"] for d in diag),
             "verdicts": [d["verdict"] for d in diag],
             "diagnosis_wall_s_median": _med([d["wall_time_s"] for d in diag])}
+        end = [r["diagnosis_end"] for r in rs if "diagnosis_end" in r]
+        out["effects"][e].update({
+            "diagnosed_end": len(end), "right_end": sum(d["right"] for d in end),
+            "verdicts_end": [d["verdict"] for d in end],
+            "diagnosis_end_wall_s_median": _med([d["wall_time_s"] for d in end])})
     if a.json:
         print(json.dumps(out))
         return
     print(f"nominal: {out['nominal_warn']} WARN of {a.runs} runs (largest z window/run "
           f"profile, force: {np.round(out['nominal_max_z'], 3).tolist()})")
     print("| effect | runs | WARN | ERROR | visible at [s] | WARN at [s] | visible -> WARN [s] "
-          "median (min-max) | diagnosis right |")
-    print("|---|---|---|---|---|---|---|---|")
+          "median (min-max) | diagnosis at WARN right | diagnosis at the end right |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for e, f in out["effects"].items():
         d = f["visible_to_warn_s"]
         print(f"| {e} | {f['runs']} | {f['warn']} | {f['error']} | {_f(f['visible_s_median'])} "
               f"| {_f(f['first_warn_s_median'])} | {_f(d['median'])} ({_f(d['min'])}-"
-              f"{_f(d['max'])}) | {f['right']}/{f['diagnosed']} {f['verdicts']} |")
+              f"{_f(d['max'])}) | {f['right']}/{f['diagnosed']} {f['verdicts']} | "
+              f"{f['right_end']}/{f['diagnosed_end']} {f['verdicts_end']} |")
     print(f"wall {wall:.0f} s, gap watch CPU {out['cpu_s_per_run']:.2f} s per run")
 
 

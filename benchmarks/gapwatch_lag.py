@@ -50,7 +50,8 @@ def cpu_s(pid: int) -> float:
 
 
 def run(rate: float, params: str, timeout: float, max_data_age: float,
-        stall: float = 0.0, model_file: str = "", verdict_wait: float = 0.0) -> dict:
+        stall: float = 0.0, model_file: str = "", verdict_wait: float = 0.0,
+        want_verdicts: int = 1) -> dict:
     import rclpy
     from std_msgs.msg import String
     from rheo_shaping.nodes import topics as T
@@ -112,7 +113,12 @@ def run(rate: float, params: str, timeout: float, max_data_age: float,
             rclpy.spin_once(node, timeout_sec=0.05)
         # a diagnosis the watch started: wait for its verdict
         settle = time.monotonic() + verdict_wait
-        while verdicts and verdicts[-1].get("state") != "done" and time.monotonic() < settle:
+
+        def pending() -> bool:
+            done = [v for v in verdicts if v.get("state") == "done"]
+            return bool(verdicts) and (verdicts[-1].get("state") != "done"
+                                       or len(done) < want_verdicts)
+        while pending() and time.monotonic() < settle:
             rclpy.spin_once(node, timeout_sec=0.05)
     finally:
         for p in procs.values():
@@ -152,7 +158,8 @@ def run(rate: float, params: str, timeout: float, max_data_age: float,
             "stall_s": stall, "caught_up_s": _caught_up(reports, resumed, rate),
             "first_warn_s": next((r.get("first_warn_s") for r in reversed(during)
                                   if r.get("first_warn_s") is not None), None),
-            "verdict": verdicts[-1] if verdicts else None}
+            "verdict": verdicts[-1] if verdicts else None,
+            "verdicts": [v for v in verdicts if v.get("state") == "done"]}
 
 
 def _caught_up(reports, resumed, rate) -> float | None:
@@ -183,6 +190,9 @@ def main() -> None:
                          "effect on in --params, the watch should WARN and diagnose")
     ap.add_argument("--verdict-wait", type=float, default=300.0,
                     help="wall seconds to wait after the run for a diagnosis the watch started")
+    ap.add_argument("--verdicts", type=int, default=2,
+                    help="verdicts to wait for when the watch warned (at WARN and at the end of "
+                         "the run: 2)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -194,7 +204,7 @@ def main() -> None:
     for rate in (float(r) for r in a.rates.split(",")):
         timeout = a.timeout or 3 * process / rate + 120
         out.append(run(rate, a.params, timeout, a.max_data_age, a.stall, a.model_file,
-                       a.verdict_wait))
+                       a.verdict_wait, a.verdicts))
         if not a.json:
             print(json.dumps(out[-1]), flush=True)
     if a.json:

@@ -35,7 +35,8 @@ from .watch import signed_distance
 class Case:
     effect: str            # "" for a nominal run
     seed: int
-    diagnose: bool = False
+    diagnose: bool = False      # diagnose the run up to the first WARN (what the node does)
+    diagnose_end: bool = False  # diagnose the whole run when it warned (the node, at its end)
 
 
 def mid_magnitude(name: str, rng: np.random.Generator) -> tuple[float, ...]:
@@ -96,6 +97,11 @@ def run_case(shared: tuple, case: Case, keep_delta: bool = False) -> dict:
             write_record(snap[0], wd)
             out["diagnosis"] = diagnose_record(str(wd), str(Path(tmp) / "report"))
             out["diagnosis"]["right"] = out["diagnosis"]["verdict"] == case.effect
+        if case.diagnose_end and gw.first_warn is not None:
+            wd = Path(tmp) / "run"
+            write_record(gw.record(), wd)
+            out["diagnosis_end"] = diagnose_record(str(wd), str(Path(tmp) / "report_end"))
+            out["diagnosis_end"]["right"] = out["diagnosis_end"]["verdict"] == case.effect
     return out
 
 

@@ -583,19 +583,29 @@ class GapWatch:
                       self._hist[-1][0] if self._hist else 0.0, self.residuals(),
                       self.first_warn, self.first_error)
 
+    @property
+    def ended(self) -> bool:
+        """The model has reached the cell's process end (``movement.process_time``)."""
+        return self.sim is not None and \
+            self.sim.state.t >= self.model.movement.process_time - 1e-6
+
     # -- the record -------------------------------------------------------------------------
     def record(self, name: str = "gap_watch") -> Record:
         """The run so far (from the process start) as a record of the project's format; its
         scenario is the model cell."""
-        pt = np.asarray(self.pose_t, float)
-        pxz = np.asarray(self.pose_xz, float).reshape(-1, 2)
+        # lengths taken once: another thread may be appending a sample meanwhile
+        n, nw = min(len(self.pose_t), len(self.pose_xz)), min(len(self.wrench_t),
+                                                              len(self.wrench_xz))
+        pt = np.asarray(self.pose_t[:n], float)
+        pxz = np.asarray(self.pose_xz[:n], float).reshape(-1, 2)
         if pt.size and pt[0] > 0.0:                   # t = 0 is the earliest pose stamp
             pt, pxz = np.r_[0.0, pt], np.vstack((pxz[:1], pxz))
-        wt = np.asarray(self.wrench_t, float) if self.wrench_t else None
-        wxz = np.asarray(self.wrench_xz, float).reshape(-1, 2) if self.wrench_t else None
+        wt = np.asarray(self.wrench_t[:nw], float) if nw else None
+        wxz = np.asarray(self.wrench_xz[:nw], float).reshape(-1, 2) if nw else None
+        frames = list(self.frames)
         return Record(scenario=self.model, pose_t=pt, pose_xz=pxz,
-                      profile_t=np.asarray([f.t for f in self.frames], float),
-                      profiles=tuple(f.points for f in self.frames), wrench_t=wt,
+                      profile_t=np.asarray([f.t for f in frames], float),
+                      profiles=tuple(f.points for f in frames), wrench_t=wt,
                       wrench_xz=wxz, name=name)
 
 

@@ -16,8 +16,9 @@ this node converts messages, queues them, and publishes.
   residuals per observable, window, run and phase, noise, lag, drops),
   ``/diagnostics`` (status ``rheo_shaping/gap_watch``, hardware id of the cell's
   namespace), ``shaping/gap_markers`` (the model's profile and the newest judged frame).
-* On the first sustained WARN of a run (``diagnose_on_warn``), and on ``~/diagnose``
-  (std_srvs/Trigger) at any time: the run so far is written as a record
+* On the first sustained WARN of a run (``diagnose_on_warn``), again at the end of a run
+  that warned (the whole run), and on ``~/diagnose`` (std_srvs/Trigger) at any time: the
+  run so far is written as a record
   (rheo_shaping/records) under ``report_dir`` and diagnosed in a worker process
   (rheo_shaping.parallel's local pool, one process, spawned); the verdict, its parameters
   and the report's path go out on ``shaping/gap_diagnosis`` (JSON, latched).
@@ -106,6 +107,7 @@ class GapWatchNode(Node):
         self.jobs: DiagnosisJobs | None = None
         self.verdicts = 0
         self._warned_run = False
+        self._end_diagnosed = False
         for topic, callback in ((T.TOOL_POSE, self._on_pose),
                                 (T.MEASURED_PROFILE, self._on_profile),
                                 (T.TOOL_WRENCH, self._on_wrench)):
@@ -171,6 +173,7 @@ class GapWatchNode(Node):
             self._wake.clear()
             try:
                 self._drain()
+                self._end_of_run()
             except Exception as exc:  # noqa: BLE001 - the watch reports, it never takes the
                 # node down (a core defect shows on /diagnostics with its reason)
                 self.snapshot = {"level": "ERROR", "message": f"gap watch failed: "
@@ -229,6 +232,7 @@ class GapWatchNode(Node):
                 self.core.wrench(t, *value)
         self.start_stamp = stamp
         self._warned_run = False
+        self._end_diagnosed = False
         self.get_logger().info(f"process start at stamp {stamp:.3f} s: watching a new run")
 
     def _update(self) -> None:
@@ -244,6 +248,16 @@ class GapWatchNode(Node):
                 and self.settings.diagnose_on_warn):
             self._warned_run = True
             self._diagnose(core, "sustained WARN")
+
+    def _end_of_run(self) -> None:
+        """A run that warned is diagnosed again, whole, once its process has ended (the
+        diagnosis at WARN saw only its beginning); retried while one still runs."""
+        core = self.core
+        if (core is None or self._end_diagnosed or not self.settings.diagnose_on_warn
+                or core.first_warn is None or not core.ended):
+            return
+        started, _ = self._diagnose(core, "the end of a run that warned")
+        self._end_diagnosed = started or not (self.jobs is not None and self.jobs.busy)
 
     # -- the diagnosis ----------------------------------------------------------------------
     def _diagnose(self, core: GapWatch, why: str) -> tuple[bool, str]:

@@ -301,7 +301,8 @@ class GapWatchNodeParams:
         60.0, lo_open=True)
     diagnose_on_warn: bool = param(
         True, "on the first sustained WARN of a run, write the run so far as a record and "
-        "diagnose it in a worker process")
+        "diagnose it in a worker process; once a run that warned has ended, diagnose the "
+        "whole run again")
     report_dir: str = param(
         "", "directory for the records and diagnosis reports (empty: "
         "$TMPDIR/rheo_shaping_gapwatch)")
