@@ -30,6 +30,7 @@ import json
 import os
 import signal
 import subprocess
+import tempfile
 import sys
 import time
 from pathlib import Path
@@ -63,7 +64,7 @@ def run(rate: float, params: str, timeout: float, max_data_age: float,
     # the cell's own monitor at a data age the shared, loaded machine keeps (this measures the
     # gap watch, not the monitor: docs/safety.md has the monitor under load)
     monitor = follow + ["-p", f"max_data_age:={max_data_age}"]
-    logdir = Path(os.environ.get("TMPDIR", "/tmp")) / f"gapwatch_lag_x{rate:g}"
+    logdir = Path(tempfile.gettempdir()) / f"gapwatch_lag_x{rate:g}"
     logdir.mkdir(parents=True, exist_ok=True)
     procs = {}
     watch = follow + (["-p", f"model_file:={model_file}"] if model_file else [])
