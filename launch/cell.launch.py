@@ -1,4 +1,5 @@
-"""The shaping cell: simulator, planner and monitor (and RViz) from one params file.
+"""The shaping cell: simulator, planner and monitor (and RViz, the gap watch) from one params
+file.
 
     ros2 launch rheo_shaping cell.launch.py
     ros2 launch rheo_shaping cell.launch.py namespace:=/cell2 rviz:=true
@@ -18,7 +19,9 @@ Arguments (docs/ros.md, "Launch"):
 * ``managed``: ``true`` starts the managed (lifecycle) nodes ``simulator_managed``,
   ``monitor_managed``, ``planner_managed`` (node names simulator, monitor, planner) and the
   ``lifecycle_manager``, which brings them up in order and down to a safe state when one
-  fails (docs/ros.md, "Managed start-up").
+  fails (docs/ros.md, "Managed start-up");
+* ``gap_watch``: ``true`` also starts the gap watch (the model beside the cell,
+  docs/gapwatch.md), its settings from ``/**/gap_watch`` of the params file.
 
 Values given here reach the nodes as ``-p`` on their command line, which beats the
 params file's node sections (rheo_shaping/nodes/ros_params.py).
@@ -66,6 +69,9 @@ def _nodes(context):
                  **common),
         ]
     return cell + [
+        Node(executable='gap_watch', name='gap_watch', ros_arguments=follow,
+             remappings=clock, condition=IfCondition(LaunchConfiguration('gap_watch')),
+             **common),
         Node(package='rviz2', executable='rviz2', name='rviz2', namespace=namespace,
              arguments=['-d', os.path.join(share, 'rviz', 'cell.rviz')],
              parameters=[{'use_sim_time': sim_time}], remappings=clock, output='screen',
@@ -90,5 +96,8 @@ def generate_launch_description():
         DeclareLaunchArgument(
             'managed', default_value='false',
             description='true: the managed (lifecycle) nodes and the lifecycle_manager'),
+        DeclareLaunchArgument(
+            'gap_watch', default_value='false',
+            description='true: also start the gap watch (the model beside the cell)'),
         OpaqueFunction(function=_nodes),
     ])

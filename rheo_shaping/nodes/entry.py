@@ -1,6 +1,6 @@
 """Entry points of the node executables (``simulator``, ``planner``, ``monitor``; their
 managed variants ``simulator_managed``, ``planner_managed``, ``monitor_managed``; the
-``lifecycle_manager``).
+``lifecycle_manager``; ``gap_watch``).
 
 A signal must end a node cleanly at any moment of its start-up, with exit code 0 and
 no traceback.  Before ``rclpy.init`` nothing of ROS exists yet, so SIGINT and SIGTERM
@@ -76,9 +76,13 @@ def lifecycle_manager() -> int:
     return _run("lifecycle_manager")
 
 
+def gap_watch() -> int:
+    return _run("gap_watch")
+
+
 if __name__ == "__main__":  # pragma: no cover - python -m rheo_shaping.nodes.entry NODE ...
     name = sys.argv.pop(1) if len(sys.argv) > 1 else ""
-    if name not in ("simulator", "planner", "monitor"):
-        sys.exit(
-            "usage: python -m rheo_shaping.nodes.entry simulator|planner|monitor [--ros-args ...]")
+    if name not in ("simulator", "planner", "monitor", "gap_watch"):
+        sys.exit("usage: python -m rheo_shaping.nodes.entry simulator|planner|monitor|gap_watch "
+                 "[--ros-args ...]")
     sys.exit(_run(name))

@@ -193,3 +193,28 @@ def markers_msg(ns: int, nodes: np.ndarray, tension: np.ndarray, F_break: float,
     cake.color = ColorRGBA(r=0.6, g=0.4, b=0.2, a=1.0)
     cake.points = _points(cake_outline)
     return MarkerArray(markers=[sheet, masses, tool, cake])
+
+
+def gap_markers_msg(ns: int, model_nodes: np.ndarray | None, frame: np.ndarray | None,
+                    thickness: float, level: str) -> MarkerArray:
+    """The gap watch's view: the model's centreline (``gap_model``, blue; orange on WARN, red
+    on ERROR) and the newest camera frame it judged (``gap_measured``, white points)."""
+    h = header(ns)
+    out = []
+    if model_nodes is not None:
+        line = Marker(header=h, ns="gap_model", id=0, type=Marker.LINE_STRIP, action=Marker.ADD)
+        line.pose.orientation.w = 1.0
+        line.scale.x = 0.5 * float(thickness)
+        line.color = {"WARN": ColorRGBA(r=1.0, g=0.6, b=0.0, a=1.0),
+                      "ERROR": ColorRGBA(r=1.0, g=0.0, b=0.0, a=1.0)}.get(
+            level, ColorRGBA(r=0.1, g=0.5, b=1.0, a=1.0))
+        line.points = _points(model_nodes)
+        out.append(line)
+    if frame is not None:
+        pts = Marker(header=h, ns="gap_measured", id=1, type=Marker.POINTS, action=Marker.ADD)
+        pts.pose.orientation.w = 1.0
+        pts.scale.x = pts.scale.y = float(thickness)
+        pts.color = ColorRGBA(r=1.0, g=1.0, b=1.0, a=0.9)
+        pts.points = _points(frame)
+        out.append(pts)
+    return MarkerArray(markers=out)

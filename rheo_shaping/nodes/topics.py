@@ -128,12 +128,17 @@ PRESENCE = Topic("shaping/presence", String,
 HEARTBEAT = Topic("~/heartbeat", String, HEARTBEAT_QOS)
 #: The lifecycle manager's state (JSON: phase, reason, what it waits for, each node's state).
 MANAGER_STATUS = Topic("~/status", String, LATCHED_QOS)
+#: The gap watch (rheo_shaping.gapwatch, issue 29): its residuals and state (JSON, on every
+#: publish_period), the verdict of the diagnosis it started (JSON, latched), the model's profile.
+GAP = Topic("shaping/gap", String, STATE_QOS)
+GAP_DIAGNOSIS = Topic("shaping/gap_diagnosis", String, LATCHED_QOS)
+GAP_MARKERS = Topic("shaping/gap_markers", MarkerArray, MARKER_QOS)
 
 #: Every topic of the cell, by its contract name.
 ALL: dict[str, Topic] = {t.contract: t for t in (
     PROFILE, MEASURED_PROFILE, TENSIONS, CONTACT_TENSION, TOOL_POSE, TOOL_WRENCH, MARKERS, CLOCK,
     TOOL_COMMAND, PLANNED_TRAJECTORY, ABORT, READY, PLANNER_STATE, CHECKED, DIAGNOSTICS, CELL,
-    PRESENCE)}
+    PRESENCE, GAP, GAP_DIAGNOSIS, GAP_MARKERS)}
 
 #: The remap that makes a namespaced planner or monitor follow its own simulator's clock.
 CLOCK_REMAP = ("-r", "/clock:=clock")

@@ -17,5 +17,6 @@ AT_REST = ("done", "holding")
 BEFORE_RUN = ("starting", "idle", "waiting", "waiting_for_pose", "tool_away",
               "waiting_for_monitor", "waiting_for_cell", "waiting_for_clock",
               "waiting_for_subscriber")
-#: Every state a planner reports (``error``: it could not start; ~/reset).
-PLANNER_STATES = tuple(dict.fromkeys(BEFORE_RUN + STREAM_STATES + ("error",)))
+#: Every state a planner reports (``error``: it could not start, ~/reset; ``inactive``: a
+#: managed planner deactivated, rheo_shaping.nodes.managed).
+PLANNER_STATES = tuple(dict.fromkeys(BEFORE_RUN + STREAM_STATES + ("error", "inactive")))

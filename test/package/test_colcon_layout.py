@@ -22,7 +22,7 @@ pytest.importorskip("colcon_core", reason="colcon is not installed: run in the f
 
 REPO = Path(__file__).resolve().parents[2]
 PACKAGE = "rheo_shaping"
-NODES = ("simulator", "planner", "monitor")
+NODES = ("simulator", "planner", "monitor", "gap_watch")
 #: The managed executables (rheo_shaping/nodes/managed.py) and the node name each starts.
 MANAGED = {"simulator_managed": "simulator", "planner_managed": "planner",
            "monitor_managed": "monitor", "lifecycle_manager": "lifecycle_manager"}

@@ -68,8 +68,9 @@ def test_launch_file_starts_only_installed_executables():
         else:
             assert pkg in declared, f"{pkg} (started by the launch file) not in package.xml"
         started.append(exe)
-    assert sorted(started) == ["lifecycle_manager", "monitor", "monitor_managed", "planner",
-                               "planner_managed", "rviz2", "simulator", "simulator_managed"]
+    assert sorted(started) == ["gap_watch", "lifecycle_manager", "monitor", "monitor_managed",
+                               "planner", "planner_managed", "rviz2", "simulator",
+                               "simulator_managed"]
 
 
 def test_launch_file_opens_only_shipped_files():
@@ -94,7 +95,8 @@ def test_launch_file_opens_only_shipped_files():
 def test_launch_arguments_are_documented():
     args = [n.args[0].value for n in ast.walk(_tree()) if isinstance(n, ast.Call)
             and getattr(n.func, "id", None) == "DeclareLaunchArgument"]
-    assert sorted(args) == ["managed", "namespace", "params_file", "rviz", "use_sim_time"]
+    assert sorted(args) == ["gap_watch", "managed", "namespace", "params_file", "rviz",
+                            "use_sim_time"]
     doc = (REPO / "docs" / "ros.md").read_text()
     for name in args:
         assert f"| `{name}` |" in doc, f"docs/ros.md: launch argument `{name}` not in its table"

@@ -34,7 +34,7 @@ TEST_DEPENDS = {"python3-pytest"}
 CONSOLE_SCRIPTS = {"rheo-shaping": "rheo_shaping.cli:main"}
 #: The nodes' executables: setup.py's LAUNCHER (``scripts``), not console_scripts wrappers.
 NODES = ("simulator", "planner", "monitor", "simulator_managed", "planner_managed",
-         "monitor_managed", "lifecycle_manager")
+         "monitor_managed", "lifecycle_manager", "gap_watch")
 
 
 def _manifest() -> ET.Element:
@@ -181,6 +181,8 @@ def test_each_node_executable_is_the_launcher_shell_and_python_at_once():
         shell = text.split(QUOTES)[1]
         assert shell.count("env ") == 1 and "if " not in shell
         assert f"from rheo_shaping.nodes.entry import {node}\n" in text
+        # the node only as the main script: a spawned worker imports it as __mp_main__
+        assert "if __name__ == '__main__':" in text and f"sys.exit({node}())" in text
         compile(text, node, "exec")
 
 

@@ -97,12 +97,14 @@ def test_every_state_the_planner_reports_is_in_the_one_vocabulary():
     from rheo_shaping.planning.run_state import StartInputs, start_decision
     from rheo_shaping.planning.states import AT_REST, BEFORE_RUN, MOVING, PLANNER_STATES
     pkg = Path(rheo_shaping.__file__).parent
-    tree = ast.parse((pkg / "nodes" / "planner.py").read_text())
-    used = {c.value for n in ast.walk(tree) if isinstance(n, ast.Call)
-            and getattr(n.func, "attr", "") == "_set_state" and n.args
-            for c in ast.walk(n.args[0]) if isinstance(c, ast.Constant)
-            and isinstance(c.value, str)}
-    assert {"starting", "error", "done", "running"} <= used              # sees the calls
+    used = set()
+    for module in ("planner.py", "managed.py"):               # the plain and managed planner
+        tree = ast.parse((pkg / "nodes" / module).read_text())
+        used |= {c.value for n in ast.walk(tree) if isinstance(n, ast.Call)
+                 and getattr(n.func, "attr", "") == "_set_state" and n.args
+                 for c in ast.walk(n.args[0]) if isinstance(c, ast.Constant)
+                 and isinstance(c.value, str)}
+    assert {"starting", "error", "done", "running", "inactive"} <= used  # sees the calls
     for a, w, r, p, m, s, c, n in itertools.product((False, True), repeat=8):
         for refusal in ("", "the cell differs", "two clocks"):
             state, _ = start_decision(StartInputs(
