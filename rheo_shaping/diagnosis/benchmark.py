@@ -51,7 +51,7 @@ from ..sheet.simulation import run_scenario
 from .baseline import CHAIN, SHEET, with_sheet
 from .check import REFINEMENT
 from .signature import KIND_OF_EFFECT
-from ..worlds.dynamic import run_world
+from ..worlds.dynamic import WorldRun, run_world
 from ..worlds.params import (WORLD_EFFECTS, WORLD_EFFECT_NAMES, WorldEffects, WorldNumerics,
                              draw_lay)
 from ..worlds.sensors import SensorParams, measure_world
@@ -167,7 +167,8 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
             w_cell = replace(written, movement=replace(written.movement, number=mv))
             try:
                 path = movement_plan(t_cell)
-                run = (run_world(t_cell, path, lay=lay, extra=extra) if dynamic
+                # a lay is drawn exactly for the dynamic world
+                run = (run_world(t_cell, path, lay=lay, extra=extra) if lay is not None
                        else run_scenario(t_cell, path))
             except (RuntimeError, ValueError):
                 ok = False
@@ -176,7 +177,8 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
                 ok = False
                 break
             label = f"case{index}-m{mv}"
-            rec = (measure_world(run, path, SensorParams(), nrng, chain, extra, label) if dynamic
+            rec = (measure_world(run, path, SensorParams(), nrng, chain, extra, label)
+                   if isinstance(run, WorldRun)
                    else measure_chain(run, path, t_cell, measurement, nrng, chain, label))
             records.append(replace(rec, scenario=w_cell))
         if ok:

@@ -41,6 +41,13 @@ class Search:
     prev: tuple | None = None               # (z_raw, u_sheet, values) of the point before
     damp: float = 1.0                       # step factor (halved on a miss)
 
+    @property
+    def simulated_z(self) -> np.ndarray:
+        """``z_raw`` of a candidate simulated once at least (:func:`check.check` sets it)."""
+        if self.z_raw is None:
+            raise ValueError("candidate not simulated yet: no residual to step from")
+        return self.z_raw
+
 
 @dataclass
 class Explanation:
@@ -66,6 +73,13 @@ class Explanation:
     J_num_perp: float = math.nan    # the part of J_num no refit absorbs
     value_shift: dict = field(default_factory=dict)  # name -> value shift under refinement
     search: Search = field(default_factory=Search, repr=False)
+
+    @property
+    def fitted_u(self) -> np.ndarray:
+        """``baseline_u`` of a fitted explanation (every fit and the baseline set it)."""
+        if self.baseline_u is None:
+            raise ValueError(f"explanation {self.names}: no baseline fit")
+        return self.baseline_u
 
     @property
     def candidate(self) -> Candidate:
@@ -209,17 +223,18 @@ def fit_pair(a: Explanation, b: Explanation, responses, lin: LinearFit) -> Expla
     na, nb = a.names[0], b.names[0]
     solver = lin.solver
     best = None
-    grids = []
+    # per effect (name, kind, probes): linear, its (values, response) pairs; curve, its
+    # (magnitude, response) pairs and the magnitudes tried
+    curve: list[tuple[str, str, tuple[list[tuple[float, np.ndarray]], np.ndarray]]] = []
+    lin_e: list[tuple[str, str, list[tuple[tuple[float, ...], np.ndarray]]]] = []
     for n in (na, nb):
         kind, vals, top = PROBES[n]
         resp = [(v, d) for v, d in responses[n] if d is not None]
         if kind == "linear":
-            grids.append((n, "linear", resp))
+            lin_e.append((n, "linear", resp))
         else:
             mags = [(magnitude(n, v[0]), d) for v, d in resp]
-            grids.append((n, "curve", (mags, np.linspace(0, magnitude(n, top), 17))))
-    curve = [g for g in grids if g[1] == "curve"]
-    lin_e = [g for g in grids if g[1] == "linear"]
+            curve.append((n, "curve", (mags, np.linspace(0, magnitude(n, top), 17))))
     E, elo, ehi, kidx = None, [], [], []
     if lin_e:
         cols = []
@@ -231,18 +246,18 @@ def fit_pair(a: Explanation, b: Explanation, responses, lin: LinearFit) -> Expla
                 ehi.append(e.bounds[k][1])
                 kidx.append((n, k))
         E = np.column_stack(cols)
-    axes = [g[2][1] for g in curve] or [[None]]
-    for combo in itertools.product(*axes):
+    # one combination of curve magnitudes each (without curve effects: one, the empty one)
+    for combo in itertools.product(*[g[2][1] for g in curve]):
         shift = np.zeros_like(lin.z)
         for (n, _, (mags, _g)), x in zip(curve, combo):
-            if x is not None:
-                shift = shift + response_at(mags, x)
+            shift = shift + response_at(mags, x)
         u, J = solver.solve(lin.z + shift, lin.lo, lin.hi, E,
                             (np.array(elo), np.array(ehi)) if E is not None else None)
         if best is None or J < best[0]:
             best = (J, u, combo, shift)
+    assert best is not None         # the product of non-empty grids has a combination
     J, u, combo, shift = best
-    values = {}
+    values: dict[str, tuple[float, ...]] = {}
     for (n, _, _), x in zip(curve, combo):
         values[n] = ((1.0 - x) if n == "power_law" else float(x),)
     if E is not None:

@@ -71,14 +71,14 @@ def numerics(cands: list[Explanation], ctx: FitContext, base: Baseline, response
     tasks = []
     for c in cands:
         for d in ctx.data:
-            tasks.append(Task(d, refined(apply(ctx.params(d, c.baseline_u[:n_s]),
+            tasks.append(Task(d, refined(apply(ctx.params(d, c.fitted_u[:n_s]),
                                                c.candidate))))
     outs = run(tasks)
     nd, nf = len(ctx.data), ctx.nf
     # where the finer chain does not run (its Newton gives up), the steps alone are refined,
     # for every candidate alike (the baseline's J_num is compared with theirs)
     if any(not all_ok(outs[i * nd:(i + 1) * nd]) for i in range(len(cands))):
-        outs = run([Task(d, refined(apply(ctx.params(d, c.baseline_u[:n_s]), c.candidate),
+        outs = run([Task(d, refined(apply(ctx.params(d, c.fitted_u[:n_s]), c.candidate),
                                     chain=False))
                     for c in cands for d in ctx.data])
         for c in cands:
@@ -154,7 +154,7 @@ def check(cands: list[Explanation], ctx: FitContext, base: Baseline, *, m: int,
     """
     points = []
     for c in cands:
-        points.append((c, np.clip(base.u_s + c.baseline_u[:ctx.n_s], -1, 1), c.values))
+        points.append((c, np.clip(base.u_s + c.fitted_u[:ctx.n_s], -1, 1), c.values))
     simulate_points(points, ctx, base, m=m, first=True)
     if responses is None:
         return
@@ -186,7 +186,7 @@ def relinearise(cands: list[Explanation], ctx: FitContext) -> None:
     baseline's Jacobian is taken without any effect, and a strong effect (a large creep, a
     friction) changes how the knobs act, so chord steps from it stall short of the fit."""
     for c in cands:
-        u = np.asarray(c.baseline_u[:ctx.n_s], float)
+        u = np.asarray(c.fitted_u[:ctx.n_s], float)
 
         def at(j: int, h: float, c=c, u=u) -> list:
             uj = u.copy()
@@ -196,7 +196,7 @@ def relinearise(cands: list[Explanation], ctx: FitContext) -> None:
         def invalid(j: int, c=c, u=u) -> list:
             return [apply(ctx.params(d, u), c.candidate) for d in ctx.fit_d]
         steps = [(0.5 if u[j] <= 0.5 else -0.5,) for j in range(ctx.n_s)]
-        c.search.jacobian = forward_jacobian(ctx, c.search.z_raw, at, steps, invalid)
+        c.search.jacobian = forward_jacobian(ctx, c.search.simulated_z, at, steps, invalid)
         c.search.prev, c.search.damp = None, 1.0
 
 
@@ -274,15 +274,15 @@ def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict):
                 z_p, u_p, v_p = s.prev
                 da = a - magnitude(name, v_p[name][0])
                 if abs(da) > 1e-12:
-                    col = (s.z_raw - z_p - A_sheet @ (c.baseline_u[:n_s] - u_p)) / da
+                    col = (s.simulated_z - z_p - A_sheet @ (c.fitted_u[:n_s] - u_p)) / da
             cols.append(col)
             lo_e.append(-a)
             hi_e.append(magnitude(name, top) - a)
             slots.append((name, 0, True))
-    u_cur = c.baseline_u[:n_s]
+    u_cur = c.fitted_u[:n_s]
     solver = G.solver(A_sheet)
     lim = np.ones(G.chain.shape[1])
-    du, _ = solver.solve(s.z_raw, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
+    du, _ = solver.solve(s.simulated_z, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
                          np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
     du = du * s.damp
     u_new = np.clip(u_cur + du[:n_s], -1, 1)

@@ -17,7 +17,7 @@ import numpy as np
 from ..sheet.metrics import residual_gap
 from ..params.params import CellParams
 from ..records.record import Record
-from ..sheet.simulation import PolylinePath, RunResult, run_scenario
+from ..sheet.simulation import PolylinePath, RunResult, ToolPath, run_scenario
 from .initial_state import InitialState, estimate
 
 #: Width [s] of the moving average applied to the measured pose before it drives the model.
@@ -70,7 +70,7 @@ class RecordData:
     """A record flattened for fast comparison (all profile points in one array)."""
 
     record: Record
-    path: PolylinePath
+    path: ToolPath             # the measured pose as a path (a replay: the planned one)
     point_xz: np.ndarray       # (P, 2) m, every measured profile point
     point_frame: np.ndarray    # (P,) index into profile_t
     last_frame: np.ndarray     # (M, 2) m, the last frame's points (Delta)
@@ -142,6 +142,8 @@ def residuals(data: RecordData, run: RunResult) -> Residuals:
     arc = cum[data.point_frame, j] + s[idx, j] * seg_len[idx, j]
     force = None
     if rec.has_wrench:
+        # every maker of a Record gives the forces with the stamps
+        assert rec.wrench_t is not None and rec.wrench_xz is not None
         model = np.c_[np.interp(rec.wrench_t, run.t, run.tool_force[:, 0]),
                       np.interp(rec.wrench_t, run.t, run.tool_force[:, 1])]
         force = rec.wrench_xz - model

@@ -179,13 +179,14 @@ def _assemble(ctx: FitContext, nominal: Nominal, base: Baseline, p_gap: float, r
     data, fit_d, hold_d, nf, n_s = ctx.data, ctx.fit_d, ctx.hold_d, ctx.nf, ctx.n_s
     sp, sf = ctx.sp, ctx.sf
     vfc = after.fit
-    corrected = (apply(ctx.params(fit_d[0], vfc.baseline_u[:n_s]), vfc.candidate)
+    corrected = (apply(ctx.params(fit_d[0], vfc.fitted_u[:n_s]), vfc.candidate)
                  if vfc else ctx.params(fit_d[0], base.u_s))
     baseline_tab = baseline_table(fit_d[0].record.scenario,
-                                  vfc.baseline_u if vfc else np.r_[base.u_s, base.u_c])
-    nom_res = [residuals(d, o.run) for d, o in zip(data, nominal.outs)]
+                                  vfc.fitted_u if vfc else np.r_[base.u_s, base.u_c])
+    nom_res = [residuals(d, o.kept_run) for d, o in zip(data, nominal.outs)]
     base_runs = [o.run for o in base.outs]
-    base_res = [chain_correct(residuals(d, o.run), o, base.u_c) for d, o in zip(data, base.outs)]
+    base_res = [chain_correct(residuals(d, o.kept_run), o, base.u_c)
+                for d, o in zip(data, base.outs)]
     after_res = ([chain_correct(as_residuals(d, o, base_runs[i]), o, after.u_c) for i, (d, o) in
                   enumerate(zip(data, after.outs))] if vfc else base_res)
     fit_idx, hold_idx = tuple(range(nf)), tuple(range(nf, len(data)))

@@ -54,6 +54,21 @@ class Outcome:
     run: RunResult | None = None
     error: str = ""
 
+    @property
+    def kept_run(self) -> RunResult:
+        """The model run of a task with ``keep_run`` that ran."""
+        if self.run is None:
+            raise ValueError(f"outcome has no run ({self.error or 'not kept'})")
+        return self.run
+
+    def array(self, name: str) -> np.ndarray:
+        """Residual array ``name`` (``profile``, ``normal``, ``arc``; ``force``,
+        ``model_force``, ``model_dforce`` when the record has forces) of an outcome that ran."""
+        value = getattr(self, name)
+        if value is None:
+            raise ValueError(f"outcome has no {name} ({self.error or 'its record has none'})")
+        return value
+
 
 def all_ok(outs: Sequence[Outcome]) -> bool:
     """Every outcome ran."""
@@ -80,6 +95,8 @@ def run_task(task: Task) -> Outcome:
     mf = md = None
     if r.force is not None:
         t = data.record.wrench_t
+        # residuals() gives a force exactly when the record has one, stamps with it
+        assert t is not None and data.record.wrench_xz is not None
         mf = data.record.wrench_xz - r.force
         md = np.gradient(mf, t, axis=0) if t.size > 1 else np.zeros_like(mf)
     if not (np.all(np.isfinite(r.profile)) and (r.force is None or np.all(np.isfinite(r.force)))):

@@ -149,6 +149,9 @@ def select(n_masses: int, process_time: float, n_fit: int, n_holdout: int,
             "this cell), or --floor numerics")
     out = [c for c in cfgs if c["n_masses"] in ns and c["process_time_s"] in ts
            and c["n_fit"] == n_fit]
+    if not out:
+        raise FloorError(f"no floor is calibrated at the corners around n_masses = {n_masses}, "
+                         f"{process_time:g} s, {n_fit} fit record(s): run `{how}`")
     if n_holdout and not any(c["holdout"] for c in out):
         raise FloorError(f"no holdout floor is calibrated for n_masses = {n_masses}, "
                          f"{process_time:g} s, {n_fit} fit record(s): run `{how}`")
@@ -170,6 +173,7 @@ def stored_floor(n_masses: int, process_time: float, n_fit: int, n_holdout: int,
                        c.get("force_sys_holdout_N", c["force_sys_N"]), sp, sf, kp, kf)
         if best is None or _q95(fit) > _q95(best[0]):
             best = (fit, hold, c)
+    assert best is not None         # select() raises when no configuration covers it
     fit, hold, c = best
     cfg = {k: c[k] for k in ("n_masses", "process_time_s", "n_fit", "n_holdout", "cases")}
     return Floor(fit, hold, source or f"stored ({Path(path).name}, dynamic world)", cfg,
@@ -256,7 +260,7 @@ def model_form_interval(c, q95: float, A: np.ndarray, responses) -> list[float]:
         return []
     Q = np.linalg.qr(A, mode="reduced")[0]
     ivs = list(c.interval.get(name, [(v, v) for v in c.values[name]]))
-    widths = {}
+    widths: dict[int, float] = {}
     for k, col in cols:
         perp = col - Q @ (Q.T @ col)
         n = float(np.linalg.norm(perp))

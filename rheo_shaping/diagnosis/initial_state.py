@@ -195,7 +195,7 @@ def contact_time(record: Record) -> float:
         pts = np.asarray(f, float).reshape(-1, 2)
         if len(pts) == 0:
             continue
-        pose = np.array([np.interp(t, record.pose_t, record.pose_xz[:, k]) for k in (0, 1)])
+        pose = [float(np.interp(t, record.pose_t, record.pose_xz[:, k])) for k in (0, 1)]
         d, _ = shape.signed_distance(pts, pose)
         if float(np.min(d)) < r + CONTACT_GAP:
             return float(t)
@@ -224,7 +224,7 @@ def pool(states: list[InitialState | None], auto: bool = False) -> list[InitialS
                    np.median([s.length_sd for s in laid]) / math.sqrt(len(laid))))
     ids = {id(s) for s in laid}
     return [replace(s, length=L, length_sd=sd, pooled_from=tuple(lengths))
-            if id(s) in ids else s for s in states]
+            if s is not None and id(s) in ids else s for s in states]
 
 
 def _comparison_frame(usable: list[int], times: np.ndarray, before: list[int],
@@ -270,8 +270,9 @@ def estimate(record: Record, mode: str = "auto", seed: int = 0) -> InitialState:
         far = np.ones(len(pts), dtype=bool)        # away from the tool at both times
         shape_t = tool_shape(sc.tool)
         for i in (i0, later):
-            pose = [np.interp(times[i], record.pose_t, record.pose_xz[:, k]) for k in (0, 1)]
-            far &= shape_t.signed_distance(pts, np.array(pose))[0] > TOOL_CLEAR
+            pose = [float(np.interp(times[i], record.pose_t, record.pose_xz[:, k]))
+                    for k in (0, 1)]
+            far &= shape_t.signed_distance(pts, pose)[0] > TOOL_CLEAR
         if np.count_nonzero(far) >= 5:
             d = _distance_to(pts[far], smooth(frames[later]))
             motion = float(np.median(d)) / noise

@@ -33,7 +33,8 @@ class Stack:
         self.n_p = int(sum(f.size for f in self.frames))
 
     def set_force_count(self, outcomes: list[Outcome]) -> None:
-        self.n_f = int(sum(o.force.shape[0] for o, h in zip(outcomes, self.has_force) if h))
+        self.n_f = int(sum(o.array("force").shape[0]
+                           for o, h in zip(outcomes, self.has_force) if h))
 
     @property
     def w_p(self) -> float:
@@ -46,8 +47,9 @@ class Stack:
 
     def vec(self, outcomes: list[Outcome]) -> np.ndarray:
         """z: weighted profile residuals of every record, then their force residuals (x, z)."""
-        prof = [o.profile * self.w_p for o in outcomes]
-        force = [o.force.reshape(-1) * self.w_f for o, h in zip(outcomes, self.has_force) if h]
+        prof = [o.array("profile") * self.w_p for o in outcomes]
+        force = [o.array("force").reshape(-1) * self.w_f
+                 for o, h in zip(outcomes, self.has_force) if h]
         return np.concatenate(prof + force)
 
     def masks(self) -> dict:

@@ -62,6 +62,7 @@ def own_record(record: Record, run, path, sigma_pose: float,
                      for t in record.profile_t)
     wrench = None
     if record.has_wrench:
+        assert record.wrench_t is not None      # has_wrench: it has stamps
         wrench = np.c_[np.interp(record.wrench_t, run.t, run.tool_force[:, 0]),
                        np.interp(record.wrench_t, run.t, run.tool_force[:, 1])]
     return replace(record, pose_xz=pose, profiles=profiles, wrench_xz=wrench,
@@ -72,8 +73,8 @@ def _spacing(record: Record) -> float:
     """Median spacing [m] of the record's profile points (3 mm when it has none)."""
     gaps = [np.hypot(*np.diff(np.asarray(f, float).reshape(-1, 2), axis=0).T)
             for f in record.profiles if len(f) > 1]
-    gaps = np.concatenate(gaps) if gaps else np.zeros(0)
-    return float(np.median(gaps)) if gaps.size else 3e-3
+    joined = np.concatenate(gaps) if gaps else np.zeros(0)
+    return float(np.median(joined)) if joined.size else 3e-3
 
 
 def replay_misfit(data: Sequence[RecordData], params: Sequence[CellParams],

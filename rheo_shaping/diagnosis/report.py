@@ -14,8 +14,9 @@ def binned_means(t: np.ndarray, arc: np.ndarray, values: np.ndarray, t_bins: int
     Returns (time edges, arc edges, means (t_bins, arc_bins))."""
     t_edges = np.linspace(float(np.min(t)), float(np.max(t)) + 1e-9, t_bins + 1)
     a_edges = np.linspace(float(np.min(arc)), float(np.max(arc)) + 1e-12, arc_bins + 1)
-    total, _, _ = np.histogram2d(t, arc, (t_edges, a_edges), weights=values)
-    count, _, _ = np.histogram2d(t, arc, (t_edges, a_edges))
+    # histogramdd: what histogram2d computes, whose numpy 1.26 stubs take no float edges
+    total = np.histogramdd((t, arc), (t_edges, a_edges), weights=values)[0]
+    count = np.histogramdd((t, arc), (t_edges, a_edges))[0]
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
     return t_edges, a_edges, mean

@@ -158,8 +158,9 @@ def chain_correct(res, o: Outcome, u_c: np.ndarray):
 
 def as_residuals(d: RecordData, o: Outcome, run):
     from .compare import Residuals
-    return Residuals(o.profile, o.arc, np.zeros((o.profile.size, 2)), o.force, o.delta_measured,
-                     o.delta_model, run)
+    profile = o.array("profile")
+    return Residuals(profile, o.array("arc"), np.zeros((profile.size, 2)), o.force,
+                     o.delta_measured, o.delta_model, run)
 
 
 def process_figures(nominal: CellParams, corrected: CellParams,

@@ -146,15 +146,15 @@ def describe(data, res, runs, sp: float, sf: float, u_chain=None,
             rr.append(r.force)
             mf.append(m)
             md.append(np.gradient(m, d.record.wrench_t, axis=0))
-        rr, mf, md = (np.concatenate(x).reshape(-1) for x in (rr, mf, md))
-        X = np.c_[mf, md]
-        coef, *_ = np.linalg.lstsq(X, rr, rcond=None)
+        r_all, mf_all, md_all = (np.concatenate(x).reshape(-1) for x in (rr, mf, md))
+        X = np.c_[mf_all, md_all]
+        coef, *_ = np.linalg.lstsq(X, r_all, rcond=None)
         gain, lag = float(coef[0]), float(-coef[1])
         fx = np.concatenate([r.force[:, 0] for r in res if r.force is not None])
         fz = np.concatenate([r.force[:, 1] for r in res if r.force is not None])
         share_x = _sys(fx, sf) / max(_sys(fx, sf) + _sys(fz, sf), 1e-12)
         out["force_explained_by_gain_and_lag"] = float(
-            1.0 - np.sum((rr - X @ coef) ** 2) / max(np.sum(rr ** 2), 1e-30))
+            1.0 - np.sum((r_all - X @ coef) ** 2) / max(np.sum(r_all ** 2), 1e-30))
     out["force_lag_s"] = lag
     out["force_gain"] = gain
     out["force_x_share"] = share_x

@@ -39,7 +39,7 @@ def nominal_stage(data: list[RecordData], nf: int, run: Runner) -> tuple[Nominal
     if bad:
         raise ValueError(f"the nominal model of record '{bad[0]}' does not run: "
                          f"{next(o.error for o in nominal if not o.ok)}")
-    sp = float(np.nanmedian([noise_level(o.profile, d.point_frame)
+    sp = float(np.nanmedian([noise_level(o.array("profile"), d.point_frame)
                              for d, o in zip(data, nominal)]))
     sfs = [noise_level(o.force[:, k]) for o in nominal if o.force is not None for k in (0, 1)]
     sf = float(np.nanmedian(sfs)) if sfs else math.nan
@@ -99,6 +99,7 @@ def baseline_stage(ctx: FitContext, nominal: Nominal) -> Baseline:
         u, J = chain_solver.solve(G.z(outs[:nf]), -chain_lim, chain_lim)
         if best is None or J < best[1]:
             best = (u_try, J, outs, u)
+    assert best is not None         # the nominal point is tried, and every nominal run ran
     u_s, J_base, base_outs, u_c = best
     zB_raw = G.z(base_outs[:nf])
     zB = zB_raw + G.chain @ u_c
@@ -125,7 +126,7 @@ class GapTest:
 def gap_stage(ctx: FitContext, base: Baseline) -> GapTest:
     """Stage 3: p_gap; for a cell with a Kelvin dashpot the null plus the model's own replay
     misfit, measured here (:mod:`replay`)."""
-    rp = (None, None)
+    rp: tuple[np.ndarray | None, ...] = (None, None)
     if any(replay.kelvin(d.record.scenario) for d in ctx.data):
         ctx.run.stage(4, (1 + replay.DRAWS) * len(ctx.data))
         rp = tuple(replay.replay_misfit(dd, [ctx.params(d, base.u_s) for d in dd], ctx.run,

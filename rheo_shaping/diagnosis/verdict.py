@@ -102,7 +102,9 @@ def pairs_stage(ctx: FitContext, base: Baseline, gap: GapTest,
     if pairs:
         check(pairs[:1], ctx, base, m=cands.m, responses=cands.responses)
         if needs_numerics(pairs[0], base.J_h, bool(ctx.hold_d), gap.replay):
-            # the baseline again, refined the same way as the pair
+            # the baseline again, refined the same way as the pair (pairs come from
+            # effects, which come with the baseline's candidate)
+            assert cands.base_c is not None
             numerics([pairs[0], cands.base_c], ctx, base, cands.responses)
     return pairs
 
@@ -130,7 +132,7 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
     verdict_fit = None
     if not gap.left or not library:
         chain_c.p = stats.bonferroni_p(chain_c.LR, chain_c.k)
-    out = outside(chain_c.baseline_u[n_s:])
+    out = outside(chain_c.fitted_u[n_s:])
     chain_c.adequate = chain_c.checked and adequate(chain_c, base.J_h, has_h, replay=rp)
     chain_ok = gap.left and chain_c.checked and chain_c.p <= stats.ALPHA and chain_c.adequate
     for c in effects:
@@ -166,7 +168,7 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
                                 "p": num(chain_c.p), "adequate": chain_c.adequate,
                                 "outside": out,
                                 "values": {k.name: float(v * k.tolerance) for k, v in
-                                           zip(CHAIN, chain_c.baseline_u[n_s:])}},
+                                           zip(CHAIN, chain_c.fitted_u[n_s:])}},
             "p_gap": gap.p}
     return Verdict(name, verdict_fit, pairs, chain_side, side)
 
@@ -187,7 +189,7 @@ def after_stage(ctx: FitContext, base: Baseline, verdict: Verdict,
     fit = verdict.fit or (chain_c if verdict.chain_side else None)
     if fit is None:
         return After(None, base.outs, base.u_c)
-    u_v, n_s = fit.baseline_u, ctx.n_s
+    u_v, n_s = fit.fitted_u, ctx.n_s
     cand = verdict.fit.candidate if verdict.fit else ()
     ctx.run.stage(7, len(ctx.data))
     outs = ctx.run([Task(d, apply(ctx.params(d, u_v[:n_s]), cand)) for d in ctx.data])

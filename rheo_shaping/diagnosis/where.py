@@ -59,7 +59,7 @@ def places(data, res, run) -> np.ndarray:
 def phases(data, run) -> np.ndarray:
     """Phase label index (into PHASES) of each profile frame."""
     t = data.record.profile_t
-    touching = touching_tool(run.tool_contact).any(axis=1)
+    touching = np.any(touching_tool(run.tool_contact), axis=1)
     k = np.clip(np.searchsorted(run.t, t), 0, run.t.size - 1)
     contact = touching[k]
     # the tool's speed [m/s] over +-1 s of the reconstructed path: the measured poses'

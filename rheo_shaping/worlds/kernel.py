@@ -32,11 +32,22 @@ paper's Maxwell constants (Eq. 5, 7-8 in test/worlds).
 from __future__ import annotations
 
 import math
+from typing import Literal, TypedDict
 
 import numpy as np
 from numba import njit
 
-JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+
+class JitOptions(TypedDict):
+    """The numba options of every compiled function of this world (``@njit(**JIT)``)."""
+
+    cache: bool
+    nogil: bool
+    fastmath: bool
+    error_model: Literal["python", "numpy"]
+
+
+JIT: JitOptions = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 
 # ---------------------------------------------------------------- packed parameter indices
 #: ``par`` vector of :func:`run_chain`

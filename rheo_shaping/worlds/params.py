@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
-from typing import Sequence
+from typing import Any, Sequence
 
 
 @dataclass(frozen=True)
@@ -106,7 +106,9 @@ class WorldEffects:
         if name not in WORLD_EFFECT_NAMES:
             raise ValueError(f"unknown world effect {name!r}: expected one of "
                              f"{', '.join(WORLD_EFFECT_NAMES)}")
-        return replace(self, **{name: float(value)})
+        # a float field named at run time: mypy cannot pair the name with its type
+        change: dict[str, Any] = {name: float(value)}
+        return replace(self, **change)
 
     def active(self) -> list[str]:
         """Names of the effects switched on (``tool_tilt`` included)."""

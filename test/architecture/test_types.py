@@ -16,11 +16,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 #: What is checked, under rheo_shaping/: the core but nodes/ and cli/ (the ROS side).
-#: diagnosis/ and worlds/ join once the branch that splits the diagnosis engine is merged
-#: (issue 30); mypy follows imports, so a module listed here that imported them would
-#: have them checked too.
 CHECKED = ("params", "material", "identification", "sheet", "planning", "safety", "records",
-           "study", "parallel.py", "units.py", "jsonable.py", "_lazy.py")
+           "study", "diagnosis", "worlds", "parallel.py", "units.py", "jsonable.py", "_lazy.py")
 
 
 def test_core_subpackages_type_check():
