@@ -48,8 +48,11 @@ def test_same_seed_same_case_and_lays_differ_between_cases():
 
 
 def test_one_dynamic_case_is_diagnosed_and_scored():
+    # a cell small enough for the suite (15 masses, 40 s): outside the stored model-form
+    # floor's calibration (31-63 masses, 60-120 s), which refuses it (test_floor.py), so the
+    # numerics floor; the initial state from the records as the dynamic world's default
     out = run_benchmark(n=1, seed=3, jobs=1, n_masses=15, process_time=40.0, kinds=("none",),
-                        world="dynamic")
+                        world="dynamic", floor="numerics", initial_state="auto")
     assert out["world"] == "dynamic" and out["cases"] == 1
     row = out["case_results"][0]
     assert row["verdict"] and row["kind"] == "none"
