@@ -57,7 +57,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 
 RTF = 20.0  # simulated seconds per wall second in the closed-loop runs
 

@@ -89,9 +89,9 @@ except ImportError:                                   # run from a source tree w
 
 import rheo_shaping.sheet.simulation as simulation  # noqa: E402
 from rheo_shaping.sheet.analytic import elastic_chain_equilibrium  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan  # noqa: E402
-from rheo_shaping.sheet.sheet import ChainConstants, SheetModel  # noqa: E402
+from rheo_shaping.sheet.chain import ChainConstants, SheetModel  # noqa: E402
 from rheo_shaping.sheet.simulation import Simulation, run_scenario  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -55,7 +55,7 @@ Nelder-Mead from the best few points, on 2 worker processes.  Run:
     only
 
 It prints the objective, the chosen numbers and every residual; the numbers
-go into rheo_shaping/params/params.py and config/cell.yaml by hand.
+go into rheo_shaping/params/cell.py and config/cell.yaml by hand.
 """
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rheo_shaping.sheet.drape import make_drape  # noqa: E402
 from rheo_shaping.parallel import executor_from_spec, run_tasks  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.study.reproduce import (HALF_SPEED, PAPER, movement_run,  # noqa: E402
                                           parabolic_minimum, sweep_point)
 from rheo_shaping.sheet import simulation  # noqa: E402

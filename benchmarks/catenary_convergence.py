@@ -97,7 +97,7 @@ def simulate(span: float, height_difference: float, length: float, ea: float, w:
              ns: list[int], dt: float = 1e3, force_tol: float = 1e-11, max_newton: int = 500,
              max_steps: int = 6) -> dict:
     """The simulator's settled elastic chains against the exact chain and Irvine (SI units)."""
-    from rheo_shaping.sheet.sheet import ChainConstants, SheetModel
+    from rheo_shaping.sheet.chain import ChainConstants, SheetModel
 
     cab = solve_irvine(span, height_difference, length, ea, w)
     rows = []

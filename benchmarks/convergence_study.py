@@ -46,7 +46,7 @@ try:
 except ImportError:                                   # run from a source tree without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan  # noqa: E402
 from rheo_shaping.sheet.simulation import run_scenario  # noqa: E402
 

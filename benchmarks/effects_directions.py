@@ -26,7 +26,7 @@ except ImportError:                                   # a source tree without in
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rheo_shaping.sheet.effects import EFFECTS  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.simulation import Simulation, run_scenario  # noqa: E402
 

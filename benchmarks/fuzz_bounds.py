@@ -32,7 +32,7 @@ from fuzz_inputs import BIN, run_cli, run_node  # noqa: E402
 
 from rheo_shaping.params.config import dump_cell  # noqa: E402
 from rheo_shaping.params.node_params import NODE_PARAMS  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.params.schema import iter_fields  # noqa: E402
 
 

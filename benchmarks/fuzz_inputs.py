@@ -13,7 +13,7 @@ Records: a short valid record is written with ``rheo-shaping record``, then
 mutated (the MCAP file truncated, bytes flipped, deleted, emptied; messages
 with NaN and infinite values, out-of-order and duplicate stamps, empty and huge
 topics, wrong message types; ``scenario.yaml`` mutated as above, YAML tags
-included) and read with ``rheo_shaping.records.records.read_record``; a sample goes
+included) and read with ``rheo_shaping.records.bag.read_record``; a sample goes
 through ``rheo-shaping diagnose ... --out DIR``.
 
 Pass: never a traceback (in-process: only ``ConfigError`` / ``RecordError``
@@ -279,7 +279,7 @@ def _rewrite_messages(base: Path, dest: Path, kind: str, rng: random.Random) -> 
 
 
 def check_read(path: Path) -> str:
-    from rheo_shaping.records.records import RecordError, read_record
+    from rheo_shaping.records.bag import RecordError, read_record
     try:
         read_record(path)
         return "ok"

@@ -27,10 +27,10 @@ import time
 import numpy as np
 
 from rheo_shaping.sheet.geometry import Cake, Workplane
-from rheo_shaping.material.material import elongation_step
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.material.three_element import elongation_step
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
-from rheo_shaping.sheet.sheet import Obstacle, SheetModel
+from rheo_shaping.sheet.chain import Obstacle, SheetModel
 from rheo_shaping.sheet.simulation import build_chain, run_scenario, settle
 import rheo_shaping.sheet.simulation as simulation
 

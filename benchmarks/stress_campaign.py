@@ -202,7 +202,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
 def run_condition(condition: str, seed: int, args) -> dict:
     import random
 
-    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.cell import CellParams
     rng = random.Random(seed)
     cells = [campaign.sample_cell(CellParams(), rng) for _ in range(args.runs)]
     t0 = time.monotonic()

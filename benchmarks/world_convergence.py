@@ -23,7 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.simulation import run_scenario
 from rheo_shaping.study.reproduce import PAPER

@@ -20,11 +20,11 @@ __version__ = "0.1.0"
 
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'params.config': ['load_cell', 'dump_cell'],
-    'params.params': ['CellParams'],
+    'params.cell': ['CellParams'],
     'planning.movement': ['run_movement', 'movement_plan'],
-    'identification.identification': ['identify_paper'],
+    'identification.paper_method': ['identify_paper'],
     'identification.model_choice': ['identify_joint'],
-    'records.records': ['read_record'],
+    'records.bag': ['read_record'],
     'diagnosis.engine': ['diagnose'],
 })
 __all__ = ['__version__', *__all__]

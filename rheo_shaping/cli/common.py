@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Iterator
 
 from ..params.config import ConfigError, load_cell
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from . import UserError
 
 
@@ -97,7 +97,7 @@ def output_dir(path: str | None, force: bool, option: str = "--out", *,
             raise UserError(f"{option} {p}: exists: not overwritten (use --force to replace "
                             "the record)")
         if record:
-            from ..records.records import is_record_dir
+            from ..records.bag import is_record_dir
             if not is_record_dir(p):
                 raise UserError(f"{option} {p}: folder exists and is not a record (no "
                                 "metadata.yaml and scenario.yaml): not replaced; expected "

@@ -9,7 +9,7 @@ import time
 from dataclasses import replace
 
 from ..sheet.effects import EFFECT_NAMES
-from ..records.records import RecordError, read_record
+from ..records.bag import RecordError, read_record
 from . import UserError
 from .common import add_executor_arguments, executor_from_args, output_dir, output_path
 

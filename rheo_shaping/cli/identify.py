@@ -14,7 +14,7 @@ from pathlib import Path
 
 from . import UserError
 from ..identification.estimates import Estimate
-from ..material.material import SPECIMEN_LENGTH_M
+from ..material.three_element import SPECIMEN_LENGTH_M
 from ..identification.material_data import (
     CreepCurve,
     CreepResiduals,
@@ -144,7 +144,7 @@ def _json_doc(method: str, model: str | None, params: dict[str, Estimate], extra
 
 
 def _run_paper(args, residuals, creep_curves, tensile) -> tuple[dict, list[str]]:
-    from ..identification.identification import identify_paper, merge_residuals
+    from ..identification.paper_method import identify_paper, merge_residuals
     creep = merge_residuals(residuals) if residuals else None
     try:
         r = identify_paper(creep, tensile, creep_curves)

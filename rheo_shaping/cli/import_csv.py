@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from ..records.csv_import import import_csv
-from ..records.records import RecordError, write_record
+from ..records.bag import RecordError, write_record
 from . import UserError
 from .common import output_dir
 

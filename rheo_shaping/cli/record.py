@@ -7,7 +7,7 @@ from dataclasses import replace
 
 from ..sheet.effects import active_effects
 from ..records.measurement import MeasurementParams, synthesize_record
-from ..records.records import RecordError, write_record
+from ..records.bag import RecordError, write_record
 from ..params.schema import ParameterError, iter_fields, validate_value
 from . import UserError
 from .common import add_params_argument, cell_from_args, output_dir

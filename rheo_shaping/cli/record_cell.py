@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
         from ..nodes.recorder import RecordCellError, record_cell
     except ImportError as exc:
         raise UserError(f"record-cell needs ROS 2 (rclpy): {exc}; use the full venv") from None
-    from ..records.records import RecordError
+    from ..records.bag import RecordError
     say = None if (args.quiet or args.json) else (lambda msg: print(msg, flush=True))
     try:
         path, rec = record_cell(out, namespace=ros_namespace(args.namespace), scenario=scenario,

@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         from ..nodes.recorder import replay
     except ImportError as exc:
         raise UserError(f"replay needs ROS 2 (rclpy): {exc}; use the full venv") from None
-    from ..records.records import RecordError
+    from ..records.bag import RecordError
     bar = _Progress(_span_s(Path(args.record)), args.rate, args.quiet or args.json)
     finished = False
     try:

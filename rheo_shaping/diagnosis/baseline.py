@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 
 
 @dataclass(frozen=True)

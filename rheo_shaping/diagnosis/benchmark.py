@@ -44,7 +44,7 @@ import numpy as np
 from ..sheet.effects import EFFECT_NAMES, EFFECTS
 from ..records.measurement import MeasurementParams, measure
 from ..parallel import run_tasks
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..records.record import Record
 from ..planning.movement import movement_plan
 from ..sheet.simulation import run_scenario

@@ -22,7 +22,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 
 from ..sheet.effects import EFFECTS
 from . import stats

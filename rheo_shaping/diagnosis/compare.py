@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..sheet.metrics import residual_gap
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..records.record import Record
 from ..sheet.simulation import PolylinePath, RunResult, ToolPath, run_scenario
 from .initial_state import InitialState, estimate

@@ -7,7 +7,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..params.schema import ParameterError
 from . import stats
 from .baseline import CHAIN, SHEET, with_sheet

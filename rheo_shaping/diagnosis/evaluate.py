@@ -21,7 +21,7 @@ import numpy as np
 
 from ..sheet.effects import EFFECTS
 from ..parallel import run_tasks
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..sheet.simulation import RunResult
 from .compare import RecordData, residuals, simulate
 

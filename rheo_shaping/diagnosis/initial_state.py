@@ -38,7 +38,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..records.record import Record
 from ..sheet.drape import make_drape
 from ..sheet.geometry import Cake, Workplane

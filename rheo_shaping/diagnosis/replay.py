@@ -24,7 +24,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..planning.movement import movement_plan
 from ..records.measurement import nodes_at, resample_polyline
 from ..records.record import Record

@@ -9,7 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..sheet.metrics import safety_factor
 from .baseline import CHAIN, SHEET, values as knob_values
 from .candidates import Explanation, rank_key

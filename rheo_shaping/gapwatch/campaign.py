@@ -2,7 +2,7 @@
 
 A case is what ``rheo-shaping record --params FILE --seed S`` makes
 (:func:`~rheo_shaping.records.measurement.synthesize_record`, written with
-:func:`~rheo_shaping.records.records.write_record` and read back): the cell with
+:func:`~rheo_shaping.records.bag.write_record` and read back): the cell with
 no effect or one library effect at mid magnitude (the middle of its
 ``realistic`` range, a random sign for ``tool_offset`` and ``mass_error``),
 measured with the default measurement model.  :func:`run_case` feeds it to a
@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from ..params.node_params import GapWatchNodeParams
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..planning.movement import movement_plan
 from ..records.measurement import MeasurementParams, synthesize_record
-from ..records.records import read_record, write_record
+from ..records.bag import read_record, write_record
 from ..sheet.effects import EFFECTS, nominal
 from ..sheet.simulation import RunResult, run_scenario
 from .feed import diagnose_record, watch_record

@@ -20,7 +20,7 @@ from typing import Callable
 import numpy as np
 
 from ..params.node_params import GapWatchNodeParams
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..records.record import Record
 from .floor import Floor
 from .watch import GapWatch
@@ -91,7 +91,7 @@ def diagnose_record(record_dir: str, out_dir: str) -> dict:
     try:
         from ..diagnosis.engine import diagnose
         from ..diagnosis.report import write
-        from ..records.records import read_record
+        from ..records.bag import read_record
         rec = read_record(record_dir)
         diag = diagnose([rec], jobs=1)
         paths = write(diag, Path(out_dir))

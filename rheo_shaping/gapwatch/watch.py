@@ -54,10 +54,10 @@ import numpy as np
 from ..diagnosis.compare import POSE_WINDOW
 from ..diagnosis.where import PHASES
 from ..params.node_params import GapWatchNodeParams
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..records.record import Record
 from ..sheet.metrics import residual_gap
-from ..sheet.sheet import ConvergenceError
+from ..sheet.chain import ConvergenceError
 from ..sheet.simulation import TOOL, Simulation
 
 #: Second differences kept for the online noise estimates (per observable).

@@ -6,7 +6,7 @@ Imports :mod:`rheo_shaping.material`.
 from .._lazy import lazy_api
 
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
-    'identification': ['PaperIdentification', 'identify_paper'],
+    'paper_method': ['PaperIdentification', 'identify_paper'],
     'model_choice': ['JointIdentification', 'identify_joint'],
     'material_data': ['DataFormatError', 'read_material_file'],
 })

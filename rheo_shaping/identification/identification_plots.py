@@ -15,9 +15,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..material.closed_forms import tensile_force
-from .identification import PaperIdentification, eq13_points
+from .paper_method import PaperIdentification, eq13_points
 from .joint_fit import model_tensile_force
-from ..material.material import SPECIMEN_LENGTH_M, ThreeElement
+from ..material.three_element import SPECIMEN_LENGTH_M, ThreeElement
 from .material_data import TensileCurve
 from .model_choice import JointIdentification
 

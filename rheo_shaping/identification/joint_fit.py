@@ -4,7 +4,7 @@ Beyond the paper (Sec. 3.4 identifies the constants one at a time).  One
 model -- Maxwell, three-element or Burgers -- is fitted at once to
 
 * tensile curves up to crack initiation
-(:func:`rheo_shaping.identification.identification.prepare_tensile`),
+(:func:`rheo_shaping.identification.paper_method.prepare_tensile`),
   each with its own load-cell offset as a nuisance parameter: the model force
   is 0 at rest (``t <= 0``) and Eq. 5 (Burgers: its closed form) during the
   pull, plus the offset;
@@ -44,8 +44,8 @@ from scipy.optimize import least_squares
 from ..material.burgers import Burgers, burgers_tensile_force
 from ..material.closed_forms import tensile_force
 from .estimates import Estimate, symmetric
-from .identification import PreparedCurve, c2_from_creep, eq13_points
-from ..material.material import SPECIMEN_LENGTH_M, ThreeElement
+from .paper_method import PreparedCurve, c2_from_creep, eq13_points
+from ..material.three_element import SPECIMEN_LENGTH_M, ThreeElement
 from .material_data import CreepCurve, CreepResiduals
 from ..material.response import force_response
 

@@ -33,7 +33,7 @@ from typing import Sequence, overload
 
 import numpy as np
 
-from ..material.material import SPECIMEN_LENGTH_M
+from ..material.three_element import SPECIMEN_LENGTH_M
 
 #: Metadata comment keys and their meaning.
 METADATA_KEYS = {

@@ -23,7 +23,7 @@ from typing import Sequence
 
 
 from .estimates import Estimate
-from .identification import PreparedCurve, merge_residuals, prepare_tensile
+from .paper_method import PreparedCurve, merge_residuals, prepare_tensile
 from .joint_fit import MODELS, FitData, ModelFit, fit_model
 from .material_data import CreepCurve, CreepResiduals, TensileCurve
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..material.burgers import Burgers
-from ..material.material import ThreeElement
+from ..material.three_element import ThreeElement
 from ..params.validators import check_non_negative, check_positive
 from .material_data import CreepCurve, CreepResiduals, TensileCurve
 from ..material.response import elongation_response, force_response

@@ -5,7 +5,7 @@ Imports nothing else of the package.
 from .._lazy import lazy_api
 
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
-    'material': ['ThreeElement', 'maxwell'],
+    'three_element': ['ThreeElement', 'maxwell'],
     'burgers': ['Burgers'],
     'response': ['Response', 'elongation_response', 'force_response'],
 })

@@ -26,7 +26,7 @@ from scipy.linalg import expm
 from .closed_forms import _times
 
 from ..params.validators import check_non_negative, check_positive, check_time_step
-from .material import SPECIMEN_LENGTH_M, ThreeElement, elongation_step
+from .three_element import SPECIMEN_LENGTH_M, ThreeElement, elongation_step
 
 
 @dataclass(frozen=True)
@@ -153,7 +153,7 @@ def burgers_elongation_step(b: Burgers, F: float, e1: float, p: float, delta: fl
 
     ``delta`` is the length at the end minus the free length ``L0 + F/k2 + e1
     + p`` at the start.  Exact (matrix exponential) while the unit stays taut;
-    like :func:`rheo_shaping.material.material.elongation_step`, a unit whose end force
+    like :func:`rheo_shaping.material.three_element.elongation_step`, a unit whose end force
     would be negative is slack: no force, k2 unstretched, c2 still, and the
     Kelvin-Voigt part relaxes freely.  ``k2 = inf`` and ``c1 = 0`` reuse that
     three-element step.  Returns ``(F [N], e1 [m], p [m])``.

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..params.validators import check_non_negative, check_positive
-from .material import ThreeElement
+from .three_element import ThreeElement
 
 
 def _times(t) -> np.ndarray:

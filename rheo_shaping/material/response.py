@@ -6,7 +6,7 @@ them either linear (``hold="linear"``, first-order hold) or, for forces, held
 from one sample to the next (``hold="step"``).  The schemes are exact for
 these inputs, whatever the sample spacing:
 
-* imposed elongation: :func:`rheo_shaping.material.material.elongation_step`
+* imposed elongation: :func:`rheo_shaping.material.three_element.elongation_step`
   (three-element, Maxwell) and a matrix exponential (Burgers);
 * imposed force: the exponential first-order hold of the Kelvin-Voigt ODE
   ``c1 de1/dt + k1 e1 = F`` and the integral of ``F/c2``.
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .burgers import Burgers, burgers_elongation_step
-from .material import ThreeElement, elongation_step
+from .three_element import ThreeElement, elongation_step
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,7 @@ from ..gapwatch.watch import GapWatch
 from ..jsonable import json_safe
 from ..params.config import ConfigError, load_cell
 from ..params.node_params import GapWatchNodeParams
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..params.schema import ParameterError
 from ..units import NS
 from . import messages as m
@@ -262,7 +262,7 @@ class GapWatchNode(Node):
     # -- the diagnosis ----------------------------------------------------------------------
     def _diagnose(self, core: GapWatch, why: str) -> tuple[bool, str]:
         """Write the run so far and start its diagnosis in the worker process."""
-        from ..records.records import write_record
+        from ..records.bag import write_record
         if self.jobs is None:
             from ..parallel import local_pool
             self._pool = local_pool(1)        # spawned: this process has DDS threads

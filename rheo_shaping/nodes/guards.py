@@ -17,7 +17,7 @@ from rclpy.time_source import TimeSource
 from std_msgs.msg import String
 
 from ..params.fingerprint import cell_mismatch
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..safety.clock_guard import ClockGuard
 from ..safety.one_of_each import Announcement, settle_refusal, settle_time, twin_reason
 from ..units import NS

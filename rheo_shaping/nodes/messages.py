@@ -98,7 +98,7 @@ def wrench_msg(force_xz: Sequence[float], ns: int) -> WrenchStamped:
 
 # -- plan -------------------------------------------------------------------------
 def trajectory_msg(plan, t0_ns: int, period: float) -> JointTrajectory:
-    """A :class:`~rheo_shaping.planning.planning.Plan` as joints ``tool_x``, ``tool_z``.
+    """A :class:`~rheo_shaping.planning.plans.Plan` as joints ``tool_x``, ``tool_z``.
 
     ``header.stamp`` is when the plan starts (t = 0 of the plan); points every
     ``period`` [s] and at every jerk switch, with positions, velocities and

@@ -44,7 +44,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, String, UInt64
 from std_srvs.srv import Trigger
 
 from ..params.node_params import MonitorNodeParams
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..safety.abort_budget import abort_horizon, monitor_abort_ratio
 from ..params.schema import ParameterError
 from ..safety.acknowledge import Acknowledgements

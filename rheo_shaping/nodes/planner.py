@@ -47,8 +47,8 @@ from std_srvs.srv import Trigger
 from ..planning.clearance import require_clearance
 from ..params.node_params import PlannerNodeParams
 from ..planning.choose_d import best_d, d_values
-from ..params.params import CellParams
-from ..planning.planning import MotionLimits, Plan
+from ..params.cell import CellParams
+from ..planning.plans import MotionLimits, Plan
 from ..planning.movement import approach_plan, autostart_refusal, movement_plan
 from ..params.schema import ParameterError
 from ..planning.run_state import (SetpointGrid, StartInputs, lead_limit, running_decision,

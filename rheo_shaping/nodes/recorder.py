@@ -30,10 +30,10 @@ from rclpy.qos import QoSProfile
 
 from ..params.config import cell_from_flat
 from ..sheet.effects import nominal
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..records.qos import QosSpec, offered_qos
 from ..records.record import Record
-from ..records.records import write_record
+from ..records.bag import write_record
 from ..planning.states import AT_REST, MOVING
 from ..params.schema import iter_fields
 from . import messages as m
@@ -326,7 +326,7 @@ def replay(record_dir: Path, *, namespace: str = "", rate: float = 1.0, clock: b
     """
     from rosbags.rosbag2 import Reader
 
-    from ..records.records import read_record
+    from ..records.bag import read_record
     read_record(record_dir)                       # a valid record, or RecordError
     args = ["replay", "--ros-args"] + (["-r", f"__ns:={namespace}"] if namespace else [])
     context = Context()

@@ -1,6 +1,6 @@
 """ROS 2 parameters declared from the project's schema (rheo_shaping.params.schema).
 
-Every leaf field of a parameter dataclass (:class:`~rheo_shaping.params.params.CellParams`
+Every leaf field of a parameter dataclass (:class:`~rheo_shaping.params.cell.CellParams`
 with dotted names such as ``material.k1``; a node's settings from
 :mod:`rheo_shaping.params.node_params` with plain names) becomes a ROS parameter with
 

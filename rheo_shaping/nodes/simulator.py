@@ -47,7 +47,7 @@ from std_srvs.srv import Trigger
 from ..sheet.geometry import Cake
 from ..records.measurement import MeasurementParams, profile_frame
 from ..params.node_params import SimulatorNodeParams
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..planning.scenarios import movement_scenario
 from ..sheet.setpoints import SetpointRun
 from ..sheet.tools import tool_shape

@@ -5,8 +5,8 @@ Imports nothing else of the package.
 from .._lazy import lazy_api
 
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
-    'params': ['CellParams', 'MaterialParams', 'SheetParams', 'CakeParams', 'ToolParams',
-               'MovementParams', 'SolverParams', 'EffectsParams'],
+    'cell': ['CellParams', 'MaterialParams', 'SheetParams', 'CakeParams', 'ToolParams',
+             'MovementParams', 'SolverParams', 'EffectsParams'],
     'schema': ['ParameterError', 'param'],
     'config': ['ConfigError', 'load_cell', 'dump_cell'],
     'node_params': ['SimulatorNodeParams', 'PlannerNodeParams', 'MonitorNodeParams'],

@@ -37,7 +37,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .params import CellParams
+from .cell import CellParams
 from .schema import ParameterError, from_flat, to_flat
 
 

@@ -12,7 +12,7 @@ import hashlib
 import json
 from typing import Any
 
-from .params import CellParams
+from .cell import CellParams
 from .schema import to_flat
 
 

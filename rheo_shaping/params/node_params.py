@@ -1,7 +1,7 @@
 """Settings of the ROS 2 nodes (simulator, planner, monitor, gap_watch): one schema for
 the nodes, the params YAML and the one-process runner (``rheo-shaping cell``).
 
-Like :mod:`rheo_shaping.params.params`, every field carries a
+Like :mod:`rheo_shaping.params.cell`, every field carries a
 :class:`~rheo_shaping.params.schema.Spec`
 (description, unit, range); ``rheo_shaping/nodes/ros_params.py`` turns them into
 ROS parameters with descriptors and range checks.  The names are plain (no

@@ -7,7 +7,7 @@ from .._lazy import lazy_api
 
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'limits': ['MotionLimits'],
-    'planning': ['Plan', 'Waypoint', 'plan_waypoints'],
+    'plans': ['Plan', 'Waypoint', 'plan_waypoints'],
     'movement': ['run_movement', 'movement_plan'],
     'choose_d': ['best_d', 'run_d', 'd_values'],
     'scenarios': ['movement_scenario', 'scenario_plan'],

@@ -17,7 +17,7 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from ..parallel import executor_from_spec, run_tasks
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..params.validators import check_positive
 from .movement import run_movement
 

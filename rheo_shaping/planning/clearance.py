@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..sheet.geometry import Cake, Workplane
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..params.schema import ParameterError
-from .planning import Plan
+from .plans import Plan
 from ..sheet.tools import tool_shape
 
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..sheet.simulation import RunResult, run_scenario
-from .planning import MotionLimits, Plan, Waypoint, plan_waypoints
+from .plans import MotionLimits, Plan, Waypoint, plan_waypoints
 from .scenarios import ScenarioPlan, movement_limits, movement_scenario, scenario_plan
 
 

@@ -3,7 +3,7 @@
 A straight rest-to-rest segment is one offline ruckig calculation, phase-synchronised
 with per-axis limits scaled by the direction cosines (a straight line); its phases
 become the :class:`Pieces` of each axis, which sample the motion exactly.  Shared by
-:mod:`rheo_shaping.planning.planning` (plans) and :mod:`rheo_shaping.planning.stopping`
+:mod:`rheo_shaping.planning.plans` (plans) and :mod:`rheo_shaping.planning.stopping`
 (stops from any state).  No ROS imports here.
 """
 from __future__ import annotations

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..params.params import CellParams, MovementParams
-from .planning import MotionLimits, Plan, Waypoint, plan_waypoints
+from ..params.cell import CellParams, MovementParams
+from .plans import MotionLimits, Plan, Waypoint, plan_waypoints
 from ..sheet.simulation import PolylinePath
 from ..sheet.tools import tool_shape
 
@@ -130,7 +130,7 @@ RAMP_STEP = 0.1
 
 @dataclass(frozen=True)
 class ScenarioPlan:
-    """A ruckig :class:`~rheo_shaping.planning.planning.Plan` seen as a simulator tool path."""
+    """A ruckig :class:`~rheo_shaping.planning.plans.Plan` seen as a simulator tool path."""
 
     plan: Plan
 

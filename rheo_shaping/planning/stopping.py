@@ -23,8 +23,8 @@ from ruckig import ControlInterface, InputParameter, Synchronization
 from ..params.validators import (PointLike, check_finite, check_non_negative, check_point,
                                  check_positive)
 from .pieces import AxisBuilder, append_trajectory, as_point, axis_scale, calculate
-from .planning import (DEFAULT_RETRACT_LIMITS, MotionLimits, Plan, Segment, Waypoint,
-                       assemble_plan, plan_waypoints)
+from .plans import (DEFAULT_RETRACT_LIMITS, MotionLimits, Plan, Segment, Waypoint,
+                    assemble_plan, plan_waypoints)
 from .states import MOVING, STREAM_STATES
 
 __all__ = ["stop_from_state", "stopping_time", "stopping_distance", "TrajectoryStreamer", "STATES"]

@@ -7,7 +7,7 @@ from .._lazy import lazy_api
 
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'record': ['Record'],
-    'records': ['RecordError', 'read_record', 'write_record'],
+    'bag': ['RecordError', 'read_record', 'write_record'],
     'csv_import': ['import_csv'],
     'measurement': ['MeasurementParams', 'synthesize_record'],
 })

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..params.config import ConfigError, load_cell
 from .record import Record
-from .records import RecordError, _assemble
+from .bag import RecordError, _assemble
 
 
 def read_table(path: str | Path, columns: tuple[str, ...]) -> np.ndarray:

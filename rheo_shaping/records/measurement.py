@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..sheet.effects import nominal
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from .record import Record
 from ..params.schema import param
 from ..planning.movement import movement_plan

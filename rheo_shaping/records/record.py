@@ -1,6 +1,6 @@
 """A recorded run of a shaping cell, in memory (docs/interfaces.md, "Recorded runs").
 
-This is what the diagnosis reads; :mod:`rheo_shaping.records.records` reads and
+This is what the diagnosis reads; :mod:`rheo_shaping.records.bag` reads and
 writes it as a rosbag2 (MCAP) directory with ``scenario.yaml``, and imports
 it from CSV tables.  Times are seconds from the process start (t = 0 at the
 earliest ``/tool/pose`` stamp); positions are in frame ``cake`` [m].
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 
 
 @dataclass(frozen=True)

@@ -26,9 +26,9 @@ from typing import Sequence
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..params.schema import ParameterError
-from ..planning.planning import MotionLimits
+from ..planning.plans import MotionLimits
 from ..planning.movement import run_movement
 from ..planning.stopping import stopping_time
 

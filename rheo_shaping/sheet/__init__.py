@@ -9,6 +9,6 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'geometry': ['Cake', 'Workplane'],
     'tools': ['tool_shape'],
     'simulation': ['RunResult', 'run_scenario', 'PolylinePath'],
-    'sheet': ['SheetModel', 'SheetState'],
+    'chain': ['SheetModel', 'SheetState'],
     'effects': ['EFFECTS', 'EFFECT_NAMES'],
 })

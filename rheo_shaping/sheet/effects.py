@@ -2,7 +2,7 @@
 
 Each effect is an optional, parameterised extension of the simulator, off by
 default and switched on in the params YAML's ``effects`` section
-(:class:`~rheo_shaping.params.params.EffectsParams`).  Its name is the same in the
+(:class:`~rheo_shaping.params.cell.EffectsParams`).  Its name is the same in the
 YAML, in this registry and in every diagnosis report.  The diagnosis fits an
 effect's ``fit`` parameters inside ``bounds``; the diagnosis benchmark draws
 true magnitudes from ``realistic`` (docs/diagnosis.md says why those ranges).
@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
-from ..params.params import CellParams, EffectsParams
+from ..params.cell import CellParams, EffectsParams
 
 
 @dataclass(frozen=True)

@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..units import NS
 from .metrics import PeakTension, RunSummary
-from .sheet import ConvergenceError
+from .chain import ConvergenceError
 from .simulation import Simulation
 
 #: at most this many (process time, largest tension) pairs are kept in ``history``

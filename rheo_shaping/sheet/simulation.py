@@ -1,7 +1,7 @@
 """Run the sheet model of a cell: the stepping API and whole scenarios.
 
-:class:`Simulation` builds the chain of :mod:`rheo_shaping.sheet.sheet` from
-:class:`~rheo_shaping.params.params.CellParams`.  On :meth:`Simulation.reset` the
+:class:`Simulation` builds the chain of :mod:`rheo_shaping.sheet.chain` from
+:class:`~rheo_shaping.params.cell.CellParams`.  On :meth:`Simulation.reset` the
 undeformed drape sags under gravity with inertia for ``solver.settle_time``
 (the paper's test case 1; steps of ``solver.dt_settle``); the process clock
 then starts at t = 0 with that settled sheet.  The process takes the same
@@ -28,8 +28,8 @@ from .drape import make_drape
 from .geometry import Cake, Workplane
 from .metrics import (PeakTension, RunSummary, contact_tension, peak_tension, residual_gap,
                       safety_factor)
-from ..params.params import CellParams
-from .sheet import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState, StepRecord
+from ..params.cell import CellParams
+from .chain import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState, StepRecord
 from .tools import tool_shape
 
 #: Order of the obstacles in :attr:`SheetState.contact`.

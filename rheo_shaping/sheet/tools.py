@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from .polygon import RoundedConvexPolygon
-from ..params.params import ToolParams
+from ..params.cell import ToolParams
 
 
 def tool_shape(tool: ToolParams) -> RoundedConvexPolygon:

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..jsonable import json_safe
 from ..parallel import run_tasks
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from ..planning.scenarios import FORCED, ScenarioPlan
 from ..planning.movement import movement_plan
 from ..sheet.metrics import touching_tool

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from . import kernel as K
 from .params import LayParams, WorldEffects, WorldNumerics
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..params.params import CellParams, EffectsParams
+from ..params.cell import CellParams, EffectsParams
 from ..records.record import Record
 from .dynamic import WorldRun
 from .params import WorldEffects

@@ -6,7 +6,7 @@ from pathlib import Path
 import yaml
 
 from rheo_shaping.params.config import dump_cell, load_cell
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -23,7 +23,7 @@ from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.topics import LATCHED_QOS  # noqa: E402
 from rheo_shaping.params.fingerprint import cell_message  # noqa: E402
 from rheo_shaping.nodes.monitor import MonitorNode  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
 from .ros import Recorder, executed, wait_for_publishers, wait_for_subscribers  # noqa: E402

@@ -43,7 +43,7 @@ def test_a_cell_the_model_cannot_run_is_a_clear_error_not_a_traceback(tmp_path, 
     import yaml
 
     from rheo_shaping.params.config import dump_cell
-    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.cell import CellParams
     tree = yaml.safe_load(dump_cell(CellParams()))
     tree["/**"]["ros__parameters"]["movement"]["accel"] = 5e-324
     path = tmp_path / "slow.yaml"

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from rheo_shaping.cli import main
-from rheo_shaping.material.material import maxwell
+from rheo_shaping.material.three_element import maxwell
 from rheo_shaping.identification.synthetic_material import synthetic_tensile_curve
 
 REPO = Path(__file__).resolve().parents[2]

@@ -35,9 +35,9 @@ def test_quiet_prints_nothing(capsys):
 
 def test_span_of_a_record_and_of_a_broken_one(tmp_path):
     import numpy as np
-    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.cell import CellParams
     from rheo_shaping.records.record import Record
-    from rheo_shaping.records.records import write_record
+    from rheo_shaping.records.bag import write_record
     rec = Record(scenario=CellParams(), pose_t=np.array([0.0, 1.0, 2.5]),
                  pose_xz=np.zeros((3, 2)), profile_t=np.array([0.0, 2.0]),
                  profiles=(np.zeros((2, 2)), np.zeros((2, 2))))

@@ -23,8 +23,8 @@ from rheo_shaping.diagnosis.linear import Solver, Stack
 from rheo_shaping.diagnosis.where import PHASES, phases
 from rheo_shaping.sheet.effects import EFFECTS
 from rheo_shaping.records.measurement import MeasurementParams, synthesize_record
-from rheo_shaping.params.params import CellParams
-from rheo_shaping.records.records import write_record
+from rheo_shaping.params.cell import CellParams
+from rheo_shaping.records.bag import write_record
 
 #: The benchmark's configuration (the gap test's null is calibrated on it, docs/diagnosis.md).
 N_MASSES, PROCESS_TIME = 31, 70.0

@@ -9,7 +9,7 @@ import pytest
 
 from rheo_shaping.diagnosis import initial_state as ist
 from rheo_shaping.diagnosis.compare import polylines_at
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.records.measurement import synthesize_record
 from rheo_shaping.sheet.simulation import LaidSheet, run_scenario

@@ -17,7 +17,7 @@ import pytest
 from rheo_shaping.material.burgers import Burgers
 from rheo_shaping.material.closed_forms import tensile_force
 from rheo_shaping.identification.crack import detect_crack
-from rheo_shaping.identification.identification import (
+from rheo_shaping.identification.paper_method import (
     c1_from_tensile,
     c2_from_creep,
     identify_paper,
@@ -25,7 +25,7 @@ from rheo_shaping.identification.identification import (
     prepare_tensile,
 )
 from rheo_shaping.identification.joint_fit import FitData, fit_model
-from rheo_shaping.material.material import ThreeElement, maxwell
+from rheo_shaping.material.three_element import ThreeElement, maxwell
 from rheo_shaping.identification.material_data import (
     DataFormatError,
     TensileCurve,

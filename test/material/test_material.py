@@ -22,8 +22,8 @@ from rheo_shaping.material.burgers import (
     burgers_elongation_step,
     burgers_tensile_force,
 )
-from rheo_shaping.material.material import (ThreeElement, elongation_step, maxwell,
-                                            step_coefficients)
+from rheo_shaping.material.three_element import (ThreeElement, elongation_step, maxwell,
+                                                 step_coefficients)
 from rheo_shaping.material.response import elongation_response, force_response
 
 V = 1e-3                        # pull speed of the paper [m/s]

@@ -32,9 +32,9 @@ from rheo_shaping.safety.abort_budget import DEFAULT_T_DETECT, abort_budget  # n
 from rheo_shaping.sheet.metrics import residual_gap  # noqa: E402
 from rheo_shaping.params.node_params import MonitorNodeParams  # noqa: E402
 from rheo_shaping.nodes import messages as m  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan, run_movement  # noqa: E402
-from rheo_shaping.planning.planning import MotionLimits  # noqa: E402
+from rheo_shaping.planning.plans import MotionLimits  # noqa: E402
 from rheo_shaping.sheet.simulation import build_chain  # noqa: E402
 from rheo_shaping.planning.stopping import stop_from_state, stopping_time  # noqa: E402
 

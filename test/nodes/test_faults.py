@@ -21,7 +21,7 @@ from geometry_msgs.msg import PoseStamped  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 
 from _support.ros import Recorder  # noqa: E402
 from _support.cells import write_params  # noqa: E402

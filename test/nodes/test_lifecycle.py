@@ -29,7 +29,7 @@ from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes import topics as T  # noqa: E402
 from rheo_shaping.nodes.services import query  # noqa: E402
 from rheo_shaping.params.config import dump_cell  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.safety.lifecycle import CELL_ORDER  # noqa: E402
 
 CELLS = ("/cellA", "/cellB")

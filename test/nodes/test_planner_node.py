@@ -18,7 +18,7 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.planner import PlannerNode  # noqa: E402
 from rheo_shaping.params.fingerprint import cell_message  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.params.schema import ParameterError  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan  # noqa: E402
 

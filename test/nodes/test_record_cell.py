@@ -21,7 +21,7 @@ from rheo_shaping.sheet.effects import nominal  # noqa: E402
 from rheo_shaping.records.measurement import nodes_at  # noqa: E402
 from rheo_shaping.params.node_params import SimulatorNodeParams  # noqa: E402
 from rheo_shaping.nodes import topics as T  # noqa: E402
-from rheo_shaping.records.records import read_record  # noqa: E402
+from rheo_shaping.records.bag import read_record  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan, run_movement  # noqa: E402
 
 from _support.ros import BIN, Recorder  # noqa: E402

@@ -14,10 +14,10 @@ import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.records.measurement import MeasurementParams, synthesize_record
 from rheo_shaping.records.qos import RECORDED_QOS
-from rheo_shaping.records.records import POSE, PROFILE, TYPES, WRENCH, write_record
+from rheo_shaping.records.bag import POSE, PROFILE, TYPES, WRENCH, write_record
 
 START = 1_764_000_000.0     # a wall-clock start stamp [s]
 

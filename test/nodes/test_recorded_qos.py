@@ -10,7 +10,7 @@ from rclpy.duration import Duration  # noqa: E402
 
 from rheo_shaping.nodes import topics as T  # noqa: E402
 from rheo_shaping.records import qos as Q  # noqa: E402
-from rheo_shaping.records.records import TYPES  # noqa: E402
+from rheo_shaping.records.bag import TYPES  # noqa: E402
 
 
 def _seconds(d: Duration) -> float | None:

@@ -13,7 +13,7 @@ from rheo_shaping.params.node_params import (NODE_PARAMS, MonitorNodeParams,  # 
                                              SimulatorNodeParams)
 from rheo_shaping.nodes.monitor import MonitorNode  # noqa: E402
 from rheo_shaping.nodes.ros_params import SchemaParameters  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.params.schema import ParameterError, iter_fields  # noqa: E402
 
 from _support.ros import BIN  # noqa: E402

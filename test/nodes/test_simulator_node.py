@@ -19,7 +19,7 @@ from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.simulator import SimulatorNode  # noqa: E402
-from rheo_shaping.params.params import CellParams  # noqa: E402
+from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.planning.scenarios import movement_scenario  # noqa: E402
 from rheo_shaping.sheet.simulation import Simulation  # noqa: E402
 

@@ -9,7 +9,7 @@ import pytest
 
 from rheo_shaping.planning.choose_d import run_d
 from rheo_shaping.parallel import SerialExecutor, executor_from_spec, executor_workers, run_tasks
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 
 
 def _scaled(shared: dict, item: int) -> tuple[int, int, int]:

@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from rheo_shaping.params.config import dump_cell, load_cell
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.params.schema import to_flat
 
 CELL_YAML = Path(__file__).resolve().parents[2] / "config" / "cell.yaml"

@@ -5,7 +5,7 @@ import json
 from dataclasses import replace
 
 from rheo_shaping.params.fingerprint import cell_fingerprint, cell_message, cell_mismatch
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 
 
 def test_equal_cells_agree_and_the_message_carries_every_parameter():

@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.material.material import ThreeElement, elongation_step, step_coefficients
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.material.three_element import ThreeElement, elongation_step, step_coefficients
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.sheet.simulation import Simulation, build_chain
 
 BAD_POSITIVE = [math.nan, 0.0, -1.0, -math.inf]
@@ -120,7 +120,7 @@ def test_values_inside_their_range_that_no_run_could_finish_are_refused(section,
     would never end; a sheet 5e-324 m thick has masses of radius 0 m."""
     from dataclasses import replace as _replace
 
-    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.cell import CellParams
     from rheo_shaping.params.schema import ParameterError
     cell = CellParams()
     with pytest.raises(ParameterError, match=f"parameter '{section}.{name}'") as exc:

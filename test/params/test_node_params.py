@@ -8,7 +8,7 @@ import pytest
 
 from rheo_shaping.params.config import load_cell
 from rheo_shaping.params.node_params import NODE_PARAMS, parameter_table
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.choose_d import best_d, d_values
 
 from _support.cells import REPO, base_cell

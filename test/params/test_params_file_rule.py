@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rheo_shaping.params.config import ConfigError, check_params_file, load_cell, node_of
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 
 
 @pytest.mark.parametrize("text, fragments", [

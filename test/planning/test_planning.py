@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from ruckig import ControlInterface, InputParameter, Ruckig, Synchronization, Trajectory
 
-from rheo_shaping.planning.planning import (
+from rheo_shaping.planning.plans import (
     DEFAULT_LIMITS,
     MIN_MOVE_M,
     MotionLimits,
@@ -570,7 +570,7 @@ def test_property_random_waypoints(start, wps, lim):
 def test_autostart_refusal_and_approach_plan():
     """The planner node's start rules (planning.movement): autostart only at home or at
     the plan's start; from elsewhere an approach at the given limits comes first."""
-    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.cell import CellParams
     from rheo_shaping.planning.movement import approach_plan, autostart_refusal, movement_plan
     cell = CellParams()
     plan = movement_plan(cell).plan
@@ -593,7 +593,7 @@ def test_autostart_refusal_and_approach_plan():
 def test_abort_from_the_executed_time_behind_the_newest_set_point():
     """The planner stops from where the tool is (/tool/pose), which trails the set-points it
     sent by up to max_lead: the stop starts from the plan's exact state at that time."""
-    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.cell import CellParams
     from rheo_shaping.planning.movement import movement_plan
     from rheo_shaping.planning.stopping import TrajectoryStreamer, stop_from_state
     plan = movement_plan(CellParams()).plan

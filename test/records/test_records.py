@@ -14,8 +14,8 @@ from rheo_shaping.records.csv_import import import_csv
 from rheo_shaping.sheet.effects import EFFECTS
 from rheo_shaping.records.measurement import (MeasurementParams, nodes_at, resample_polyline,
                                               synthesize_record)
-from rheo_shaping.params.params import CellParams
-from rheo_shaping.records.records import RecordError, read_record, read_truth, write_record
+from rheo_shaping.params.cell import CellParams
+from rheo_shaping.records.bag import RecordError, read_record, read_truth, write_record
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ from dataclasses import replace
 
 import pytest
 
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.params.schema import ParameterError
 from rheo_shaping.safety.abort_budget import (abort_horizon, configured_speed_threshold,
                                               monitor_abort_ratio)

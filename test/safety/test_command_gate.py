@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.safety.command_gate import CommandGate, Publisher, ToolLimits
 from rheo_shaping.units import NS

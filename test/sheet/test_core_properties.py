@@ -13,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.params.schema import ParameterError
 from rheo_shaping.sheet.simulation import PolylinePath, run_scenario
 from rheo_shaping.sheet.tools import tool_shape

@@ -9,9 +9,9 @@ import pytest
 
 from rheo_shaping.sheet.effects import EFFECT_NAMES, EFFECTS, active_effects, nominal
 from rheo_shaping.sheet.geometry import Workplane
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
-from rheo_shaping.sheet.sheet import ChainConstants, Obstacle, SheetEffects, SheetModel
+from rheo_shaping.sheet.chain import ChainConstants, Obstacle, SheetEffects, SheetModel
 from rheo_shaping.sheet.simulation import PolylinePath, Simulation, build_chain, run_scenario
 
 G = 9.81

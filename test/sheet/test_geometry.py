@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from matplotlib.path import Path
 from scipy.spatial import ConvexHull
 
-from rheo_shaping.params.params import ToolParams
+from rheo_shaping.params.cell import ToolParams
 from rheo_shaping.sheet.geometry import Cake, Workplane
 from rheo_shaping.sheet.polygon import circle, convex_polygon, rounded_rectangle
 from rheo_shaping.sheet.tools import tool_shape

@@ -9,7 +9,7 @@ import pytest
 from rheo_shaping.sheet import kernel as K
 from rheo_shaping.sheet.geometry import Cake, Workplane
 from rheo_shaping.sheet.polygon import RoundedConvexPolygon
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.simulation import Simulation
 

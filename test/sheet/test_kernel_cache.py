@@ -27,7 +27,7 @@ import numpy as np
 import rheo_shaping
 assert rheo_shaping.__file__.startswith(sys.argv[1]), rheo_shaping.__file__
 from rheo_shaping.sheet.geometry import Workplane
-from rheo_shaping.sheet.sheet import ChainConstants, Obstacle, SheetModel
+from rheo_shaping.sheet.chain import ChainConstants, Obstacle, SheetModel
 n = 5
 c = ChainConstants(anchor_top=np.array([0.0, 0.1]), anchor_bottom=np.array([0.1, 0.1]),
                    rest_length=np.full(n + 1, 0.02), k1=np.full(n + 1, 500.0),

@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.metrics import safety_factor
 from rheo_shaping.sheet.setpoints import SetpointRun

@@ -9,7 +9,7 @@ import pytest
 from rheo_shaping.sheet.analytic import elastic_chain_equilibrium
 from rheo_shaping.sheet.geometry import Cake, Workplane
 from rheo_shaping.sheet.polygon import RoundedConvexPolygon
-from rheo_shaping.sheet.sheet import ChainConstants, Obstacle, SheetModel
+from rheo_shaping.sheet.chain import ChainConstants, Obstacle, SheetModel
 from rheo_shaping.sheet.simulation import settle
 
 G = 9.81
@@ -133,7 +133,7 @@ def test_link_pulled_at_constant_rate_follows_eq_5(c1):
 def test_tool_pushing_sheet_against_wall_is_frictionless_and_balanced(tool_kind):
     """Elastic sheet pushed onto the cake wall by a tool: no penetration, normal forces,
     balance."""
-    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.cell import CellParams
     from rheo_shaping.sheet.simulation import build_chain
     p = CellParams()
     p = replace(p, material=replace(p.material, c2=float("inf")))
@@ -210,7 +210,7 @@ def test_settle_time_zero_starts_from_the_undeformed_drape():
     undeformed drape (no sag), it does not divide by zero (issue 27, fuzz of bounds)."""
     from dataclasses import replace as _replace
 
-    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.cell import CellParams
     from rheo_shaping.sheet.simulation import Simulation
     cell = CellParams()
     cell = _replace(cell, solver=_replace(cell.solver, settle_time=0.0))

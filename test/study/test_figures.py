@@ -6,7 +6,7 @@ import pytest
 
 from _support.figures import legends, overlap, saved_figures, titles
 from rheo_shaping.cli.reproduce import write_figures
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.study.reproduce import reproduce
 
 

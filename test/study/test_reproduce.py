@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rheo_shaping.cli import main
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.study.reproduce import reproduce
 
 # Table 2: F_max [N], Delta [m]
@@ -149,7 +149,7 @@ def test_peak_tension_is_resolved_at_twice_the_papers_speed():
     """
     from dataclasses import replace
 
-    from rheo_shaping.params.params import CellParams
+    from rheo_shaping.params.cell import CellParams
     from rheo_shaping.planning.movement import movement_plan
     from rheo_shaping.sheet.simulation import run_scenario
 

@@ -7,7 +7,7 @@ import pytest
 
 from rheo_shaping.cli import main
 from rheo_shaping.diagnosis.benchmark import WORLDS, base_cell, make_case, run_benchmark
-from rheo_shaping.params.params import EffectsParams
+from rheo_shaping.params.cell import EffectsParams
 from rheo_shaping.sheet.effects import EFFECTS
 from rheo_shaping.worlds.params import WORLD_EFFECTS
 
@@ -64,7 +64,7 @@ def test_the_world_runs_without_the_sheet_model():
     import subprocess
     import sys
     code = ("import sys, numpy as np\n"
-            "from rheo_shaping.params.params import CellParams\n"
+            "from rheo_shaping.params.cell import CellParams\n"
             "from rheo_shaping.worlds.dynamic import run_world\n"
             "from rheo_shaping.worlds.sensors import measure_world\n"
             "class Still:\n"
@@ -82,7 +82,7 @@ def test_a_world_record_round_trips_as_a_record_directory(tmp_path):
     """What a user diagnoses: a world record written as a rosbag2 directory with its
     scenario.yaml reads back with the same samples."""
     pytest.importorskip("rosbags")
-    from rheo_shaping.records.records import read_record, write_record
+    from rheo_shaping.records.bag import read_record, write_record
     case = make_case(1, "none", 4, base_cell(31, 20.0), world="dynamic")
     rec = case["records"][0]
     back = read_record(write_record(rec, tmp_path / "r0"))

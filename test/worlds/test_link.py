@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rheo_shaping.material.closed_forms import creep_elongation, tensile_force
-from rheo_shaping.material.material import ThreeElement
+from rheo_shaping.material.three_element import ThreeElement
 from rheo_shaping.worlds.kernel import link_affine, link_update
 
 MAXWELL = ThreeElement(k1=95.0, c1=0.0, c2=1.30e3)          # the paper's fondant (0.1 m)

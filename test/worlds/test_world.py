@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.params.params import CellParams
+from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.effects import EFFECTS, EFFECT_NAMES
 from rheo_shaping.study.reproduce import PAPER

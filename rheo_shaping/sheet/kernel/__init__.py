@@ -5,7 +5,7 @@ Its modules: ``consts`` (kinds, status codes, packed-parameter indices), ``shape
 (energy, gradient, Hessian), ``newton`` (the minimisation), ``step`` (one step, many
 steps, a path) and ``pack`` (the arrays, from the model).
 
-:class:`rheo_shaping.sheet.sheet.SheetModel` packs its chain, obstacles and effects
+:class:`rheo_shaping.sheet.chain.SheetModel` packs its chain, obstacles and effects
 into a few arrays (:func:`pack_model`) and calls :func:`advance`, which takes
 one step of ``dt`` [s] (with the half-step retries) or :func:`advance_fixed`,
 which takes many equal steps (the inertial settle) without returning to

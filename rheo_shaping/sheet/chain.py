@@ -4,13 +4,13 @@ N masses (spheres of radius ``r`` = half the sheet thickness) hang between
 two fixed bonds and are joined by N + 1 links.  Link i joins node i-1 and
 node i, where node -1 is the cake-top bond and node N the workplane bond.
 Every link is a three-element unit with constants scaled to its rest length
-(:mod:`rheo_shaping.material.material`); it carries tension only (a slack link buckles
+(:mod:`rheo_shaping.material.three_element`); it carries tension only (a slack link buckles
 and carries nothing).  Spheres touch the obstacles (cake, workplane, tool)
 without friction and without interpenetration.
 
 One time step is implicit (backward Euler in the positions, the exact
 three-element update in the links).  Over a step the link force is affine in
-the link length (:func:`rheo_shaping.material.material.step_coefficients`), so the new
+the link length (:func:`rheo_shaping.material.three_element.step_coefficients`), so the new
 positions minimise the incremental potential
 
     E(x) = sum m |x - x_pred|^2 / (2 dt^2) + sum 1/2 S (l - L*)_+^2

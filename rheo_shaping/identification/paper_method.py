@@ -29,7 +29,7 @@ import numpy as np
 from ..material.closed_forms import linearised_tensile
 from .crack import CrackDetection, detect_crack
 from .estimates import Estimate, symmetric, t_quantile
-from ..material.material import SPECIMEN_LENGTH_M
+from ..material.three_element import SPECIMEN_LENGTH_M
 from .material_data import CreepCurve, CreepResiduals, TensileCurve
 
 #: F(0) counts as zero (Maxwell model, Eq. 11) below this many standard errors.

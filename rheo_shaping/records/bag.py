@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..params.config import ConfigError, dump_cell, load_cell
-from ..params.params import CellParams
+from ..params.cell import CellParams
 from .qos import RECORDED_QOS, to_rosbags
 from .record import Record
 from ..units import NS
