@@ -54,9 +54,6 @@ class Acknowledgements:
         the attack campaign at x10: a twin's "starting" made the monitor believe no plan
         ran, the abort withheld nothing, and the sheet was stretched past F_break before
         the simulator held)."""
-        # states before a run reported while the known planner moves the tool are another
-        # planner's (a twin starting up, which then yields): the one that moves cannot have
-        # gone there, so they do not change what the monitor knows
         if self.planner_state in MOVING and state in BEFORE_RUN:
             return None
         self.planner_state = state

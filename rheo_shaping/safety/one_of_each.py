@@ -22,10 +22,10 @@ def settle_time(discovery_s: float | None) -> float:
     """How long [s] a node waits, from the moment discovery reached the rest of the cell,
     before it acts: :data:`SETTLE_TIME`, or as long as discovery took to show it another node
     of the graph (``discovery_s`` [s] from the node's start; None if unknown) when that was
-    longer.  An older twin is
-    found by the same discovery as the rest of the cell, so on a busy machine, where
-    discovery is slow, the wait grows with it (seen: a newcomer planner that settled after
-    1 s at a load average of 20 had not yet seen the older planner and took a start)."""
+    longer.  An older twin is found by the same discovery as the rest of the cell, so on a
+    busy machine, where discovery is slow, the wait grows with it (seen: a newcomer planner
+    that settled after 1 s at a load average of 20 had not yet seen the older planner and
+    took a start)."""
     if discovery_s is None or not discovery_s > SETTLE_TIME:
         return SETTLE_TIME
     return float(discovery_s)
