@@ -122,6 +122,16 @@ def magnitude(name: str, v: float) -> float:
     return 1.0 - v if name == "power_law" else v
 
 
+def curve_probes(name: str, resp) -> list[tuple[float, np.ndarray]]:
+    """A curve effect's (magnitude, response) pairs for :func:`response_at`, from its probes
+    that ran ((values, response) pairs, at least one): with one probe only, the line
+    through it continued to twice its magnitude."""
+    mags = [(magnitude(name, v[0]), d) for v, d in resp]
+    if len(mags) < 2:
+        mags = [mags[0], (2 * mags[0][0], 2 * mags[0][1])]
+    return mags
+
+
 def linear_columns(name: str, resp) -> list[tuple[int, np.ndarray]]:
     """A linear effect's columns: per probe (values ``v``, response ``d``) the parameter it
     moves (its largest entry) and the response per unit of that parameter."""
@@ -168,9 +178,7 @@ def fit_single(name: str, resp, lin: LinearFit) -> Explanation | None:
             ivs[k] = (vals_fit[k] - half, vals_fit[k] + half)
         c.interval = {name: ivs}
     else:
-        mags = [(magnitude(name, v[0]), d) for v, d in resp]
-        if len(mags) < 2:
-            mags = [mags[0], (2 * mags[0][0], 2 * mags[0][1])]
+        mags = curve_probes(name, resp)
         grid = np.linspace(0.0, magnitude(name, top), GRID)
         Js, us = [], []
         for a in grid:
@@ -233,8 +241,8 @@ def fit_pair(a: Explanation, b: Explanation, responses, lin: LinearFit) -> Expla
         if kind == "linear":
             lin_e.append((n, "linear", resp))
         else:
-            mags = [(magnitude(n, v[0]), d) for v, d in resp]
-            curve.append((n, "curve", (mags, np.linspace(0, magnitude(n, top), 17))))
+            curve.append((n, "curve", (curve_probes(n, resp),
+                                        np.linspace(0, magnitude(n, top), 17))))
     E, elo, ehi, kidx = None, [], [], []
     if lin_e:
         cols = []

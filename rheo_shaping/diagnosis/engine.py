@@ -59,6 +59,7 @@ from .compare import RecordData, residuals
 from .context import Baseline, FitContext
 from .evaluate import Runner, apply
 from .initial_state import initial_summary, pool
+from .laid_length import laid_lengths
 from .result import Diagnosis, as_residuals, baseline_table, chain_correct
 from .stages import Nominal, baseline_stage, gap_stage, nominal_stage, sensor_stage
 from .verdict import After, Candidates, Verdict, after_stage, candidates_stage, verdict_stage
@@ -100,11 +101,19 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
     data = [replace(d, initial=s) for d, s in zip(data, pool(
         [d.initial for d in data], initial_state == "auto"))]
     with stats.using_null(None), Runner(executor, jobs, progress) as run:
+        data = laid_lengths(data, [d.record.scenario for d in data], run)
         nominal, ctx = nominal_stage(data, len(records), run)
         fl = _floor((floor, scale, bool(reference)), data, ctx.nf, len(ctx.hold_d), ctx.sp,
                     ctx.sf)
         stats.using_null_now(fl.sample)              # the gap test and adequacy use it
         base = baseline_stage(ctx, nominal)
+        if any(d.initial is not None and d.initial.mode == "laid" for d in data):
+            # the laid lengths again, with the calibrated cell (its bonds and sag move them),
+            # and the baseline from there on the same Jacobian
+            run.stage("laid lengths and baseline again")
+            data = laid_lengths(data, [ctx.params(d, base.u_s) for d in data], run)
+            nominal, ctx = nominal_stage(data, len(records), run)
+            base = baseline_stage(ctx, nominal, base.A_sheet)
         gap = gap_stage(ctx, base)
         below = fl_mod.within_tolerance(base.parts, ctx.sp, ctx.sf, tolerance)
         gap = replace(gap, below_tolerance=below)

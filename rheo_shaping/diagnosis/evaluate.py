@@ -132,7 +132,8 @@ def default_executor(jobs: int | None = None) -> Executor:
 #: The diagnosis's stages, in order (a progress display shows "stage k of n"); a stage
 #: that has nothing to run (the replay misfit of a Maxwell cell, the effects when no gap
 #: is left) is passed over.
-STAGES = ("nominal models", "baseline Jacobian", "baseline fit",
+STAGES = ("laid sheets' lengths", "nominal models", "baseline Jacobian", "baseline fit",
+          "laid lengths and baseline again",
           "replay misfit (Kelvin cell)", "effect probes", "candidate checks", "verdict runs")
 
 
@@ -145,14 +146,28 @@ class Runner:
         self.executor = default_executor(jobs) if self._own else executor
         self.progress = progress
         self.runs = 0
+        self._k = 0                 # the stage under way (1-based; 0 before the first)
 
-    def stage(self, k: int, total: int | None = None) -> None:
-        """Stage ``k`` of :data:`STAGES` begins, with ``total`` simulations when known
+    def stage(self, name: str, total: int | None = None) -> None:
+        """Stage ``name`` of :data:`STAGES` begins, with ``total`` simulations when known
         up front (None: its batches add theirs as they start); told to a progress display
-        that has a ``stage(k, n, name, total)`` method."""
+        that has a ``stage(k, n, name, total)`` method (k counts from 1).  A stage before the
+        one under way is a part of it (the second pass of a laid sheet's stages): not told."""
+        k = STAGES.index(name) + 1
+        if k <= self._k:
+            return
+        self._k = k
         stage = getattr(self.progress, "stage", None)
         if stage is not None:
-            stage(k, len(STAGES), STAGES[k - 1], total)
+            stage(k, len(STAGES), name, total)
+
+    def map(self, fn: Callable, items: Sequence) -> list:
+        """``fn(None, item)`` for every item, in order, on this runner's executor, counted
+        as simulations (for a stage whose runs are not :class:`Task` s)."""
+        expect = getattr(self.progress, "expect", None)
+        if expect is not None:
+            expect(len(items))
+        return run_tasks(self.executor, fn, None, list(items), self._count)
 
     def __call__(self, tasks: Sequence[Task]) -> list[Outcome]:
         expect = getattr(self.progress, "expect", None)

@@ -81,9 +81,10 @@ class InitialState:
     #                             one (_comparison_frame)
     contact_time: float = math.nan   # s, first frame in which the tool touches the sheet
     written_excess: float = 0.0      # m, the scenario's sheet.excess_length
-    pooled_from: tuple = ()     # m, the records' own laid lengths when pooled
     ends: float = 0.0           # m, the pieces of ``length`` from the written bonds to the
     #                             first and last point
+    offset: float = 0.0         # m, the rest length's offset fitted on the record's first
+    #                             seconds (:mod:`.laid_length`)
 
     def laid(self, params: CellParams) -> LaidSheet | None:
         """The model's laid sheet for cell ``params`` (bonds, cake, the sag knob's offset from
@@ -100,22 +101,25 @@ class InitialState:
         return LaidSheet(nodes, rest, self.t0, RELEASE_TIME)
 
     def rest(self, params: CellParams) -> float:
-        """The links' total rest length [m] for cell ``params``: the laid length (pooled over
-        the records, :func:`pool`) with the cell's bonds (the pieces from each bond to the
-        first and last measured point follow the bond knobs), plus the sag knob's offset
-        from its written value (the strain the sheet was laid with)."""
+        """The links' total rest length [m] for cell ``params``: the record's laid length
+        with the cell's bonds (the pieces from each bond to the first and last measured
+        point follow the bond knobs), plus the sag knob's offset from its written value
+        (the strain the sheet was laid with, common to the records), plus the record's own
+        ``offset`` (its first seconds' fit, :mod:`.laid_length`)."""
         s, c = params.sheet, params.cake
         r = 0.5 * s.thickness
         ends = (float(np.hypot(*(self.shape[0] - [s.top_bond_x, c.height + r])))
                 + float(np.hypot(*(self.shape[-1] - [s.bottom_bond_x, r]))))
-        return self.length - self.ends + ends + (s.excess_length - self.written_excess)
+        return (self.length - self.ends + ends + (s.excess_length - self.written_excess)
+                + self.offset)
 
     def as_dict(self) -> dict:
         """Plain numbers for the report and JSON (SI units)."""
         return {"mode": self.mode, "t0_s": self.t0, "laid_length_m": self.length,
                 "laid_length_sd_m": self.length_sd, "motion_noise_units": self.motion,
                 "contact_time_s": (self.contact_time if math.isfinite(self.contact_time)
-                                   else None), "profile_noise_m": self.noise}
+                                   else None), "profile_noise_m": self.noise,
+                "rest_length_offset_m": self.offset}
 
 
 def rest_length(params: CellParams) -> float:
@@ -175,7 +179,7 @@ def profile_noise(frames: list[np.ndarray]) -> float:
     return float(1.4826 * np.median(np.abs(v - np.median(v))) / math.sqrt(6.0))
 
 
-def _distance_to(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+def distance_to(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     """Unsigned distance [m] of each of ``points`` (P, 2) to polyline ``line`` (K, 2)."""
     a, seg = line[:-1], np.diff(line, axis=0)
     L2 = np.maximum(np.einsum("sk,sk->s", seg, seg), 1e-300)
@@ -205,26 +209,14 @@ def contact_time(record: Record) -> float:
 def pool(states: list[InitialState | None], auto: bool = False) -> list[InitialState | None]:
     """The records' initial states read together.  ``auto``: one mode for all, ``laid`` when
     the records' median motion exceeds ``MOVING`` (the same cell, laid the same way; one
-    record alone can move little).  The laid records' lengths are pooled: their median, the
-    same sheet's rest length read from every record's first frame (each alone is off by its
-    own noise, and a tool that starts against the sheet stretches it in the first instant,
-    which no common knob could fit)."""
+    record alone can move little).  Each laid record keeps its own length: no two layings
+    need be of one length (a sheet laid over a tool in its way is laid longer), and what the
+    first frame misses, each record's first seconds fit (:mod:`.laid_length`)."""
     if auto and any(s is not None for s in states):
         moving = float(np.median([s.motion for s in states if s is not None])) > MOVING
         states = [None if s is None else replace(s, mode="laid" if moving else "settled")
                   for s in states]
-    laid = [s for s in states if s is not None and s.mode == "laid" and math.isfinite(s.length)]
-    if len(laid) < 2:
-        return states
-    lengths = np.array([s.length for s in laid])
-    L = float(np.median(lengths))
-    # the median's standard error: the records' own spread (a tool that starts against the
-    # sheet stretches it in the first instant) or their noise, whichever is larger
-    sd = float(max(1.2533 * np.std(lengths, ddof=1) / math.sqrt(len(laid)),
-                   np.median([s.length_sd for s in laid]) / math.sqrt(len(laid))))
-    ids = {id(s) for s in laid}
-    return [replace(s, length=L, length_sd=sd, pooled_from=tuple(lengths))
-            if s is not None and id(s) in ids else s for s in states]
+    return states
 
 
 def _comparison_frame(usable: list[int], times: np.ndarray, before: list[int],
@@ -274,7 +266,7 @@ def estimate(record: Record, mode: str = "auto", seed: int = 0) -> InitialState:
                     for k in (0, 1)]
             far &= shape_t.signed_distance(pts, pose)[0] > TOOL_CLEAR
         if np.count_nonzero(far) >= 5:
-            d = _distance_to(pts[far], smooth(frames[later]))
+            d = distance_to(pts[far], smooth(frames[later]))
             motion = float(np.median(d)) / noise
     chosen = mode if mode != "auto" else ("laid" if motion > MOVING else "settled")
     ends = (float(np.hypot(*(shape[0] - top))) + float(np.hypot(*(shape[-1] - bottom))))

@@ -33,7 +33,7 @@ class Nominal:
 
 def nominal_stage(data: list[RecordData], nf: int, run: Runner) -> tuple[Nominal, FitContext]:
     """Stage 1: the nominal models, the noise (MAD of second differences), the fit context."""
-    run.stage(1, len(data))
+    run.stage("nominal models", len(data))
     nominal = run([Task(d, d.record.scenario, keep_run=True) for d in data])
     bad = [d.record.name for d, o in zip(data, nominal) if not o.ok]
     if bad:
@@ -56,10 +56,12 @@ def nominal_stage(data: list[RecordData], nf: int, run: Runner) -> tuple[Nominal
     return Nominal(nominal, sp, sf, J0, J0h), ctx
 
 
-def baseline_stage(ctx: FitContext, nominal: Nominal) -> Baseline:
-    """Stage 2: the sheet knobs' Jacobian (forward differences of half a tolerance), a
-    bounded least-squares step on it, checked by simulation, one chord step from there,
-    checked again; the best of the three points (nominal included) with the chain refitted."""
+def baseline_stage(ctx: FitContext, nominal: Nominal,
+                   A_sheet: np.ndarray | None = None) -> Baseline:
+    """The sheet knobs' Jacobian (forward differences of half a tolerance; ``A_sheet``, one
+    already measured near this point, when given), a bounded least-squares step on it,
+    checked by simulation, one chord step from there, checked again; the best of the three
+    points (nominal included) with the chain refitted."""
     G, nf, n_s, run = ctx.G, ctx.nf, ctx.n_s, ctx.run
     z0 = G.z(nominal.outs[:nf])
 
@@ -68,8 +70,9 @@ def baseline_stage(ctx: FitContext, nominal: Nominal) -> Baseline:
 
     def invalid(j: int) -> list:
         raise ValueError(f"baseline knob {SHEET[j].name}: no valid step of half a tolerance")
-    A_sheet = forward_jacobian(ctx, z0, at, [(JACOBIAN_STEP, -JACOBIAN_STEP)] * n_s, invalid,
-                               announce=lambda n: run.stage(2, n))
+    if A_sheet is None:
+        A_sheet = forward_jacobian(ctx, z0, at, [(JACOBIAN_STEP, -JACOBIAN_STEP)] * n_s,
+                                   invalid, announce=lambda n: run.stage("baseline Jacobian", n))
     solver = G.solver(A_sheet)
     chain_lim = ctx.chain_lim
     lo = np.r_[-np.ones(n_s), -chain_lim]
@@ -78,7 +81,7 @@ def baseline_stage(ctx: FitContext, nominal: Nominal) -> Baseline:
 
     u_lin, _ = solver.solve(z0, lo, hi)
     tried = [(np.zeros(n_s), nominal.outs)]
-    run.stage(3, 2 * len(ctx.data))
+    run.stage("baseline fit", 2 * len(ctx.data))
     for _it in range(2):
         u_try = np.clip(u_lin[:n_s], -1, 1)
         try:
@@ -128,7 +131,7 @@ def gap_stage(ctx: FitContext, base: Baseline) -> GapTest:
     misfit, measured here (:mod:`replay`)."""
     rp: tuple[np.ndarray | None, ...] = (None, None)
     if any(replay.kelvin(d.record.scenario) for d in ctx.data):
-        ctx.run.stage(4, (1 + replay.DRAWS) * len(ctx.data))
+        ctx.run.stage("replay misfit (Kelvin cell)", (1 + replay.DRAWS) * len(ctx.data))
         rp = tuple(replay.replay_misfit(dd, [ctx.params(d, base.u_s) for d in dd], ctx.run,
                                         ctx.sp, ctx.sf)
                    if dd else None for dd in (ctx.fit_d, ctx.hold_d))

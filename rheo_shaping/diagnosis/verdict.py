@@ -40,7 +40,7 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
         return Candidates([], {}, 0, None)
     run, G, nf = ctx.run, ctx.G, ctx.nf
     if not library:
-        run.stage(6)
+        run.stage("candidate checks")
         check([chain_c], ctx, base, m=1)
         return Candidates([], {}, 0, None)
     ptasks, index = [], []
@@ -51,7 +51,7 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
             for d in ctx.fit_d:
                 ptasks.append(Task(d, apply(ctx.params(d, base.u_s), ((name, vv),))))
             index.append((name, vv))
-    run.stage(5, len(ptasks))
+    run.stage("effect probes", len(ptasks))
     pouts = run(ptasks)
     responses: dict = {}
     for i, (name, vv) in enumerate(index):
@@ -68,7 +68,7 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
         c.p = stats.bonferroni_p(c.LR, c.k, m)
     effects.sort(key=lambda c: (c.p, c.J))
     chain_c.p = stats.bonferroni_p(chain_c.LR, chain_c.k, m + 1)
-    run.stage(6)
+    run.stage("candidate checks")
     check(effects[:CHECKED] + [chain_c], ctx, base, m=m, responses=responses)
     base_c = Explanation((), {}, base.J, checked=True, baseline_u=np.r_[base.u_s, base.u_c])
     base_c.search.z_raw = base.z_raw
@@ -191,6 +191,6 @@ def after_stage(ctx: FitContext, base: Baseline, verdict: Verdict,
         return After(None, base.outs, base.u_c)
     u_v, n_s = fit.fitted_u, ctx.n_s
     cand = verdict.fit.candidate if verdict.fit else ()
-    ctx.run.stage(7, len(ctx.data))
+    ctx.run.stage("verdict runs", len(ctx.data))
     outs = ctx.run([Task(d, apply(ctx.params(d, u_v[:n_s]), cand)) for d in ctx.data])
     return After(fit, outs, u_v[n_s:])

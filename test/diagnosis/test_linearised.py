@@ -140,6 +140,26 @@ def test_fit_pair_of_two_linear_effects_is_their_joint_least_squares():
     assert c.J < min(a.J, b.J)
 
 
+def test_a_curve_effect_with_one_probe_that_ran_pairs_as_the_line_through_it():
+    """kelvin_c1's second probe failed (its model did not run): the single and the pair fits
+    both take the response as the line through the probe that ran (the gap watch's crash in
+    ``response_at``, issue 29), and the pair finds the magnitude a response of that form
+    was built with, on the pair's grid of 17 magnitudes to 3000 N s/m."""
+    A, g, noise = _world(5)
+    per_unit = g[:, 0] / 500.0                      # the response per N s/m, linear
+    x_true = 1125.0                                 # on the pair's grid (3000 / 16 * 6)
+    z = -(A @ np.array([0.1, -0.2, 0.3]) + per_unit * x_true + g[:, 2] * 0.1) + noise
+    responses = {"kelvin_c1": [((500.0,), per_unit * 500.0), ((2000.0,), None)],
+                 "mass_error": _probes("mass_error", g[:, 2])}
+    lin = _lin(A, z)
+    a = fit_single("kelvin_c1", responses["kelvin_c1"], lin)
+    b = fit_single("mass_error", responses["mass_error"], lin)
+    c = fit_pair(a, b, responses, lin)
+    assert c.names == ("kelvin_c1", "mass_error")
+    assert c.values["kelvin_c1"] == (pytest.approx(x_true),)
+    assert c.values["mass_error"][0] == pytest.approx(0.1, abs=0.02)
+
+
 def test_one_chord_step_of_an_exactly_linear_model_lands_on_its_least_squares():
     """From any point (u0, v0) of a model whose residual is r + A u + E v, one chord step goes
     to argmin |r + A u + E v|, the knobs and values inside their boxes."""

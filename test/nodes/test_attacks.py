@@ -336,7 +336,12 @@ def test_a_parameter_slip_in_one_node_is_refused_with_both_values(ros, procs, tm
     t_end = time.monotonic() + 60.0
     while "the cell differs" not in slip.text() and time.monotonic() < t_end:
         fut = client.call_async(Trigger.Request())
-        ros.spin_until(fut.done, 10.0, "the start response")
+        # a response can be lost when the server has not yet matched this client's response
+        # reader (rmw_fastrtps waits 100 ms for it: ros2/rmw_fastrtps#390, #467); the loop
+        # then asks again, and the check is the planner's own log below
+        t_call = time.monotonic()
+        while not fut.done() and time.monotonic() - t_call < 10.0:
+            ros.spin_for(0.1)
         ros.spin_for(0.5)
     text = slip.text()
     assert "the cell differs from the simulator's" in text, text[-3000:]
