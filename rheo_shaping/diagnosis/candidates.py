@@ -241,8 +241,8 @@ def fit_pair(a: Explanation, b: Explanation, responses, lin: LinearFit) -> Expla
         if kind == "linear":
             lin_e.append((n, "linear", resp))
         else:
-            curve.append((n, "curve", (curve_probes(n, resp),
-                                        np.linspace(0, magnitude(n, top), 17))))
+            grid = np.linspace(0, magnitude(n, top), 17)
+            curve.append((n, "curve", (curve_probes(n, resp), grid)))
     E, elo, ehi, kidx = None, [], [], []
     if lin_e:
         cols = []
