@@ -73,8 +73,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from rheo_shaping.sheet.drape import make_drape  # noqa: E402
 from rheo_shaping.parallel import executor_from_spec, run_tasks  # noqa: E402
 from rheo_shaping.params.cell import CellParams  # noqa: E402
-from rheo_shaping.study.reproduce import (HALF_SPEED, PAPER, movement_run,  # noqa: E402
-                                          parabolic_minimum, sweep_point)
+from rheo_shaping.study.reproduce import HALF_SPEED, PAPER, movement_run, sweep_point  # noqa: E402
+from rheo_shaping.study.sweep import parabolic_minimum  # noqa: E402
 from rheo_shaping.sheet import simulation  # noqa: E402
 from rheo_shaping.sheet.simulation import Simulation  # noqa: E402
 from rheo_shaping.sheet.tools import tool_shape  # noqa: E402

@@ -17,7 +17,8 @@ import numpy as np
 from ..sheet.metrics import residual_gap
 from ..params.cell import CellParams
 from ..records.record import Record
-from ..sheet.simulation import PolylinePath, RunResult, ToolPath, run_scenario
+from ..sheet.paths import PolylinePath, ToolPath
+from ..sheet.simulation import RunResult, run_scenario
 from .initial_state import InitialState, estimate
 
 #: Width [s] of the moving average applied to the measured pose before it drives the model.

@@ -28,7 +28,7 @@ from ..sheet.effects import EFFECTS, nominal
 from ..sheet.simulation import RunResult, run_scenario
 from .feed import diagnose_record, watch_record
 from .floor import Floor
-from .watch import signed_distance
+from .residuals import signed_distance
 
 
 @dataclass(frozen=True)

@@ -42,8 +42,10 @@ def watch_record(record: Record, model: CellParams | None = None, floor: Floor |
                   floor if floor is not None else Floor.load(), settings)
     gw.start(0.0)
     pose = (record.pose_t, record.pose_xz)
-    wt = record.wrench_t if record.has_wrench else np.zeros(0)
-    wxz = record.wrench_xz if record.has_wrench else np.zeros((0, 2))
+    wt: np.ndarray = np.zeros(0)
+    wxz: np.ndarray = np.zeros((0, 2))
+    if record.wrench_t is not None and record.wrench_xz is not None:
+        wt, wxz = record.wrench_t, record.wrench_xz
     ip = iw = ifr = 0
     t = 0.0
     end = record.duration

@@ -29,24 +29,14 @@ measured proxy of F_max), or the measured Delta (median over the window's
 frames, corrected by the floor's ``delta_bias_m``) against the model's;
 ``STALE`` before data; ``FAILED`` when the model's solver fails.
 
-Samples are refused, each with a reason counted in :attr:`GapWatch.refused`
-(never an exception): a non-finite value, a stamp that goes back, a stamp more
-than ``max_stamp_jump`` beyond the newest pose (or before the start), a frame
-with fewer than 3 or more than ``max_points`` points.  A pose stream that goes on
-after a gap longer than ``max_stamp_jump`` (``RESUME_POSES`` poses in a row, each
-following the one before) is taken up again and the gap bridged, so an outage of
-the cell's stream never locks the watch out; after a gap longer than ``LOST_JUMPS``
-``max_stamp_jump`` the run is no longer judged (STALE, with the span lost): the
-model's tool crossed it on a straight line, the cell's may not have.
-Times are stamps in seconds on the cell's clock; process time is seconds since
-:meth:`GapWatch.start`.
+Samples are taken in, timed and refused by :mod:`.intake` (its docstring).
 """
 from __future__ import annotations
 
 import bisect
 import math
 import time
-from collections import Counter, deque
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,9 +49,10 @@ from ..records.record import Record
 from ..sheet.metrics import residual_gap
 from ..sheet.chain import ConvergenceError
 from ..sheet.simulation import TOOL, Simulation
+from .floor import Floor
+from .intake import NOISE_SAMPLES, StreamIntake, _Frame
+from .residuals import Status, _Sums, mad_sigma, signed_distance
 
-#: Second differences kept for the online noise estimates (per observable).
-NOISE_SAMPLES = 20000
 #: A frame's residuals and a force sample are judged once the model has passed their time;
 #: model states older than this [s] behind the model are forgotten.
 HISTORY_S = 5.0
@@ -71,12 +62,6 @@ CHUNK_S = 2.0
 MOVING_SHARE = 0.1
 #: The run's residuals are judged against the floor from this many windows into the run on.
 RUN_WINDOWS = 2
-#: Poses in a row beyond max_stamp_jump (each following the one before) after which the
-#: stream counts as resumed after a gap (a real outage), not as stamps of another clock.
-RESUME_POSES = 10
-#: A gap in the tool pose longer than this many max_stamp_jump leaves the run unjudged (STALE):
-#: the model's tool crossed it on a straight line, the cell's may not have.
-LOST_JUMPS = 3
 #: Frames needed in the window before a state other than STALE is given.
 MIN_FRAMES = 3
 
@@ -84,73 +69,20 @@ LEVELS = ("OK", "WARN", "ERROR")
 
 
 @dataclass
-class _Sums:
-    """Sum of squared residuals and their count (one observable, one group)."""
-
-    n: int = 0
-    r2: float = 0.0
-
-    def add(self, r2: float, n: int) -> None:
-        self.n += n
-        self.r2 += r2
-
-    def figures(self, noise: float) -> dict:
-        """rms, systematic part, RMS in noise units (None without data)."""
-        if self.n == 0:
-            return {"rms": None, "systematic": None, "z": None, "n": 0}
-        ms = self.r2 / self.n
-        return {"rms": math.sqrt(ms), "systematic": math.sqrt(max(ms - noise * noise, 0.0)),
-                "z": math.sqrt(ms) / noise, "n": self.n}
-
-
-@dataclass
-class Status:
-    """What the watch says now (everything a node publishes)."""
-
-    level: str                     # STALE, OK, WARN, ERROR, FAILED
-    message: str
-    process_time: float            # s, newest judged time
-    model_time: float              # s, the model's time
-    residuals: dict                # see GapWatch.residuals
-    first_warn: float | None       # s, process time of the first WARN of the run
-    first_error: float | None
-
-
-@dataclass
-class _Frame:
-    t: float
-    points: np.ndarray
-
-
-@dataclass
-class GapWatch:
+class GapWatch(StreamIntake):
     """The model of ``model`` beside a running cell; see the module docstring."""
 
     model: CellParams
-    floor: "object"                               # floor.Floor
+    floor: Floor
     settings: GapWatchNodeParams = field(default_factory=GapWatchNodeParams)
 
     def __post_init__(self) -> None:
-        self.t0: float | None = None              # stamp [s] of process time 0
-        self.refused: Counter = Counter()         # reason -> count
-        self._jumped: list[float] = []            # poses in a row beyond max_stamp_jump
-        self._resumed_from = 0.0                  # s, the first pose after the newest gap
-        self.lost = ""                            # why the run is no longer judged
-        self.first_refused: dict[str, float] = {}  # reason -> the first refused stamp [s]
-        self.pose_t: list[float] = []             # process time [s]
-        self.pose_xz: list[tuple[float, float]] = []
-        self.frames: list[_Frame] = []            # every accepted frame (for the record)
-        self.wrench_t: list[float] = []
-        self.wrench_xz: list[tuple[float, float]] = []
-        self._pending_frames: deque[_Frame] = deque()
+        self._init_intake()
         self._next_wrench = 0                     # index of the first unjudged wrench sample
-        self._knot_t: list[float] = []            # smoothed tool pose knots (process time)
-        self._knot_xz: list[np.ndarray] = []
         self.sim: Simulation | None = None
         self.failed = ""
         self._hist: deque = deque()               # (t, nodes, tool force, touching)
         self._noise_p: deque = deque(maxlen=NOISE_SAMPLES)
-        self._noise_f: deque = deque(maxlen=NOISE_SAMPLES)
         self._win_p: deque = deque()              # (t, sum r^2, n) per frame
         self._win_f: deque = deque()              # (t, sum r^2, n, |F meas|, |F model|)
         self._win_delta: deque = deque()          # (t, Delta measured - model [m], model [m])
@@ -175,148 +107,7 @@ class GapWatch:
         s = self.model.solver
         self._full_dt = s.dt
 
-    # -- the start --------------------------------------------------------------------------
-    @property
-    def started(self) -> bool:
-        return self.t0 is not None
-
-    def start(self, stamp: float) -> None:
-        """Process time 0 is ``stamp`` [s] (the planner's plan start); before it, samples are
-        the cell at rest and are not kept."""
-        self.t0 = float(stamp)
-
-    def _refuse(self, reason: str, stamp: float | None = None) -> str:
-        self.refused[reason] += 1
-        if stamp is not None and reason not in self.first_refused:
-            self.first_refused[reason] = stamp
-        return reason
-
-    def _time(self, topic: str, stamp: float, last: float | None) -> float | str:
-        """Process time of ``stamp`` or the reason it is refused."""
-        if not math.isfinite(stamp):
-            return self._refuse(f"{topic}: non-finite stamp")
-        if self.t0 is None:
-            if topic != "pose":
-                return self._refuse(f"{topic}: before the first pose")
-            self.start(stamp)
-        t = stamp - self.t0
-        if t < -1e-9:
-            return self._refuse(f"{topic}: stamp before the process start", stamp)
-        t = max(t, 0.0)
-        ref = self.pose_t[-1] if self.pose_t else 0.0
-        if t > ref + self.settings.max_stamp_jump:
-            if topic == "pose" and self._resumes(t):
-                self.first_refused.setdefault("pose: the stream resumed after a gap (bridged)",
-                                              stamp)
-                self.refused["pose: the stream resumed after a gap (bridged)"] += 1
-                first = self._resumed_from
-                if first - ref > LOST_JUMPS * self.settings.max_stamp_jump:
-                    self.lost = (f"the tool pose was lost from {ref:.1f} s to {first:.1f} s: the "
-                                 f"model's sheet no longer follows the cell's; judged again at "
-                                 f"the next run")
-            else:
-                return self._refuse(f"{topic}: stamp more than max_stamp_jump after the newest "
-                                    f"pose", stamp)
-        if last is not None and t <= last:
-            return self._refuse(f"{topic}: stamp not after the previous one")
-        if t > self.settings.max_record:
-            return self._refuse(f"{topic}: beyond max_record")
-        return t
-
-    def _resumes(self, t: float) -> bool:
-        """Whether a pose beyond ``max_stamp_jump`` continues a stream that has gone on after a
-        gap (``RESUME_POSES`` such poses in a row, each within ``max_stamp_jump`` after the
-        one before) rather than being a lone stamp from another clock; the gap is then
-        bridged (the model's tool moves linearly across it)."""
-        last = self._jumped[-1] if self._jumped else None
-        if last is None or not (last < t <= last + self.settings.max_stamp_jump):
-            self._jumped = [t]
-            return False
-        self._jumped.append(t)
-        if len(self._jumped) >= RESUME_POSES:
-            self._resumed_from = self._jumped[0]
-            self._jumped = []
-            return True
-        return False
-
-    # -- the inputs -------------------------------------------------------------------------
-    def pose(self, stamp: float, x: float, z: float) -> str | None:
-        """A tool pose (x, z) [m] at ``stamp`` [s]; the reason when refused."""
-        if not (math.isfinite(x) and math.isfinite(z)):
-            return self._refuse("pose: non-finite position")
-        t = self._time("pose", stamp, self.pose_t[-1] if self.pose_t else None)
-        if isinstance(t, str):
-            return t
-        self.pose_t.append(t)
-        self.pose_xz.append((float(x), float(z)))
-        return None
-
-    def profile(self, stamp: float, points) -> str | None:
-        """A camera frame (M, 2) [m] at ``stamp`` [s], top bond to workplane bond."""
-        try:
-            pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        except (TypeError, ValueError):
-            return self._refuse("profile: not a list of (x, z) points")
-        if not 3 <= len(pts) <= self.settings.max_points:
-            return self._refuse("profile: fewer than 3 or more than max_points points")
-        if not np.all(np.isfinite(pts)):
-            return self._refuse("profile: non-finite point")
-        t = self._time("profile", stamp, self.frames[-1].t if self.frames else None)
-        if isinstance(t, str):
-            return t
-        frame = _Frame(t, pts)
-        self.frames.append(frame)
-        self._pending_frames.append(frame)
-        return None
-
-    def wrench(self, stamp: float, fx: float, fz: float) -> str | None:
-        """The force of the sheet on the tool (fx, fz) [N] at ``stamp`` [s]."""
-        if not (math.isfinite(fx) and math.isfinite(fz)):
-            return self._refuse("wrench: non-finite force")
-        t = self._time("wrench", stamp, self.wrench_t[-1] if self.wrench_t else None)
-        if isinstance(t, str):
-            return t
-        self.wrench_t.append(t)
-        self.wrench_xz.append((float(fx), float(fz)))
-        n = len(self.wrench_t)
-        if n >= 3:
-            a, b, c = self.wrench_xz[-3:]
-            for k in (0, 1):
-                self._noise_f.append(a[k] - 2.0 * b[k] + c[k])
-        return None
-
     # -- the model --------------------------------------------------------------------------
-    def _knots(self) -> None:
-        """Smoothed tool pose knots every POSE_WINDOW / 2 whose window the poses cover."""
-        h = POSE_WINDOW / 2
-        if not self.pose_t:
-            return
-        newest = self.pose_t[-1]
-        while True:
-            g = len(self._knot_t) * h
-            if g + h > newest:
-                return
-            lo = bisect.bisect_left(self.pose_t, g - h)
-            hi = bisect.bisect_right(self.pose_t, g + h)
-            if hi <= lo:                                  # a gap in the poses: bridge it
-                k = min(max(lo, 1), len(self.pose_t)) - 1
-                xz = np.asarray(self.pose_xz[k], float)
-            else:
-                xz = np.mean(np.asarray(self.pose_xz[lo:hi], float), axis=0)
-            self._knot_t.append(g)
-            self._knot_xz.append(xz)
-
-    def tool_at(self, t: float) -> np.ndarray:
-        """The smoothed measured tool pose [m] at process time ``t`` (held beyond the knots)."""
-        kt = self._knot_t
-        if t <= kt[0]:
-            return self._knot_xz[0].copy()
-        if t >= kt[-1]:
-            return self._knot_xz[-1].copy()
-        k = bisect.bisect_right(kt, t)
-        w = (t - kt[k - 1]) / (kt[k] - kt[k - 1])
-        return (1.0 - w) * self._knot_xz[k - 1] + w * self._knot_xz[k]
-
     def _remember(self, t: float, nodes: np.ndarray, force: np.ndarray, touching: bool) -> None:
         self._hist.append((t, nodes, force, touching))
         while len(self._hist) > 2 and self._hist[1][0] < t - HISTORY_S:
@@ -607,30 +398,3 @@ class GapWatch:
                       profile_t=np.asarray([f.t for f in frames], float),
                       profiles=tuple(f.points for f in frames), wrench_t=wt,
                       wrench_xz=wxz, name=name)
-
-
-def mad_sigma(second_differences) -> float:
-    """Std of white noise from its second differences x[i-1] - 2 x[i] + x[i+1] (std s sqrt 6),
-    robustly (MAD), as :func:`rheo_shaping.diagnosis.compare.noise_level`; 0 with fewer than 5."""
-    d = np.asarray(second_differences, float)
-    if d.size < 5:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0))
-
-
-def signed_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
-    """Signed normal distance [m] of ``points`` (P, 2) to the polyline ``line`` (K, 2): positive
-    on the side of its left normal (away from the mould for a sheet from the cake top down), as
-    :func:`rheo_shaping.diagnosis.compare.residuals` measures it."""
-    a = line[:-1]
-    seg = line[1:] - a
-    L2 = np.einsum("sk,sk->s", seg, seg)
-    rel = points[:, None, :] - a[None]
-    s = np.clip(np.einsum("psk,sk->ps", rel, seg) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
-    foot = a[None] + s[..., None] * seg[None]
-    diff = points[:, None, :] - foot
-    d2 = np.einsum("psk,psk->ps", diff, diff)
-    j = np.argmin(d2, axis=1)
-    idx = np.arange(len(j))
-    cross = seg[j, 0] * diff[idx, j, 1] - seg[j, 1] * diff[idx, j, 0]
-    return np.sqrt(d2[idx, j]) * np.sign(cross)

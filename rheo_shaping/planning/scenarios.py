@@ -18,7 +18,7 @@ import numpy as np
 
 from ..params.cell import CellParams, MovementParams
 from .plans import MotionLimits, Plan, Waypoint, plan_waypoints
-from ..sheet.simulation import PolylinePath
+from ..sheet.paths import PolylinePath
 from ..sheet.tools import tool_shape
 
 

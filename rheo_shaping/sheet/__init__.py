@@ -8,7 +8,8 @@ from .._lazy import lazy_api
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'geometry': ['Cake', 'Workplane'],
     'tools': ['tool_shape'],
-    'simulation': ['RunResult', 'run_scenario', 'PolylinePath'],
+    'simulation': ['RunResult', 'run_scenario'],
+    'paths': ['PolylinePath', 'ToolPath'],
     'chain': ['SheetModel', 'SheetState'],
     'effects': ['EFFECTS', 'EFFECT_NAMES'],
 })

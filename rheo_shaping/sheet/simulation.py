@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Callable, Protocol
+from typing import Callable
 
 import numpy as np
 
@@ -30,40 +30,11 @@ from .metrics import (PeakTension, RunSummary, contact_tension, peak_tension, re
                       safety_factor)
 from ..params.cell import CellParams
 from .chain import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState, StepRecord
+from .paths import ToolPath
 from .tools import tool_shape
 
 #: Order of the obstacles in :attr:`SheetState.contact`.
 CAKE, WORKPLANE, TOOL = 0, 1, 2
-
-
-class ToolPath(Protocol):
-    """A prescribed tool motion: reference point [m] against time [s]."""
-
-    @property
-    def duration(self) -> float: ...
-
-    def position(self, t: float) -> np.ndarray: ...
-
-    def knots(self) -> np.ndarray: ...
-
-
-@dataclass(frozen=True)
-class PolylinePath:
-    """Piecewise-linear tool motion through ``points`` (K, 2) at ``times`` (K,)."""
-
-    times: np.ndarray
-    points: np.ndarray
-
-    @property
-    def duration(self) -> float:
-        return float(self.times[-1])
-
-    def position(self, t: float) -> np.ndarray:
-        return np.array([np.interp(t, self.times, self.points[:, 0]),
-                         np.interp(t, self.times, self.points[:, 1])])
-
-    def knots(self) -> np.ndarray:
-        return np.asarray(self.times, dtype=float)
 
 
 @dataclass(frozen=True)

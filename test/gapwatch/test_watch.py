@@ -22,7 +22,8 @@ import pytest
 
 from rheo_shaping.gapwatch.feed import watch_record
 from rheo_shaping.gapwatch.floor import DEFAULT_FLOOR, Floor, FloorError
-from rheo_shaping.gapwatch.watch import GapWatch, signed_distance
+from rheo_shaping.gapwatch.residuals import signed_distance
+from rheo_shaping.gapwatch.watch import GapWatch
 from rheo_shaping.params.config import load_cell
 from rheo_shaping.params.node_params import GapWatchNodeParams
 from rheo_shaping.planning.movement import movement_plan

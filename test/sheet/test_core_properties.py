@@ -15,7 +15,8 @@ from hypothesis import strategies as st
 
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.params.schema import ParameterError
-from rheo_shaping.sheet.simulation import PolylinePath, run_scenario
+from rheo_shaping.sheet.paths import PolylinePath
+from rheo_shaping.sheet.simulation import run_scenario
 from rheo_shaping.sheet.tools import tool_shape
 
 PENETRATION_TOL_M = 1e-5

@@ -12,7 +12,8 @@ from rheo_shaping.sheet.geometry import Workplane
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.chain import ChainConstants, Obstacle, SheetEffects, SheetModel
-from rheo_shaping.sheet.simulation import PolylinePath, Simulation, build_chain, run_scenario
+from rheo_shaping.sheet.paths import PolylinePath
+from rheo_shaping.sheet.simulation import Simulation, build_chain, run_scenario
 
 G = 9.81
 
