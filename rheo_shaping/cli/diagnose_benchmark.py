@@ -40,7 +40,9 @@ def add_parser(sub) -> None:
                    help="default: auto on the dynamic world, settled on the finer chain")
     add_executor_arguments(p)
     p.add_argument("--save", metavar="FILE",
-                   help="also write the summary with every case to FILE (JSON)")
+                   help="also write the summary with every case to FILE (JSON); each finished "
+                        "case goes to FILE.partial.jsonl as it comes, and a run with the same "
+                        "arguments goes on from there")
     p.add_argument("--force", action="store_true", help="overwrite --save's file")
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (summary) instead of a table")
@@ -65,11 +67,17 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--n-masses = {args.n_masses} is invalid: expected at least 3")
     if not args.process_time > 10.0:
         raise UserError(f"--process-time = {args.process_time} s is invalid: expected > 10 s")
+    partial = None if save is None else str(save) + ".partial.jsonl"
     with executor_from_args(args) as executor:
-        out = run_benchmark(args.n, args.seed, args.jobs, bar.update, n_masses=args.n_masses,
-                            process_time=args.process_time, executor=executor,
-                            world=args.world, floor=args.floor,
-                            initial_state=args.initial_state)
+        try:
+            out = run_benchmark(args.n, args.seed, args.jobs, bar.update,
+                                n_masses=args.n_masses, process_time=args.process_time,
+                                executor=executor, world=args.world, floor=args.floor,
+                                initial_state=args.initial_state, partial=partial)
+        except ValueError as exc:
+            if partial and str(exc).startswith(partial):
+                raise UserError(str(exc)) from None
+            raise
     bar.close()
     if save is not None:
         save.write_text(json.dumps(out, indent=1, default=float))

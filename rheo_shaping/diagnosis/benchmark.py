@@ -326,14 +326,17 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
                   progress: Callable[[int], None] | None = None, n_masses: int = 31,
                   process_time: float = 70.0, kinds: tuple[str, ...] | None = None,
                   executor: Executor | None = None, world: str = "finer-chain",
-                  floor: str | None = None, initial_state: str | None = None) -> dict:
+                  floor: str | None = None, initial_state: str | None = None,
+                  partial: str | None = None) -> dict:
     """Run ``n`` cases; returns the summary with every case under ``case_results``.
 
     The cases go to ``executor`` (:mod:`rheo_shaping.parallel`: a local pool, a Dask
     cluster), each with its own seed (case i of seed s is the same wherever it runs);
     with no executor they run here, each diagnosis on ``jobs`` local processes.
     ``progress(k)``: k more cases done.  ``world``: which of :data:`WORLDS` makes the
-    records."""
+    records.  ``partial``: a JSON-lines file [path] each finished case is appended to, and
+    whose cases of the same benchmark (seed, world, chain, record length, floor, initial
+    state) are not run again (an interrupted benchmark goes on where it stopped)."""
     check_world(world)
     base = base_cell(n_masses, process_time)
     t0 = time.monotonic()
@@ -341,15 +344,64 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
               "jobs": jobs if executor is None else 1, "world": world,
               "floor": floor or ("model-form" if world == "dynamic" else "numerics"),
               "initial_state": initial_state or ("auto" if world == "dynamic" else "settled")}
-    rows = run_tasks(executor, _case_task, shared, list(range(n)), progress,
+    key = {"seed": seed, "world": world, "n_masses": n_masses, "process_time_s": process_time,
+           "floor": shared["floor"], "initial_state": shared["initial_state"],
+           "pattern": list(shared["pattern"])}
+    done = read_partial(partial, key) if partial else {}
+    if partial:
+        shared.update(partial=str(partial), key=key)
+    todo = [i for i in range(n) if i not in done]
+    if progress is not None and n - len(todo):
+        progress(n - len(todo))
+    rows = run_tasks(executor, _case_task, shared, todo, progress,
                      chunks_per_worker=1 if executor is None else 2)
+    rows = sorted([r for i, r in done.items() if i < n] + rows, key=lambda r: r["index"])
     out = summarise(rows, time.monotonic() - t0)
+    out["resumed_cases"] = len([i for i in done if i < n])
     true_n = WorldNumerics().n_masses if world == "dynamic" else 2 * n_masses + 1
     out.update({"seed": seed, "world": world, "floor": shared["floor"],
                 "initial_state": shared["initial_state"], "n_masses": n_masses,
                 "true_n_masses": true_n,
                 "process_time_s": process_time, "case_results": rows})
     return out
+
+
+def read_partial(path: str, key: dict) -> dict[int, dict]:
+    """The cases of benchmark ``key`` already in the JSON-lines file ``path`` (index -> row;
+    none if the file does not exist).  Lines of another benchmark are refused: a partial
+    file belongs to one benchmark."""
+    import json
+    from pathlib import Path
+    p = Path(path)
+    if not p.exists():
+        return {}
+    done = {}
+    for k, line in enumerate(p.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            entry = json.loads(line)
+        except ValueError:
+            continue                        # a line cut short by an interruption
+        if entry.get("key") != key:
+            raise ValueError(f"{path}, line {k}: a case of another benchmark "
+                             f"({entry.get('key')}), not of this one ({key}): use another "
+                             "--save file")
+        done[int(entry["row"]["index"])] = entry["row"]
+    return done
+
+
+def _append_partial(path: str, key: dict, row: dict) -> None:
+    """One finished case appended to the JSON-lines file ``path`` (locked: workers of one
+    host append to it at once)."""
+    import fcntl
+    import json
+    line = json.dumps({"key": key, "row": row}, default=float) + "\n"
+    with open(path, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        fh.write(line)
+        fh.flush()
+        fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def _case_task(shared: dict, i: int) -> dict:
@@ -370,6 +422,8 @@ def _case_task(shared: dict, i: int) -> dict:
     row = score_case(case, diag)
     row["diagnosis_wall_s"] = time.monotonic() - t1
     row["library_size"] = len(library)
+    if shared.get("partial"):
+        _append_partial(shared["partial"], shared["key"], row)
     return row
 
 

@@ -101,6 +101,8 @@ class Presence:
         self._t0 = self._start = self._steady.now().nanoseconds
         self._settle_s = settle_time(None)
         self._peer_s: float | None = None           # start -> the graph showed another node
+        self._graph: frozenset[str] = frozenset()   # the graph's nodes, and when they changed
+        self._graph_changed = self._start
         self._peer_timer = node.create_timer(0.05, self._look_for_peers, clock=self._steady)
         self._pub = node.create_publisher(T.PRESENCE.type, T.PRESENCE.name, T.PRESENCE.qos)
         node.create_subscription(T.PRESENCE.type, T.PRESENCE.name, self._on, T.PRESENCE.qos)
@@ -118,16 +120,19 @@ class Presence:
             self._t0 = self._steady.now().nanoseconds
 
     def _look_for_peers(self) -> None:
-        """How long discovery took to show this node another node of the graph: the measure
-        of discovery on this machine now (not of the other node's own start-up)."""
-        if self._peer_s is not None:
+        """How long discovery took to show this node another node of the graph (the measure
+        of discovery on this machine now, not of the other node's own start-up), and when
+        the graph's set of nodes last changed (until this node has settled)."""
+        if self._settled:
+            self._node.destroy_timer(self._peer_timer)
             return
-        mine = self.mine.node
-        for n, s in self._node.get_node_names_and_namespaces():
-            if f"{s.rstrip('/')}/{n}" != mine:
-                self._peer_s = (self._steady.now().nanoseconds - self._start) / NS
-                self._node.destroy_timer(self._peer_timer)
-                return
+        now = self._steady.now().nanoseconds
+        names = frozenset(f"{s.rstrip('/')}/{n}"
+                          for n, s in self._node.get_node_names_and_namespaces())
+        if names != self._graph:
+            self._graph, self._graph_changed = names, now
+        if self._peer_s is None and names - {self.mine.node}:
+            self._peer_s = (now - self._start) / NS
 
     @property
     def settled(self) -> bool:
@@ -148,7 +153,9 @@ class Presence:
             same_writers=sum(is_mine(w.node_name, w.node_namespace) for w in writers),
             unnamed_writers=sum(w.node_name == UNNAMED for w in writers),
             younger=len(self._younger),
-            past_settle_s=(self._steady.now().nanoseconds - self._t0) / NS - self._settle_s)
+            past_settle_s=(self._steady.now().nanoseconds - self._t0) / NS - self._settle_s,
+            graph_still_s=(self._steady.now().nanoseconds - self._graph_changed) / NS,
+            settle_s=self._settle_s)
         self._settled = not why
         if why:
             self._node.get_logger().info(f"waiting: {why}", throttle_duration_sec=5.0)

@@ -10,6 +10,7 @@ by then.  Ties of start time go to the smaller process id, then host name.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict, dataclass
 
 #: Wall-clock time [s] a node waits after its start (the planner: after the simulator's
@@ -70,7 +71,8 @@ UNNAMED_WAIT = 10.0
 
 
 def settle_refusal(same_nodes: int, same_writers: int, unnamed_writers: int, younger: int,
-                   past_settle_s: float) -> str:
+                   past_settle_s: float, graph_still_s: float = math.inf,
+                   settle_s: float = SETTLE_TIME) -> str:
     """Why a node may not act yet ("" if it may), past its settle time: ``same_nodes``
     nodes of its name in the graph and ``same_writers`` writers on ``/shaping/presence``
     of a node of its name (itself included in both), ``unnamed_writers`` writers there whose
@@ -78,7 +80,13 @@ def settle_refusal(same_nodes: int, same_writers: int, unnamed_writers: int, you
     themselves as younger, ``past_settle_s`` [s] since the settle time ran out.  The
     writers are known before the node names (seen: a twin planner's command writer in the
     simulator's graph as ``_NODE_NAME_UNKNOWN_`` while the twin had not yet seen the older
-    planner's name), so both counts are asked."""
+    planner's name), so both counts are asked.  ``graph_still_s`` [s]: how long the graph's
+    set of nodes has not changed; a node acts only once it held still for ``settle_s``
+    (discovery brings the nodes one participant at a time, and on a busy machine an older
+    twin can come seconds after the rest of the cell: seen at a load average of 10, a
+    newcomer planner that had seen the simulator and the monitor but not yet the older
+    planner); for at most ``UNNAMED_WAIT`` past the settle time (a large system whose nodes
+    come and go never holds still).  A twin already in the graph is named first."""
     same = max(same_nodes, same_writers)
     if same - 1 > younger:
         return (f"{same} nodes of this name in the graph and {younger} announced as younger; "
@@ -86,4 +94,7 @@ def settle_refusal(same_nodes: int, same_writers: int, unnamed_writers: int, you
     if unnamed_writers and past_settle_s < UNNAMED_WAIT:
         return (f"{unnamed_writers} writers on /shaping/presence whose node name the graph "
                 f"does not show yet (a twin may be among them)")
+    if graph_still_s < settle_s and past_settle_s < UNNAMED_WAIT:
+        return (f"the graph's nodes changed {graph_still_s:.1f} s ago: waiting until they hold "
+                f"still for {settle_s:.1f} s (discovery may still bring a twin)")
     return ""

@@ -45,6 +45,19 @@ def test_a_node_alone_acts_and_one_that_sees_an_unannounced_twin_waits():
     assert "~20 s" in settle_refusal(2, 2, 0, 0, 60.0)                # a killed twin's ghost
 
 
+def test_a_graph_that_still_grows_holds_a_node_back_until_it_holds_still():
+    """Discovery brings the nodes one participant at a time: a newcomer acts only once the
+    graph's nodes have not changed for its settle time."""
+    assert "hold still for 2.0 s" in settle_refusal(1, 1, 0, 0, 5.0, graph_still_s=1.9,
+                                                    settle_s=2.0)
+    assert settle_refusal(1, 1, 0, 0, 5.0, graph_still_s=2.0, settle_s=2.0) == ""
+    # a graph that never holds still (nodes come and go) holds it back for a bounded time
+    assert settle_refusal(1, 1, 0, 0, UNNAMED_WAIT, graph_still_s=0.1, settle_s=2.0) == ""
+    # a twin found meanwhile is still refused for what it is
+    assert "2 nodes of this name" in settle_refusal(2, 2, 0, 0, 5.0, graph_still_s=3.0,
+                                                    settle_s=2.0)
+
+
 def test_writers_without_a_node_name_hold_a_node_back_for_a_bounded_time():
     assert "node name" in settle_refusal(1, 1, 1, 0, 0.0)
     assert "node name" in settle_refusal(1, 1, 2, 0, UNNAMED_WAIT - 0.1)

@@ -1,0 +1,28 @@
+"""The world kernel's numba options, packed-parameter indices and limits."""
+from __future__ import annotations
+
+from typing import Literal, TypedDict
+
+
+class JitOptions(TypedDict):
+    """The numba options of every compiled function of this world (``@njit(**JIT)``)."""
+
+    cache: bool
+    nogil: bool
+    fastmath: bool
+    error_model: Literal["python", "numpy"]
+
+
+JIT: JitOptions = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+
+# ---------------------------------------------------------------- packed parameter indices
+#: ``par`` vector of :func:`run_chain`
+(I_GRAV, I_KC, I_CN, I_KT, I_MU_MOULD, I_MU_TOOL, I_AIR, I_CAKE_H, I_FILLET, I_RADIUS,
+ I_TOOL_R, I_EI, I_PL_N, I_PL_REF, I_THIN, I_HARD, I_ADH, I_ADH_RANGE, I_LET_GO) = range(19)
+N_PAR = 19
+#: obstacles
+CAKE, FLOOR, TOOL = 0, 1, 2
+#: Newton solves per step at most, and the link-force mismatch [N] (law against its linear
+#: model at the solution) below which a step is converged
+MAX_NEWTON = 6
+FORCE_TOL = 1e-4

@@ -1,0 +1,38 @@
+"""An interrupted diagnosis benchmark goes on where it stopped: each finished case is kept
+in a JSON-lines file, and a file of another benchmark is refused (no ROS)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from rheo_shaping.diagnosis.benchmark import _append_partial, read_partial, run_benchmark
+
+
+def test_cases_already_done_are_not_run_again_and_new_ones_are_kept(tmp_path):
+    part = tmp_path / "bench.json.partial.jsonl"
+    kw = dict(n_masses=7, process_time=20.0, kinds=("none",), seed=5)
+    first = run_benchmark(1, partial=str(part), jobs=1, **kw)
+    assert first["resumed_cases"] == 0 and len(first["case_results"]) == 1
+    lines = part.read_text().splitlines()
+    assert len(lines) == 1
+    # mark the kept case: a resumed run takes it from the file, not from a new diagnosis
+    entry = json.loads(lines[0])
+    entry["row"]["marker"] = "from the file"
+    part.write_text(json.dumps(entry) + "\n")
+    second = run_benchmark(2, partial=str(part), jobs=1, **kw)
+    assert second["resumed_cases"] == 1
+    rows = second["case_results"]
+    assert [r["index"] for r in rows] == [0, 1]
+    assert rows[0]["marker"] == "from the file" and "marker" not in rows[1]
+    assert len(part.read_text().splitlines()) == 2
+
+
+def test_a_partial_file_of_another_benchmark_is_refused(tmp_path):
+    part = tmp_path / "p.jsonl"
+    _append_partial(str(part), {"seed": 1}, {"index": 0})
+    assert read_partial(str(part), {"seed": 1}) == {0: {"index": 0}}
+    with pytest.raises(ValueError, match="a case of another benchmark"):
+        read_partial(str(part), {"seed": 2})
+    part.write_text(part.read_text() + '{"key": {"seed": 1}, "row": {"ind')   # cut short
+    assert read_partial(str(part), {"seed": 1}) == {0: {"index": 0}}
