@@ -340,13 +340,14 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
     check_world(world)
     base = base_cell(n_masses, process_time)
     t0 = time.monotonic()
-    shared = {"seed": seed, "base": base, "pattern": kinds or KINDS_PATTERN,
+    pattern = tuple(kinds or KINDS_PATTERN)
+    shared = {"seed": seed, "base": base, "pattern": pattern,
               "jobs": jobs if executor is None else 1, "world": world,
               "floor": floor or ("model-form" if world == "dynamic" else "numerics"),
               "initial_state": initial_state or ("auto" if world == "dynamic" else "settled")}
     key = {"seed": seed, "world": world, "n_masses": n_masses, "process_time_s": process_time,
            "floor": shared["floor"], "initial_state": shared["initial_state"],
-           "pattern": list(shared["pattern"])}
+           "pattern": list(pattern)}
     done = read_partial(partial, key) if partial else {}
     if partial:
         shared.update(partial=str(partial), key=key)

@@ -47,6 +47,11 @@ from ..sheet.tools import tool_shape
 
 #: How a record's initial state is taken (``diagnose --initial-state``).
 MODES = ("auto", "laid", "settled")
+#: Motion [noise units] of one record beyond which ``auto`` takes every record as laid,
+#: whatever the others show (a sheet laid over a tool in its way falls far when let go, while
+#: a sheet laid close to the mould may hardly move in the other records: seen 27 against
+#: 1.2-1.5).  A settled sheet moves 0.35-1.67 (noise and the approach's creep).
+CLEARLY_MOVING = 10.0
 #: Half width [m] of the local quadratic that smooths the first frame along its arc length.
 SMOOTH_HALF_WIDTH = 9e-3
 #: Motion [profile noise units: median distance of the first frame's points from a later
@@ -209,11 +214,13 @@ def contact_time(record: Record) -> float:
 def pool(states: list[InitialState | None], auto: bool = False) -> list[InitialState | None]:
     """The records' initial states read together.  ``auto``: one mode for all, ``laid`` when
     the records' median motion exceeds ``MOVING`` (the same cell, laid the same way; one
-    record alone can move little).  Each laid record keeps its own length: no two layings
-    need be of one length (a sheet laid over a tool in its way is laid longer), and what the
-    first frame misses, each record's first seconds fit (:mod:`.laid_length`)."""
+    record alone can move little) or one record's exceeds ``CLEARLY_MOVING``.  Each laid
+    record keeps its own length: no two layings need be of one length (a sheet laid over a
+    tool in its way is laid longer), and what the first frame misses, each record's first
+    seconds fit (:mod:`.laid_length`)."""
     if auto and any(s is not None for s in states):
-        moving = float(np.median([s.motion for s in states if s is not None])) > MOVING
+        motions = [s.motion for s in states if s is not None]
+        moving = float(np.median(motions)) > MOVING or max(motions) > CLEARLY_MOVING
         states = [None if s is None else replace(s, mode="laid" if moving else "settled")
                   for s in states]
     return states

@@ -56,6 +56,7 @@ from ..planning.run_state import (SetpointGrid, StartInputs, lead_limit, running
 from ..planning.states import MOVING
 from ..planning.stopping import TrajectoryStreamer
 from ..safety.clock_guard import ClockGuard
+from ..safety.one_of_each import commander_refusal
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
@@ -98,6 +99,9 @@ class PlannerNode(Node):
         guard_clock(self, self.clock_guard, lambda why: self._abort(f"planner: {why}"))
         self.cell_check = CellCheck(self, "the planner", lambda: self.cell,
                                     on_first=lambda: self.presence.discovered())
+        self._commander: str | None = None     # the planner the simulator follows ("" none)
+        self.create_subscription(T.COMMANDER.type, T.COMMANDER.name, self._on_commander,
+                                 T.COMMANDER.qos)
         self.create_service(Trigger, '~/start', self._on_start)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
@@ -349,9 +353,16 @@ class PlannerNode(Node):
         return response
 
     # -- supervision (steady clock) -------------------------------------------------
+    def _on_commander(self, msg: String) -> None:
+        self._commander = msg.data
+
     def _supervise(self) -> None:
         if self.pub_command is None:
             if not self.presence.settled or self.presence.twin:
+                return
+            why = commander_refusal(self._commander)
+            if why:
+                self.get_logger().info(f"waiting: {why}", throttle_duration_sec=5.0)
                 return
             self.pub_command = self.create_publisher(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name,
                                                      T.TOOL_COMMAND.qos)

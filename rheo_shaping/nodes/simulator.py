@@ -110,6 +110,9 @@ class SimulatorNode(Node):
                                  lambda msg: self._hold(f"abort: {msg.data}", publish=False),
                                  T.ABORT.qos)
         self.pub_cell = self._latched(T.CELL)
+        self.pub_commander = self._latched(T.COMMANDER)
+        self._commander: str | None = None          # what /shaping/commander said last
+        self._commander_ns = 0                      # steady time it was last checked
         self._last_hold_pub = None     # steady time of the last state re-published on hold
         self.create_subscription(T.CHECKED.type, T.CHECKED.name, self._on_checked, T.CHECKED.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
@@ -312,9 +315,18 @@ class SimulatorNode(Node):
             return
         self._admit(pubs, msg, seq)
 
+    def _say_commander(self, pubs: list[Publisher] | None = None) -> None:
+        """/shaping/commander: the planner this simulator follows ("" for none), on a
+        change (a bound writer the graph no longer shows is let go here)."""
+        name = self.gate.commander(self._command_publishers() if pubs is None else pubs)
+        if name != self._commander:
+            self._commander = name
+            self.pub_commander.publish(String(data=name))
+
     def _admit(self, pubs: list[Publisher], msg: PoseStamped, seq: int) -> bool:
         """Follow ``msg`` if it comes from the bound planner, else hold; False once held."""
         why = self.gate.source(pubs, seq)
+        self._say_commander(pubs)
         if why:
             self._hold(why)
             return False
@@ -376,6 +388,10 @@ class SimulatorNode(Node):
     def _on_timer(self) -> None:
         if not self.presence.settled:
             return                      # an older simulator of this name would be known by then
+        now = self._steady.now().nanoseconds
+        if self._commander is None or now - self._commander_ns >= 0.5 * NS:
+            self._commander_ns = now                # the graph asked twice a second at most
+            self._say_commander()
         self._bind_waiting()
         s = self.settings
         if (s.monitor_timeout > 0 and not self.gate.held

@@ -116,6 +116,9 @@ DIAGNOSTICS = Topic("/diagnostics", DiagnosticArray, STATE_QOS)
 #: The simulator's cell (rheo_shaping.params.fingerprint.cell_message, JSON): planner and
 #: monitor refuse to run on another cell.
 CELL = Topic("shaping/cell", String, LATCHED_QOS)
+#: The planner the simulator follows (the fully qualified node name of the /tool/command
+#: writer it is bound to, "" for none); a planner makes its writer only when it is "".
+COMMANDER = Topic("shaping/commander", String, LATCHED_QOS)
 #: Who is up: every node announces itself once (JSON: name, start time, pid); a second
 #: node of a name yields to the one that started first (docs/safety.md, "One of each").
 PRESENCE = Topic("shaping/presence", String,
@@ -138,6 +141,7 @@ GAP_MARKERS = Topic("shaping/gap_markers", MarkerArray, MARKER_QOS)
 ALL: dict[str, Topic] = {t.contract: t for t in (
     PROFILE, MEASURED_PROFILE, TENSIONS, CONTACT_TENSION, TOOL_POSE, TOOL_WRENCH, MARKERS, CLOCK,
     TOOL_COMMAND, PLANNED_TRAJECTORY, ABORT, READY, PLANNER_STATE, CHECKED, DIAGNOSTICS, CELL,
+    COMMANDER,
     PRESENCE, GAP, GAP_DIAGNOSIS, GAP_MARKERS)}
 
 #: The remap that makes a namespaced planner or monitor follow its own simulator's clock.

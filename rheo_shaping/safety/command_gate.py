@@ -113,6 +113,14 @@ class CommandGate:
         self._seq = max(self._seq, int(seq))
         return ""
 
+    def commander(self, publishers: Sequence[Publisher]) -> str:
+        """The bound planner's node name, or "" when none is bound: a bound writer that the
+        graph no longer shows (its process ended, or its DDS lease ran out after a kill) is
+        let go here, so a new planner can take the tool (what ``/shaping/commander`` says)."""
+        if self.bound is not None and self.bound not in list(publishers):
+            self.bound, self._seq = None, 0
+        return "" if self.bound is None else self.bound.node
+
     # -- motion limits ----------------------------------------------------------------
     def judge(self, t_ns: int, x: float, z: float, tool_now: PointLike) -> str:
         """Why the set-point (x, z) [m] at ``t_ns`` breaks the limits; "" if it keeps them

@@ -98,3 +98,19 @@ def settle_refusal(same_nodes: int, same_writers: int, unnamed_writers: int, you
         return (f"the graph's nodes changed {graph_still_s:.1f} s ago: waiting until they hold "
                 f"still for {settle_s:.1f} s (discovery may still bring a twin)")
     return ""
+
+
+def commander_refusal(bound: str | None) -> str:
+    """Why a planner may not make its ``/tool/command`` writer yet ("" if it may): the
+    simulator's latched ``/shaping/commander`` (``bound``: the node name of the planner it
+    follows, "" for none, None before the message came) names another planner: an older one
+    that runs (this one's twin, whose announcement may come later than the simulator's on a
+    busy machine), or one that was killed and whose writer the graph still shows.  A writer
+    made then would be a second commander, and the simulator would hold the tool.  Before
+    the message comes (a robot adapter that does not say it) nothing is refused: the
+    simulator's latched message comes with its cell, which the planner waits for first."""
+    if bound:
+        return (f"the simulator follows {bound}: a planner makes its /tool/command writer only "
+                f"once the simulator follows none (that one ends, its DDS lease runs out after "
+                f"a kill, or the simulator's ~/reset)")
+    return ""

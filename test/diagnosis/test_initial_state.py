@@ -107,6 +107,11 @@ def test_pooling_takes_one_mode_and_keeps_each_length():
     assert [s.length for s in pooled] == [0.105, 0.1062, 0.1049]
     quiet = ist.pool([replace(s, motion=1.0) for s in states], auto=True)
     assert all(s.mode == "settled" for s in quiet)
+    # one record that falls far (laid over the tool) says the sheets were laid and let go
+    one = ist.pool([replace(s, motion=m) for s, m in zip(states, (1.2, 27.0, 1.5))], auto=True)
+    assert all(s.mode == "laid" for s in one)
+    calm = ist.pool([replace(s, motion=m) for s, m in zip(states, (1.2, 9.0, 1.5))], auto=True)
+    assert all(s.mode == "settled" for s in calm)
 
 
 def test_an_unknown_initial_state_is_a_one_line_error():

@@ -7,7 +7,8 @@ import math
 import pytest
 
 from rheo_shaping.safety.one_of_each import (SETTLE_TIME, UNNAMED_WAIT, Announcement,
-                                             settle_refusal, settle_time, twin_reason)
+                                             commander_refusal, settle_refusal, settle_time,
+                                             twin_reason)
 
 
 def test_the_younger_of_two_same_named_nodes_yields_and_the_older_runs():
@@ -62,3 +63,23 @@ def test_writers_without_a_node_name_hold_a_node_back_for_a_bounded_time():
     assert "node name" in settle_refusal(1, 1, 1, 0, 0.0)
     assert "node name" in settle_refusal(1, 1, 2, 0, UNNAMED_WAIT - 0.1)
     assert settle_refusal(1, 1, 1, 0, UNNAMED_WAIT) == ""            # not a ROS node
+
+
+def test_a_planner_makes_its_command_writer_only_when_the_simulator_follows_none():
+    """The simulator's /shaping/commander names the planner it follows: a newcomer that sees
+    another one there (an older twin whose announcement is late, or a killed planner whose
+    writer the graph still shows) makes no writer, so it is never a second commander."""
+    assert commander_refusal("") == ""
+    assert "follows /planner" in commander_refusal("/planner")
+    assert commander_refusal(None) == ""          # not said (yet, or by a robot adapter)
+
+
+def test_the_gate_lets_go_of_a_bound_planner_the_graph_no_longer_shows():
+    from rheo_shaping.safety.command_gate import CommandGate, Publisher, ToolLimits
+    gate = CommandGate(ToolLimits(max_speed=0.1, max_accel=1.0, max_jump=0.01))
+    old, new = Publisher("/planner", "01.aa"), Publisher("/planner", "01.bb")
+    assert gate.commander([]) == ""
+    assert gate.source([old], 1) == "" and gate.commander([old]) == "/planner"
+    assert gate.commander([old, new]) == "/planner"       # the old one is still there
+    assert gate.commander([new]) == ""                    # gone: the tool is free to take
+    assert gate.source([new], 1) == ""                     # the new writer's own count

@@ -31,22 +31,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ... import _numba_cache
+from ..._numba_cache import cache_folder as _folder
+from ..._numba_cache import register, source_digest as _digest
 from ..._numba_cache import user_cache_dir  # noqa: F401 (where the cache is)
 
 HERE = Path(__file__).resolve().parent
-_numba_cache.register(HERE, "rheo_shaping")
+register(HERE, "rheo_shaping")
 
 
 def cache_folder() -> str:
     """Name of the kernel's cache folder in ``$NUMBA_CACHE_DIR`` (the source's content and
     the numba version: :func:`rheo_shaping._numba_cache.cache_folder`)."""
-    return _numba_cache.cache_folder(HERE)
+    return _folder(HERE)
 
 
 def source_digest() -> str:
     """SHA-256 (20 hex digits) of the kernel's modules: names and contents."""
-    return _numba_cache.source_digest(HERE)
+    return _digest(HERE)
 
 
 from .consts import (CAKE_KIND, NOT_CONVERGED, NOT_SPD, OK, PLANE_KIND,  # noqa: E402
