@@ -16,7 +16,21 @@ import hashlib
 import os
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal, TypedDict
+
+
+class JitOptions(TypedDict):
+    """The numba options of every compiled function of the package (``@njit(**JIT)``)."""
+
+    cache: bool
+    nogil: bool
+    fastmath: bool
+    error_model: Literal["python", "numpy"]
+
+
+#: Cached on disk (by content, below), the GIL released, no fast-math (the closed-form tests
+#: ask for the exact arithmetic), numpy's error model (a 0/0 is a NaN the caller sees).
+NUMBA_OPTIONS: JitOptions = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 
 
 def user_cache_dir() -> str:

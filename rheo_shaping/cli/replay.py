@@ -35,7 +35,7 @@ def add_parser(sub) -> None:
 class _Progress:
     """A bar of the recorded seconds replayed, with an ETA, on stderr.
 
-    The replay (nodes/recorder.replay) sends each message at its stamp on the wall clock
+    The replay (nodes/replay.replay) sends each message at its stamp on the wall clock
     (``--rate`` recorded seconds per wall second) from its first message on, and tells
     only that first moment; so the bar counts recorded time by the wall clock from then,
     and holds just short of the end until the replay returns (a machine too busy to keep
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     if not (0.0 < args.rate <= 1e4):
         raise UserError(f"--rate = {args.rate:g}: expected a value in (0, 10000]")
     try:
-        from ..nodes.recorder import replay
+        from ..nodes.replay import replay
     except ImportError as exc:
         raise UserError(f"replay needs ROS 2 (rclpy): {exc}; use the full venv") from None
     from ..records.bag import RecordError

@@ -50,6 +50,7 @@ from ..planning.movement import movement_plan
 from ..sheet.simulation import run_scenario
 from .baseline import CHAIN, SHEET, with_sheet
 from .check import REFINEMENT
+from .checkpoint import append_partial, read_partial
 from .signature import KIND_OF_EFFECT
 from ..worlds.dynamic import WorldRun, run_world
 from ..worlds.params import (WORLD_EFFECTS, WORLD_EFFECT_NAMES, WorldEffects, WorldNumerics,
@@ -367,44 +368,6 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
     return out
 
 
-def read_partial(path: str, key: dict) -> dict[int, dict]:
-    """The cases of benchmark ``key`` already in the JSON-lines file ``path`` (index -> row;
-    none if the file does not exist).  Lines of another benchmark are refused: a partial
-    file belongs to one benchmark."""
-    import json
-    from pathlib import Path
-    p = Path(path)
-    if not p.exists():
-        return {}
-    done = {}
-    for k, line in enumerate(p.read_text().splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            entry = json.loads(line)
-        except ValueError:
-            continue                        # a line cut short by an interruption
-        if entry.get("key") != key:
-            raise ValueError(f"{path}, line {k}: a case of another benchmark "
-                             f"({entry.get('key')}), not of this one ({key}): use another "
-                             "--save file")
-        done[int(entry["row"]["index"])] = entry["row"]
-    return done
-
-
-def _append_partial(path: str, key: dict, row: dict) -> None:
-    """One finished case appended to the JSON-lines file ``path`` (locked: workers of one
-    host append to it at once)."""
-    import fcntl
-    import json
-    line = json.dumps({"key": key, "row": row}, default=float) + "\n"
-    with open(path, "a") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        fh.write(line)
-        fh.flush()
-        fcntl.flock(fh, fcntl.LOCK_UN)
-
-
 def _case_task(shared: dict, i: int) -> dict:
     """Case ``i``: its records (its own seed), the diagnosis, the score (module-level: it
     pickles to a worker)."""
@@ -424,7 +387,7 @@ def _case_task(shared: dict, i: int) -> dict:
     row["diagnosis_wall_s"] = time.monotonic() - t1
     row["library_size"] = len(library)
     if shared.get("partial"):
-        _append_partial(shared["partial"], shared["key"], row)
+        append_partial(shared["partial"], shared["key"], row)
     return row
 
 

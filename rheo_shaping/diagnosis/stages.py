@@ -16,6 +16,12 @@ from .context import Baseline, FitContext, Group, forward_jacobian
 from .evaluate import Outcome, Runner, Task, all_ok
 from .linear import Solver
 
+#: The least noise [m, N] the diagnosis weighs the records' residuals with: the resolution of a
+#: fine camera and load cell.  Records without noise (a simulator's own, noise-free streams)
+#: show none in their second differences; a weight of zero noise would be infinite, and the
+#: 1 N used when a record has no force would ignore a force that is there.
+MIN_PROFILE_NOISE = 1e-5
+MIN_FORCE_NOISE = 1e-3
 #: Step of the baseline's forward differences, in tolerances (tried + then -).
 JACOBIAN_STEP = 0.5
 #: Times a baseline step that fits worse than the best point so far is halved (the model is
@@ -47,10 +53,12 @@ def nominal_stage(data: list[RecordData], nf: int, run: Runner) -> tuple[Nominal
                              for d, o in zip(data, nominal)]))
     sfs = [noise_level(o.force[:, k]) for o in nominal if o.force is not None for k in (0, 1)]
     sf = float(np.nanmedian(sfs)) if sfs else math.nan
-    if not (sp > 0):
+    if math.isnan(sp):
         raise ValueError("the records' profile noise cannot be estimated "
                          "(too few points per frame)")
-    sf = sf if sf > 0 else 1.0
+    sp = max(sp, MIN_PROFILE_NOISE)
+    # no force in the records: 1 N (the force then weighs nothing); noise-free force: the floor
+    sf = 1.0 if math.isnan(sf) else max(sf, MIN_FORCE_NOISE)
     fit_d, hold_d = data[:nf], data[nf:]
     G = Group.of(fit_d, sp, sf, nominal[:nf])
     H = Group.of(hold_d, sp, sf, nominal[nf:]) if hold_d else None

@@ -18,13 +18,13 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 import rclpy
-from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 
 from ..planning.states import AT_REST
 from .monitor import MonitorNode
 from .planner import PlannerNode
+from .session import ros_session
 from .simulator import SimulatorNode
 from .topics import CLOCK_REMAP
 
@@ -81,16 +81,12 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
                   Parameter("step_period", value=SIM_STEP / float(real_time_factor)),
                   Parameter("progress_period", value=0.0), *common, *extra.get("simulator", ())]
     sim_time = [Parameter("use_sim_time", value=True)]
-    context = Context()
-    rclpy.init(args=args, context=context)
-    level = getattr(rclpy.logging.LoggingSeverity, log_level.upper())
-    prefix = namespace.strip("/").replace("/", ".")
-    for name in ("simulator", "planner", "monitor"):
-        rclpy.logging.set_logger_level(f"{prefix}.{name}" if prefix else name, level)
-    nodes = []
-    executor = None
-    t_wall = time.monotonic()
-    try:
+    with ros_session(args, EventsExecutor) as (context, executor, nodes):
+        level = getattr(rclpy.logging.LoggingSeverity, log_level.upper())
+        prefix = namespace.strip("/").replace("/", ".")
+        for name in ("simulator", "planner", "monitor"):
+            rclpy.logging.set_logger_level(f"{prefix}.{name}" if prefix else name, level)
+        t_wall = time.monotonic()
         sim = SimulatorNode(context=context, parameter_overrides=sim_params, message_info=False)
         nodes.append(sim)
         # no /shaping/checked: the EventsExecutor passes no message info, and nothing can
@@ -102,7 +98,6 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
         planner = PlannerNode(context=context,
                               parameter_overrides=[*sim_time, *common, *extra.get("planner", ())])
         nodes.append(planner)
-        executor = EventsExecutor(context=context)
         for node in nodes:
             executor.add_node(node)
         cell = planner.cell_used
@@ -149,12 +144,6 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
             extra={"run_time": sim.process_time, "lockstep_waits": sim.lockstep_waits,
                    "abort_threshold": monitor.threshold,
                    "history": list(sim.history), **_stop_times(planner, sim)})
-    finally:
-        if executor is not None:
-            executor.shutdown(timeout_sec=1.0)
-        for node in reversed(nodes):
-            node.destroy_node()
-        rclpy.try_shutdown(context=context)
 
 
 def _stop_times(planner: PlannerNode, sim: SimulatorNode) -> dict:

@@ -21,23 +21,18 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import rclpy
-from rclpy.context import Context
-from rclpy.duration import Duration
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
 
 from ..params.config import cell_from_flat
 from ..sheet.effects import nominal
 from ..params.cell import CellParams
-from ..records.qos import QosSpec, offered_qos
 from ..records.record import Record
 from ..records.bag import write_record
 from ..planning.states import AT_REST, MOVING
 from ..params.schema import iter_fields
 from . import messages as m
 from . import topics as T
+from .session import ros_session
 from .services import query
 from ..units import NS
 
@@ -230,53 +225,55 @@ def record_cell(out: Path, *, namespace: str = "", scenario: CellParams | None =
     args = ["record_cell", "--ros-args"]
     if namespace:
         args += ["-r", f"__ns:={namespace}"]
-    context = Context()
-    rclpy.init(args=args, context=context)
-    node = CellRecorder(context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
+    with ros_session(args) as (context, executor, nodes):
+        node = CellRecorder(context=context)
+        nodes.append(node)
+        executor.add_node(node)
+        return _record(node, executor, context, out, scenario, namespace, duration, start,
+                       timeout, idle_timeout, start_stamp, force, progress)
+
+
+def _record(node: CellRecorder, executor, context, out: Path, scenario, namespace: str,
+            duration, start: bool, timeout: float, idle_timeout: float, start_stamp, force: bool,
+            progress) -> tuple[Path, Record]:
+    """The recording of :func:`record_cell` in its ROS session."""
     say = progress or (lambda _msg: None)
+    cell = scenario if scenario is not None else scenario_from_simulator(
+        node, executor, f"{namespace.rstrip('/')}/simulator", 60.0)
+    end_time = duration if duration is not None else cell.movement.process_time
+    say(f"record-cell: waiting for the process start on "
+        f"{T.TOOL_COMMAND.in_namespace(namespace or '/')}")
+    if start:
+        _start_planner(node, executor, f"{namespace.rstrip('/')}/planner", timeout, say)
+    t_wall = time.monotonic()
+    t_first = None
+    next_report = 0.0
     try:
-        cell = scenario if scenario is not None else scenario_from_simulator(
-            node, executor, f"{namespace.rstrip('/')}/simulator", 60.0)
-        end_time = duration if duration is not None else cell.movement.process_time
-        say(f"record-cell: waiting for the process start on "
-            f"{T.TOOL_COMMAND.in_namespace(namespace or '/')}")
-        if start:
-            _start_planner(node, executor, f"{namespace.rstrip('/')}/planner", timeout, say)
-        t_wall = time.monotonic()
-        t_first = None
-        next_report = 0.0
-        try:
-            while time.monotonic() - t_wall < timeout and context.ok():
-                executor.spin_once(timeout_sec=0.05)
-                t = node.recorded_time()
-                if node.buf.start_ns is not None and t >= next_report:
-                    if t_first is None:
-                        t_first = time.monotonic()
-                    elapsed = time.monotonic() - t_first
-                    eta = (f", ETA {elapsed * (end_time - t) / t:4.0f} s"
-                           if 0 < t < end_time else "")
-                    say(f"  recorded {t:6.1f} / {end_time:g} s of process time{eta} "
-                        f"({len(node.buf.profile)} frames), planner {node.buf.planner_state}")
-                    next_report += 10.0
-                done = node.buf.planner_state in AT_REST and node.buf.ran
-                if t >= end_time and (done or duration is not None):
-                    break
-                if (node.buf.start_ns is not None
-                        and time.monotonic() - node.last_rx > idle_timeout):
-                    say(f"record-cell: the cell has been silent for {idle_timeout:g} s: done")
-                    break
-        except KeyboardInterrupt:
-            say("record-cell: interrupted: writing what was recorded")
-        rec = node.record(cell, out.name)
-        start = start_stamp if start_stamp is not None else node.buf.start_ns / NS
-        path = write_record(rec, out, start_stamp=start, force=force)
-        return path, rec
-    finally:
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        while time.monotonic() - t_wall < timeout and context.ok():
+            executor.spin_once(timeout_sec=0.05)
+            t = node.recorded_time()
+            if node.buf.start_ns is not None and t >= next_report:
+                if t_first is None:
+                    t_first = time.monotonic()
+                elapsed = time.monotonic() - t_first
+                eta = (f", ETA {elapsed * (end_time - t) / t:4.0f} s"
+                       if 0 < t < end_time else "")
+                say(f"  recorded {t:6.1f} / {end_time:g} s of process time{eta} "
+                    f"({len(node.buf.profile)} frames), planner {node.buf.planner_state}")
+                next_report += 10.0
+            done = node.buf.planner_state in AT_REST and node.buf.ran
+            if t >= end_time and (done or duration is not None):
+                break
+            if (node.buf.start_ns is not None
+                    and time.monotonic() - node.last_rx > idle_timeout):
+                say(f"record-cell: the cell has been silent for {idle_timeout:g} s: done")
+                break
+    except KeyboardInterrupt:
+        say("record-cell: interrupted: writing what was recorded")
+    rec = node.record(cell, out.name)
+    start = start_stamp if start_stamp is not None else node.buf.start_ns / NS
+    path = write_record(rec, out, start_stamp=start, force=force)
+    return path, rec
 
 
 def _start_planner(node: CellRecorder, executor, planner: str, timeout: float, say) -> None:
@@ -300,92 +297,3 @@ def _start_planner(node: CellRecorder, executor, planner: str, timeout: float, s
 
 
 # -- replay ----------------------------------------------------------------------------------
-def qos_profile(spec: QosSpec) -> QoSProfile:
-    """The rclpy profile of a recorded :class:`~rheo_shaping.records.qos.QosSpec`."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, ReliabilityPolicy
-    kw = {name: Duration(seconds=getattr(spec, name + "_s"))
-          for name in ("deadline", "lifespan", "liveliness_lease_duration")
-          if getattr(spec, name + "_s") is not None}
-    return QoSProfile(depth=max(spec.depth, 1),
-                      history=HistoryPolicy[spec.history.upper()],
-                      reliability=ReliabilityPolicy[spec.reliability.upper()],
-                      durability=DurabilityPolicy[spec.durability.upper()],
-                      liveliness=LivelinessPolicy[spec.liveliness.upper()],
-                      avoid_ros_namespace_conventions=spec.avoid_ros_namespace_conventions,
-                      **kw)
-
-
-def replay(record_dir: Path, *, namespace: str = "", rate: float = 1.0, clock: bool = True,
-           progress: Callable[[str], None] | None = None,
-           wait_for_subscribers: float = 0.0) -> dict:
-    """Publish every message of a record's bag in stamp order, paced on the stamps.
-
-    ``rate`` scales the pace (2: twice as fast); ``clock`` publishes ``clock`` (the
-    root ``/clock`` in the root namespace) with each message's stamp first. Topics keep
-    their names, moved into ``namespace``. Returns counts per topic.
-    """
-    from rosbags.rosbag2 import Reader
-
-    from ..records.bag import read_record
-    read_record(record_dir)                       # a valid record, or RecordError
-    args = ["replay", "--ros-args"] + (["-r", f"__ns:={namespace}"] if namespace else [])
-    context = Context()
-    rclpy.init(args=args, context=context)
-    node = Node("replay", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    say = progress or (lambda _msg: None)
-    counts: dict[str, int] = {}
-    try:
-        offered = offered_qos(record_dir)         # rosbag2's offered_qos_profiles
-        with Reader(record_dir) as reader:
-            pubs = {}
-            for c in reader.connections:
-                specs = offered.get(c.topic)
-                if specs:                           # as recorded, like `ros2 bag play`
-                    qos = qos_profile(specs[0])
-                else:
-                    topic = T.ALL.get(c.topic)
-                    # a deep history: a subscriber slower than the replay loses nothing
-                    qos = T.writer_qos(topic.qos if topic is not None else T.STATE_QOS)
-                pubs[c.id] = node.create_publisher(get_message(c.msgtype), c.topic.lstrip("/"),
-                                                   qos)
-            clock_pub = node.create_publisher(T.CLOCK.type, T.CLOCK.name, T.CLOCK.qos) \
-                if clock else None
-            if wait_for_subscribers > 0:
-                end = time.monotonic() + wait_for_subscribers
-                while (time.monotonic() < end and not all(
-                        p.get_subscription_count() > 0 for p in pubs.values())):
-                    executor.spin_once(timeout_sec=0.05)
-            t_first = None
-            wall0 = time.monotonic()
-            for conn, stamp, raw in reader.messages():
-                if t_first is None:
-                    t_first = stamp
-                    say(f"replay: {record_dir} from stamp {stamp / NS:.3f} s at x{rate:g}")
-                due = wall0 + (stamp - t_first) / NS / rate
-                while True:
-                    left = due - time.monotonic()
-                    if left <= 0:
-                        break
-                    executor.spin_once(timeout_sec=min(left, 0.05))
-                if clock_pub is not None:
-                    clock_pub.publish(m.clock_msg(stamp))
-                pubs[conn.id].publish(bytes(raw))      # the bag's CDR, as recorded
-                counts[conn.topic] = counts.get(conn.topic, 0) + 1
-        wall = time.monotonic() - wall0 if counts else 0.0
-        # reliable delivery of the last messages before this node leaves the graph
-        for pub in pubs.values():
-            pub.wait_for_all_acked(Duration(seconds=10.0))
-        return {"record": str(record_dir), "messages": counts, "wall_time_s": wall}
-    finally:
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
-
-
-def get_message(msgtype: str) -> type:
-    """The rclpy message class of ``pkg/msg/Name``."""
-    import importlib
-    pkg, kind, name = msgtype.split("/")
-    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)

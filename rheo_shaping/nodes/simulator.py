@@ -38,26 +38,27 @@ import math
 import sys
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from ..sheet.geometry import Cake
-from ..records.measurement import MeasurementParams, profile_frame
 from ..params.node_params import SimulatorNodeParams
 from ..params.cell import CellParams
 from ..planning.scenarios import movement_scenario
-from ..sheet.setpoints import SetpointRun
+from ..sheet.setpoints import (HOLD_FOR_START, LATE_STEP, WAIT_MONITOR, WAIT_SETPOINT,
+                               SetpointRun, next_step)
 from ..sheet.tools import tool_shape
 from ..params.fingerprint import cell_message
 from ..safety.acknowledge import MonitorLead
-from ..safety.command_gate import CommandGate, Publisher, ToolLimits
+from ..safety.command_gate import CommandGate, ToolLimits
 from ..safety.watchdog import Freshness
 from . import messages as m
 from . import topics as T
 from .guards import Presence
+from .simulator_intake import SetpointIntake
+from .simulator_outputs import SimulatorOutputs
 from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
 
@@ -66,11 +67,9 @@ from ..units import NS
 #: Wall-clock time [s] between re-publications of the unchanged state while /clock holds
 #: for the first set-point (the monitor's data stay fresh; nothing else changes).
 HOLD_REPUBLISH = 0.1
-#: Longest wall-clock time [s] a set-point waits for the graph to show its publisher.
-GRAPH_WAIT = 5.0
 
 
-class SimulatorNode(Node):
+class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
     """Steps the sheet under /tool/command and publishes the cell's state."""
 
     def __init__(self, message_info: bool = True, **node_kwargs):
@@ -184,11 +183,6 @@ class SimulatorNode(Node):
         self._force_publish = True
         self._last_diag = None                          # /diagnostics says it at once
 
-    def _command_publishers(self) -> list[Publisher]:
-        return [Publisher(f"{i.node_namespace.rstrip('/')}/{i.node_name}",
-                          ".".join(f"{b:02x}" for b in i.endpoint_gid))
-                for i in self.get_publishers_info_by_topic(self._command_sub.topic_name)]
-
     # -- parameters -------------------------------------------------------------------
     @property
     def cell(self) -> CellParams:
@@ -294,96 +288,6 @@ class SimulatorNode(Node):
         self.get_logger().info(response.message)
         return response
 
-    # -- set-points -------------------------------------------------------------------
-    def _on_command(self, msg: PoseStamped, info=None) -> None:
-        seq = int((info or {}).get("publication_sequence_number", 0))
-        if self.gate.held:
-            if self.gate.report_once("held"):
-                self.get_logger().warning(f"ignoring /tool/command while the tool holds "
-                                          f"({self.gate.held}); ~/reset to re-arm")
-            return
-        if self._unbound:
-            # earlier samples still wait for the graph: this one is judged after them, in
-            # order (the writer's sequence numbers must rise)
-            self._unbound.append((msg, seq, self._steady.now().nanoseconds))
-            self._bind_waiting()
-            return
-        pubs = self._command_publishers()
-        if self.gate.bound is None and not pubs:
-            # the sample came before the graph shows its writer: judged once it does
-            self._unbound.append((msg, seq, self._steady.now().nanoseconds))
-            return
-        self._admit(pubs, msg, seq)
-
-    def _say_commander(self, pubs: list[Publisher] | None = None) -> None:
-        """/shaping/commander: the planner this simulator follows ("" for none), on a
-        change (a bound writer the graph no longer shows is let go here)."""
-        name = self.gate.commander(self._command_publishers() if pubs is None else pubs)
-        if name != self._commander:
-            self._commander = name
-            self.pub_commander.publish(String(data=name))
-
-    def _admit(self, pubs: list[Publisher], msg: PoseStamped, seq: int) -> bool:
-        """Follow ``msg`` if it comes from the bound planner, else hold; False once held."""
-        why = self.gate.source(pubs, seq)
-        self._say_commander(pubs)
-        if why:
-            self._hold(why)
-            return False
-        self._follow(msg)
-        return not self.gate.held
-
-    def _bind_waiting(self) -> None:
-        """Set-points that came before the graph showed their writer: judged now."""
-        if not self._unbound:
-            return
-        pubs = self._command_publishers()
-        waited = (self._steady.now().nanoseconds - self._unbound[0][2]) / NS
-        if not pubs and waited < GRAPH_WAIT:
-            return
-        waiting, self._unbound = self._unbound, []
-        if not pubs:
-            self._hold(f"set-points from a writer the graph does not show after {GRAPH_WAIT:g} s")
-            return
-        for msg, seq, _ in waiting:
-            if not self._admit(pubs, msg, seq):
-                return
-
-    def _follow(self, msg: PoseStamped) -> None:
-        """A set-point of the bound planner: checked, then buffered for the steps."""
-        t = m.stamp_ns(msg.header.stamp)
-        x, z = m.pose_xz(msg)
-        if t <= 0 or not (math.isfinite(x) and math.isfinite(z)):
-            self.get_logger().warning(f"ignored /tool/command with stamp {t} ns at ({x}, {z})",
-                                      throttle_duration_sec=5.0)
-            return
-        if msg.header.frame_id not in (m.FRAME, ""):
-            self.get_logger().warning(f"ignored /tool/command in frame '{msg.header.frame_id}': "
-                                      f"expected '{m.FRAME}'", throttle_duration_sec=5.0)
-            return
-        why = self.gate.judge(t, x, z, self.sim.state.tool)
-        if why:
-            self._hold(why)
-            return
-        started = self.run.command(t, x, z)
-        self._commands_fresh.received(self._steady.now().nanoseconds)
-        if started:
-            self.get_logger().info(
-                f"process starts at {t / NS:.3f} s (set-point stamp {t / NS:.3f} s): first "
-                f"set-point ({x * 1e3:.2f}, {z * 1e3:.2f}) mm")
-        if self._pending:
-            self._try_step()
-
-    def _stream_live(self) -> bool:
-        """Whether set-points still stream: one arrived within command_timeout (wall), judged
-        fairly after a stall of this node's own process (:class:`Freshness`)."""
-        return not self._commands_fresh.stale(self._steady.now().nanoseconds)
-
-    def _on_checked(self, msg) -> None:
-        self._lead.on_checked(msg.data, self._steady.now().nanoseconds)
-        if self._pending:
-            self._try_step()
-
     # -- stepping ---------------------------------------------------------------------
     def _on_timer(self) -> None:
         if not self.presence.settled:
@@ -401,20 +305,17 @@ class SimulatorNode(Node):
         self._pending = True
         self._try_step()
 
-    def _holds_for_start(self) -> bool:
-        """On simulated time with lockstep, before the first set-point: /clock stays where it
-        is (after the first step), so the planner's plan starts where the simulation is, however
-        late its first set-points arrive (a lossy link, slow discovery)."""
-        s = self.settings
-        return (s.lockstep and s.start_on_command and not self.run.started
-                and self._t_ns > 0)
-
     def _try_step(self) -> None:
         if not self._pending:
             return
         s = self.settings
         if self._sim_clock:
-            if self._holds_for_start():
+            target = self._t_ns + self._dt_ns
+            choice = next_step(
+                s.lockstep, s.start_on_command, self.run.started, self._t_ns > 0,
+                lambda: self._lead.behind(self._steady.now().nanoseconds),
+                lambda: self.run.lacks_setpoint(target), bool(self.gate.held), self._stream_live)
+            if choice == HOLD_FOR_START:
                 self._pending = False
                 self._clock_holds += 1
                 self.pub_clock.publish(m.clock_msg(self._t_ns + self._dt_ns))
@@ -426,14 +327,13 @@ class SimulatorNode(Node):
                 self._hold_camera()
                 self._publish_steady(self._t_ns)
                 return
-            target = self._t_ns + self._dt_ns
-            if self._lead.behind(self._steady.now().nanoseconds):
+            if choice == WAIT_MONITOR:
                 return                              # re-tried on the next acknowledgement
-            if self.run.lacks_setpoint(target) and not self.gate.held:
-                if s.lockstep and self._stream_live():
-                    self._waits += 1
-                    return                              # wait for the step's set-point
-                self._late_steps += 1                   # the tool holds its last set-point
+            if choice == WAIT_SETPOINT:
+                self._waits += 1
+                return                              # wait for the step's set-point
+            if choice == LATE_STEP:
+                self._late_steps += 1               # the tool holds its last set-point
                 self.get_logger().warning(
                     f"step to {target / NS:.3f} s without its set-point (newest "
                     f"{self.run.cmds[-1][0] / NS:.3f} s): the tool holds; late steps so far "
@@ -474,123 +374,6 @@ class SimulatorNode(Node):
             f"process time {pt:g} s reached: F_max = {s.F_max:.4f} N (link {s.F_max_link}, "
             f"t = {s.F_max_time:.1f} s), SF = {s.SF:.3f}, Delta = {s.delta * 1e3:.3f} mm "
             f"({self._late_steps} steps without their set-point)")
-
-    # -- publishing -------------------------------------------------------------------
-    def _publish(self, t_ns: int) -> None:
-        s = self.settings
-        if (self._last_pub_ns is None or s.publish_period == 0.0 or self._force_publish
-                or t_ns - self._last_pub_ns >= s.publish_period * NS - 1):
-            self._force_publish = False
-            self._publish_state(t_ns)
-        if s.camera and (self._last_camera is None or t_ns >= self._last_camera):
-            # frames on a grid of 1 / camera_rate (each at the first step at or after it)
-            period = int(round(NS / s.camera_rate))
-            self._last_camera = (t_ns // period + 1) * period
-            self._publish_camera(t_ns)
-        self._publish_steady(t_ns)
-
-    def _publish_steady(self, t_ns: int) -> None:
-        """What goes out on the steady clock: markers, /diagnostics, progress lines."""
-        s = self.settings
-        now = self._steady.now().nanoseconds
-        if s.publish_markers and (self._last_marker is None
-                                  or now - self._last_marker >= s.marker_period * NS):
-            self._last_marker = now
-            self.pub_markers.publish(m.markers_msg(
-                t_ns, self.sim.nodes(), self.run.tensions(), self._run_cell.material.F_break,
-                self._run_cell.sheet.thickness, self._tool_outline + self.sim.state.tool,
-                self._cake_outline))
-        if self._last_diag is None or now - self._last_diag >= s.diagnostics_period * NS:
-            self._measure_rate(now)
-            self._last_diag = now
-            self.pub_diag.publish(self._diagnostics(t_ns))
-        self._progress()
-
-    def _publish_state(self, t_ns: int) -> None:
-        self._last_pub_ns = t_ns
-        st = self.sim.state
-        self.pub_profile.publish(m.profile_msg(st.x, t_ns))
-        self._publish_tensions()
-        self.pub_pose.publish(m.pose_msg(st.tool, t_ns))
-        self.pub_wrench.publish(m.wrench_msg(self.sim.tool_force(), t_ns))
-
-    def _publish_tensions(self) -> None:
-        contact = math.nan if self.run.broken else self.sim.contact_tension()
-        self.pub_tensions.publish(m.tensions_msg(self.run.tensions()))
-        self._lead.published()
-        self.pub_contact.publish(m.float_msg(contact))
-
-    def _hold_camera(self) -> None:
-        """While /clock holds: camera frames of the waiting sheet at the rate they come at when
-        running (camera_rate x real_time_factor per wall second), for late joiners."""
-        s = self.settings
-        now = self._steady.now().nanoseconds
-        period = NS / (s.camera_rate * s.real_time_factor)
-        if s.camera and (self._last_hold_camera is None
-                         or now - self._last_hold_camera >= period):
-            self._last_hold_camera = now
-            self._publish_camera(self._t_ns)
-
-    def _publish_camera(self, t_ns: int) -> None:
-        """A frame of the simulated camera (rheo_shaping.records.measurement.profile_frame)."""
-        s = self.settings
-        if self.run.broken or self._camera_rng.random() < s.camera_frame_dropout:
-            return
-        ms = MeasurementParams(profile_spacing=s.camera_spacing, profile_noise=s.camera_noise,
-                               point_dropout=s.camera_point_dropout)
-        pts = profile_frame(self.sim.nodes(), ms, self._camera_rng)
-        self.pub_camera.publish(m.profile_msg(pts, t_ns))
-
-    def _measure_rate(self, now: int) -> None:
-        if self._rate_ref is not None and now > self._rate_ref[0]:
-            self.achieved_factor = (self._t_ns - self._rate_ref[1]) / (now - self._rate_ref[0])
-            wanted = self.settings.real_time_factor
-            if (self._sim_clock and self.started and self.summary is None
-                    and self.achieved_factor < 0.5 * wanted):
-                self.get_logger().warning(
-                    f"running at {self.achieved_factor:.1f}x instead of {wanted:g}x (computation "
-                    f"or set-points lag; lockstep waits so far: {self._waits})",
-                    throttle_duration_sec=10.0)
-        self._rate_ref = (now, self._t_ns)
-
-    def _progress(self) -> None:
-        period = self.settings.progress_period
-        if period <= 0 or not self.started or self.sim.state.t < self._next_progress:
-            return
-        while self._next_progress <= self.sim.state.t:
-            self._next_progress += period
-        st = self.sim.state
-        self.get_logger().info(
-            f"t = {st.t:6.1f} s: tool ({st.tool[0] * 1e3:.2f}, {st.tool[1] * 1e3:.2f}) mm, "
-            f"largest tension {float(np.max(st.tension)):.4f} N, contact "
-            f"{self.sim.contact_tension():.4f} N, F_max so far {self.peak.value:.4f} N, "
-            f"x{self.achieved_factor:.1f} real time")
-
-    def _diagnostics(self, t_ns: int):
-        st = self.sim.state
-        if self.run.broken:
-            level, message = "ERROR", f"sheet solver failed: {self.run.broken}"
-        elif self.gate.held:
-            level, message = "ERROR", f"the tool holds: {self.gate.held}"
-        elif not self.started:
-            level, message = "OK", "waiting for the first /tool/command"
-        elif self.summary is None:
-            level, message = "OK", f"process time {st.t:.1f} s"
-        else:
-            level, message = "OK", f"process done at {self._run_cell.movement.process_time:g} s"
-        values = {"process_time": float(st.t), "tool_x": float(st.tool[0]),
-                  "tool_z": float(st.tool[1]),
-                  "tension_max": float(np.max(self.run.tensions())),
-                  "F_max": float(self.peak.value) if self.started else 0.0,
-                  "real_time_factor": self.settings.real_time_factor,
-                  "achieved_factor": float(self.achieved_factor), "lockstep_waits": self._waits,
-                  "monitor_waits": self._lead.waits, "clock_holds": self._clock_holds,
-                  "late_steps": self._late_steps}
-        if self.summary is not None:
-            values.update({"final_F_max": self.summary.F_max, "final_SF": self.summary.SF,
-                           "final_delta": self.summary.delta})
-        return m.diagnostics_msg(t_ns, "rheo_shaping/simulator", level, message, values,
-                                 m.hardware_id(self.get_namespace()))
 
 
 def main(args=None):

@@ -10,6 +10,7 @@ the process end and beyond, and the peak tension of the process.  Times on the n
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 
@@ -147,3 +148,50 @@ class SetpointRun:
         """The link tensions [N] to publish: NaN once the solver has failed."""
         st = self.sim.state
         return np.full_like(st.tension, np.nan) if self.broken else st.tension
+
+
+# ------------------------------------------------------------------ the simulator's policy
+#: What a simulator on simulated time does at a tick (:func:`next_step`).
+HOLD_FOR_START = "hold_for_start"    # /clock stays; the state is re-published for late joiners
+WAIT_MONITOR = "wait_monitor"        # the monitor lags by monitor_lead samples: retried later
+WAIT_SETPOINT = "wait_setpoint"      # lockstep: the step's set-point has not come yet
+LATE_STEP = "late_step"              # the step goes on without its set-point (the tool holds)
+STEP = "step"
+
+
+def next_step(lockstep: bool, start_on_command: bool, started: bool, clock_started: bool,
+              monitor_behind: Callable[[], bool], lacks_setpoint: Callable[[], bool],
+              held: bool, stream_live: Callable[[], bool]) -> str:
+    """The simulator's step policy on simulated time, one of the names above, in order:
+
+    * before the first set-point, with lockstep and ``start_on_command``, once the clock
+      has made its first step, /clock holds (the plan starts where the simulation is, however
+      late its first set-points come);
+    * the monitor is ``monitor_lead`` samples behind: wait (safety.acknowledge.MonitorLead);
+    * the step lacks its set-point and the tool is not held: wait for it while lockstep
+      and set-points still stream (``command_timeout``), else step without it;
+    * else step.
+
+    The callables are asked only when the policy gets to them (the monitor's count of
+    waits is one of them)."""
+    if lockstep and start_on_command and not started and clock_started:
+        return HOLD_FOR_START
+    if monitor_behind():
+        return WAIT_MONITOR
+    if lacks_setpoint() and not held:
+        return WAIT_SETPOINT if lockstep and stream_live() else LATE_STEP
+    return STEP
+
+
+def run_status(broken: str, held: str, started: bool, done: bool, t: float,
+               process_time: float) -> tuple[str, str]:
+    """The simulator's /diagnostics level and message: (level, message)."""
+    if broken:
+        return "ERROR", f"sheet solver failed: {broken}"
+    if held:
+        return "ERROR", f"the tool holds: {held}"
+    if not started:
+        return "OK", "waiting for the first /tool/command"
+    if not done:
+        return "OK", f"process time {t:.1f} s"
+    return "OK", f"process done at {process_time:g} s"

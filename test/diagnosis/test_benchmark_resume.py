@@ -6,7 +6,8 @@ import json
 
 import pytest
 
-from rheo_shaping.diagnosis.benchmark import _append_partial, read_partial, run_benchmark
+from rheo_shaping.diagnosis.benchmark import run_benchmark
+from rheo_shaping.diagnosis.checkpoint import append_partial, read_partial
 
 
 def test_cases_already_done_are_not_run_again_and_new_ones_are_kept(tmp_path):
@@ -30,7 +31,7 @@ def test_cases_already_done_are_not_run_again_and_new_ones_are_kept(tmp_path):
 
 def test_a_partial_file_of_another_benchmark_is_refused(tmp_path):
     part = tmp_path / "p.jsonl"
-    _append_partial(str(part), {"seed": 1}, {"index": 0})
+    append_partial(str(part), {"seed": 1}, {"index": 0})
     assert read_partial(str(part), {"seed": 1}) == {0: {"index": 0}}
     with pytest.raises(ValueError, match="a case of another benchmark"):
         read_partial(str(part), {"seed": 2})

@@ -59,6 +59,21 @@ def test_noise_estimate_recovers_the_injected_noise():
         assert noise_level(res.force[:, 0]) == pytest.approx(0.02, rel=0.1)
 
 
+def test_a_noise_free_force_is_weighed_at_the_floor_not_ignored():
+    """A simulator's noise-free wrench shows no noise in its second differences: the force is
+    weighed with MIN_FORCE_NOISE (1 mN), not with the 1 N of records without a force (the gap
+    watch's diagnoses of simulated cells ignored the force so)."""
+    from rheo_shaping.diagnosis.stages import MIN_FORCE_NOISE
+    ms = MeasurementParams(wrench_noise=0.0)
+    rec, _ = synthesize_record(cell(4, process_time=30.0, n_masses=15), ms, seed=3)
+    d = diagnose([rec], library=(), jobs=1)
+    assert d.noise["force_N"] == MIN_FORCE_NOISE
+    assert d.noise["profile_m"] == pytest.approx(ms.profile_noise, rel=0.15)
+    no_force, _ = synthesize_record(cell(4, process_time=30.0, n_masses=15),
+                                    replace(ms, wrench=False), seed=3)
+    assert diagnose([no_force], library=(), jobs=1).noise["force_N"] == 1.0
+
+
 def test_phases_follow_the_movement():
     rec, run = synthesize_record(cell(1, process_time=120.0, n_masses=31), seed=3)
     data = RecordData.of(rec)

@@ -151,7 +151,7 @@ def test_diagnose_a_recorded_cell_finds_no_effect(recorded):
 def test_replay_publishes_the_record_on_its_own_stamps(recorded, ros):
     from rosbags.rosbag2 import Reader
     from rheo_shaping.nodes import messages as m
-    from rheo_shaping.nodes.recorder import get_message
+    from rheo_shaping.nodes.replay import get_message
     out, _ = recorded
     with Reader(out) as reader:
         conns = {c.id: c.topic for c in reader.connections}

@@ -56,7 +56,7 @@ def test_replay_publishes_with_the_recorded_profiles():
     `ros2 bag play`): the profile it builds says what the record says."""
     from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
-    from rheo_shaping.nodes.recorder import qos_profile
+    from rheo_shaping.nodes.replay import qos_profile
     from rheo_shaping.records.qos import QosSpec
     q = qos_profile(QosSpec(depth=7, reliability="best_effort", durability="transient_local",
                             deadline_s=0.25))

@@ -98,7 +98,7 @@ def test_every_state_the_planner_reports_is_in_the_one_vocabulary():
     from rheo_shaping.planning.states import AT_REST, BEFORE_RUN, MOVING, PLANNER_STATES
     pkg = Path(rheo_shaping.__file__).parent
     used = set()
-    for module in ("planner.py", "managed.py"):               # the plain and managed planner
+    for module in ("planner.py", "planner_supervision.py", "managed.py"):   # plain, managed
         tree = ast.parse((pkg / "nodes" / module).read_text())
         used |= {c.value for n in ast.walk(tree) if isinstance(n, ast.Call)
                  and getattr(n.func, "attr", "") == "_set_state" and n.args

@@ -83,3 +83,40 @@ def test_a_failed_solver_publishes_nan(cell):
     assert np.isnan(run.tensions()).all()
     run.command(T0, 0.05, 0.10)
     assert run.advance(T0 + NS) is None and run.process_time == 0.0
+
+
+def test_the_step_policy_in_its_order():
+    """Every branch of the simulator's step policy on simulated time; the monitor's count of
+    waits is asked only once the start is not held."""
+    from rheo_shaping.sheet.setpoints import (HOLD_FOR_START, LATE_STEP, STEP, WAIT_MONITOR,
+                                              WAIT_SETPOINT, next_step)
+    asked = []
+
+    def behind(value):
+        return lambda: asked.append("monitor") or value
+
+    yes, no = (lambda: True), (lambda: False)
+    # before the first set-point, lockstep and start_on_command: /clock holds
+    assert next_step(True, True, False, True, behind(True), yes, False, yes) == HOLD_FOR_START
+    assert asked == []
+    # the first step of the clock is taken (t = 0), and without start_on_command it runs
+    assert next_step(True, True, False, False, behind(False), no, False, yes) == STEP
+    assert next_step(True, False, False, True, behind(False), no, False, yes) == STEP
+    assert next_step(True, True, True, True, behind(True), yes, False, yes) == WAIT_MONITOR
+    assert next_step(True, True, True, True, behind(False), yes, False, yes) == WAIT_SETPOINT
+    # the stream went quiet (command_timeout), or no lockstep: step without the set-point
+    assert next_step(True, True, True, True, behind(False), yes, False, no) == LATE_STEP
+    assert next_step(False, True, True, True, behind(False), yes, False, yes) == LATE_STEP
+    # a held tool steps on (it holds where it is; no set-point is waited for)
+    assert next_step(True, True, True, True, behind(False), yes, True, yes) == STEP
+
+
+def test_the_run_status_names_the_worst_first():
+    from rheo_shaping.sheet.setpoints import run_status
+    assert run_status("diverged", "abort", True, False, 3.0, 120.0) == (
+        "ERROR", "sheet solver failed: diverged")
+    assert run_status("", "abort: x", True, False, 3.0, 120.0) == (
+        "ERROR", "the tool holds: abort: x")
+    assert run_status("", "", False, False, 0.0, 120.0)[1].startswith("waiting for the first")
+    assert run_status("", "", True, False, 3.04, 120.0) == ("OK", "process time 3.0 s")
+    assert run_status("", "", True, True, 120.0, 120.0) == ("OK", "process done at 120 s")

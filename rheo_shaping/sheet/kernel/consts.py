@@ -2,7 +2,7 @@
 float parameters, numba options."""
 from __future__ import annotations
 
-from typing import Literal, TypedDict
+from ..._numba_cache import NUMBA_OPTIONS
 
 
 #: Obstacle kinds of the array description (``Shape.kernel_description``).
@@ -22,13 +22,5 @@ ST_NEWTON, ST_EVAL, ST_SOLVE, ST_SUBSTEPS, ST_FAILED = 0, 1, 2, 3, 4
 TINY = 1e-300
 
 
-class JitOptions(TypedDict):
-    """The numba options of every compiled function of the step (``@njit(**JIT)``)."""
-
-    cache: bool
-    nogil: bool
-    fastmath: bool
-    error_model: Literal["python", "numpy"]
-
-
-JIT: JitOptions = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+#: The numba options of every compiled function (``@njit(**JIT)``): the package's one set.
+JIT = NUMBA_OPTIONS

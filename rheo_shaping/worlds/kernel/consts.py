@@ -1,19 +1,11 @@
 """The world kernel's numba options, packed-parameter indices and limits."""
 from __future__ import annotations
 
-from typing import Literal, TypedDict
+from ..._numba_cache import NUMBA_OPTIONS
 
 
-class JitOptions(TypedDict):
-    """The numba options of every compiled function of this world (``@njit(**JIT)``)."""
-
-    cache: bool
-    nogil: bool
-    fastmath: bool
-    error_model: Literal["python", "numpy"]
-
-
-JIT: JitOptions = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+#: The numba options of every compiled function (``@njit(**JIT)``): the package's one set.
+JIT = NUMBA_OPTIONS
 
 # ---------------------------------------------------------------- packed parameter indices
 #: ``par`` vector of :func:`run_chain`

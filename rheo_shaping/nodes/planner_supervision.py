@@ -1,0 +1,153 @@
+"""The ``planner`` node's supervision on the steady clock: when the plan may start, the
+monitor's heartbeat, what the planner waits for and says, the start of a run (a part of
+:class:`~.planner.PlannerNode`; the decisions are the core's:
+:mod:`rheo_shaping.planning.run_state`,
+:func:`rheo_shaping.safety.one_of_each.commander_refusal`).
+"""
+from __future__ import annotations
+
+from std_msgs.msg import String
+
+from ..params.schema import ParameterError
+from ..planning.run_state import SetpointGrid, StartInputs, running_decision, start_decision
+from ..planning.stopping import TrajectoryStreamer
+from ..safety.one_of_each import commander_refusal
+from ..safety.watchdog import StallGuard
+from ..units import NS
+from . import messages as m
+from . import topics as T
+
+
+class PlannerSupervision:
+    """The planner node's supervision (mixed into :class:`~.planner.PlannerNode`, whose state
+    it reads and sets)."""
+
+    # -- supervision (steady clock) -------------------------------------------------
+    def _on_commander(self, msg: String) -> None:
+        self._commander = msg.data
+
+    def _supervise(self) -> None:
+        if self.pub_command is None:
+            if not self.presence.settled or self.presence.twin:
+                return
+            why = commander_refusal(self._commander)
+            if why:
+                self.get_logger().info(f"waiting: {why}", throttle_duration_sec=5.0)
+                return
+            self.pub_command = self.create_publisher(T.TOOL_COMMAND.type, T.TOOL_COMMAND.name,
+                                                     T.TOOL_COMMAND.qos)
+            self._set_state("idle" if not self.settings.autostart else "waiting")
+        ok, why = self._monitor_ok()
+        # this process stood still for over monitor_timeout / 2 (a busy machine): heartbeats
+        # may wait unread behind this timer, so a lost monitor is judged at the next tick
+        guard = self._supervise_guard
+        if guard is None or guard.limit != 0.5 * self.settings.monitor_timeout:
+            guard = self._supervise_guard = StallGuard(0.5 * self.settings.monitor_timeout)
+        stalled = guard.check(self._steady.now().nanoseconds)
+        if self.streamer is None:
+            now = self._now_ns()
+            wants = self.settings.autostart or self._start_requested
+            # the graph queries and checks only when a start is wanted (else idle/holding)
+            active = wants and not self.aborted
+            state, why_not = start_decision(StartInputs(
+                aborted=self.aborted, wants_start=wants,
+                start_requested=self._start_requested,
+                pose_unknown=(active and self._tool_pose is None and self._hold is None
+                              and self.count_publishers(T.TOOL_POSE.name) > 0),
+                tool_away=self._tool_away() if active else "", monitor_ok=ok,
+                refusal=self._refusal() if active and ok else "",
+                lead=self._start_lead(now) if active and ok and now > 0 else "", now_ns=now,
+                subscribers=self.pub_command.get_subscription_count() if active else 0))
+            if state == "start":
+                self._start(now)
+            elif state in ("idle", "holding"):
+                self._update_state()
+                return
+            elif why_not and state != "waiting_for_pose":
+                self._refuse(why_not, state)
+            else:
+                self._set_state(state)
+                self._say_wait(state, why)
+        elif self.streamer.state == "running":
+            stop = running_decision(
+                ok, guard.excuses(stalled, self._ready_rx, self.settings.monitor_timeout), why,
+                self._refusal())
+            if stop:
+                self._abort(stop)
+        self._update_state()
+
+    def _say_wait(self, state: str, monitor_why: str) -> None:
+        """What a wait waits for: the full topic name and the likely fix, every 5 s."""
+        clock = self._time_source._clock_sub
+        what = {
+            "waiting_for_monitor": (
+                f"the monitor's ready heartbeat on {self._ready_topic} ({monitor_why}): the "
+                f"monitor is the interlock, no motion without it; start it in this namespace "
+                f"(ros2 run rheo_shaping monitor, use_sim_time as here)"),
+            "waiting_for_clock": (
+                f"/clock on {clock.topic_name if clock else '/clock'}: the simulator publishes "
+                f"its clock relative to its namespace; in a namespace add -r /clock:=clock"),
+            "waiting_for_subscriber": (
+                f"a subscriber of {self.pub_command.topic_name} (the simulator or the robot)"),
+            "waiting_for_pose": f"the tool pose on {self.resolve_topic_name(T.TOOL_POSE.name)}",
+        }.get(state)
+        if what:
+            self.get_logger().info(f"waiting for {what}", throttle_duration_sec=5.0)
+
+    def _refuse(self, reason: str, state: str) -> None:
+        """Do not start: the state says why, the log once per reason."""
+        if reason != self._refused:
+            self._refused = reason
+            (self.get_logger().info if state == "waiting" else self.get_logger().warning)(
+                f"not starting ({state}): {reason}")
+        self._set_state(state)
+
+    def _start_lead(self, now: int) -> str:
+        """Why the stream could not keep within max_lead of the executed pose: the
+        simulator's clock runs further ahead of its published pose than max_lead."""
+        if self._pose_ns is None:
+            return ("no /tool/pose yet: the planner streams only against the executed pose "
+                    "(its stamp bounds the lead)")
+        ahead = (now - self._pose_ns) / NS
+        if ahead > self.settings.max_lead:
+            return (f"/clock runs {ahead:.3f} s ahead of /tool/pose, beyond max_lead "
+                    f"{self.settings.max_lead:g} s: the simulator's step (real_time_factor x "
+                    f"step_period) must stay below max_lead")
+        return ""
+
+    def _start(self, now_ns: int) -> None:
+        if self.plan_error or self._start_failed:
+            self._set_state("error")
+            return
+        try:
+            plan = self._plan_from(self._hold)
+        except (ParameterError, ValueError, RuntimeError) as exc:
+            self._start_failed = str(exc)              # until ~/reset
+            self.get_logger().error(f"cannot start: {exc}")
+            self._set_state("error")
+            return
+        streamer = TrajectoryStreamer(home_xz=self.cell_used.tool.home,
+                                      retract_limits=self._retract_limits())
+        streamer.start(plan, now_ns / NS)
+        self.streamer = streamer
+        self.grid = SetpointGrid(now_ns, int(round(NS / self.settings.control_rate)))
+        self.pub_trajectory.publish(m.trajectory_msg(
+            plan, now_ns, self.settings.trajectory_period))
+        self.get_logger().info(f"starting the plan at t = {now_ns / NS:.3f} s "
+                               f"({plan.duration:.1f} s, {len(plan.segments)} segments)")
+        self._stream()
+
+    def _update_state(self) -> None:
+        st = self.streamer
+        if st is None:
+            if self.aborted:
+                self._set_state("holding")
+            return
+        if st.state == "done":
+            pt = self.cell_used.movement.process_time
+            now = self._now_ns()
+            self._set_state("done" if now >= self._t0_ns + pt * NS - 1 else "running")
+        elif st.state == "idle":
+            self._set_state("waiting")
+        else:
+            self._set_state(st.state)

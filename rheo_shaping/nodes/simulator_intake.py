@@ -1,0 +1,117 @@
+"""The ``simulator`` node's intake of ``/tool/command``: each set-point admitted from the
+bound planner only (the core's :class:`~rheo_shaping.safety.command_gate.CommandGate`),
+checked and buffered for the steps, or the tool held with the reason (a part of
+:class:`~.simulator.SimulatorNode`)."""
+from __future__ import annotations
+
+import math
+
+from geometry_msgs.msg import PoseStamped
+from std_msgs.msg import String
+
+from ..safety.command_gate import Publisher
+from ..units import NS
+from . import messages as m
+
+#: Longest wall-clock time [s] a set-point waits for the graph to show its publisher.
+GRAPH_WAIT = 5.0
+
+
+class SetpointIntake:
+    """The simulator node's set-point intake (mixed into :class:`~.simulator.SimulatorNode`,
+    whose gate, run and publishers it uses)."""
+
+    def _command_publishers(self) -> list[Publisher]:
+        return [Publisher(f"{i.node_namespace.rstrip('/')}/{i.node_name}",
+                          ".".join(f"{b:02x}" for b in i.endpoint_gid))
+                for i in self.get_publishers_info_by_topic(self._command_sub.topic_name)]
+
+    # -- set-points -------------------------------------------------------------------
+    def _on_command(self, msg: PoseStamped, info=None) -> None:
+        seq = int((info or {}).get("publication_sequence_number", 0))
+        if self.gate.held:
+            if self.gate.report_once("held"):
+                self.get_logger().warning(f"ignoring /tool/command while the tool holds "
+                                          f"({self.gate.held}); ~/reset to re-arm")
+            return
+        if self._unbound:
+            # earlier samples still wait for the graph: this one is judged after them, in
+            # order (the writer's sequence numbers must rise)
+            self._unbound.append((msg, seq, self._steady.now().nanoseconds))
+            self._bind_waiting()
+            return
+        pubs = self._command_publishers()
+        if self.gate.bound is None and not pubs:
+            # the sample came before the graph shows its writer: judged once it does
+            self._unbound.append((msg, seq, self._steady.now().nanoseconds))
+            return
+        self._admit(pubs, msg, seq)
+
+    def _say_commander(self, pubs: list[Publisher] | None = None) -> None:
+        """/shaping/commander: the planner this simulator follows ("" for none), on a
+        change (a bound writer the graph no longer shows is let go here)."""
+        name = self.gate.commander(self._command_publishers() if pubs is None else pubs)
+        if name != self._commander:
+            self._commander = name
+            self.pub_commander.publish(String(data=name))
+
+    def _admit(self, pubs: list[Publisher], msg: PoseStamped, seq: int) -> bool:
+        """Follow ``msg`` if it comes from the bound planner, else hold; False once held."""
+        why = self.gate.source(pubs, seq)
+        self._say_commander(pubs)
+        if why:
+            self._hold(why)
+            return False
+        self._follow(msg)
+        return not self.gate.held
+
+    def _bind_waiting(self) -> None:
+        """Set-points that came before the graph showed their writer: judged now."""
+        if not self._unbound:
+            return
+        pubs = self._command_publishers()
+        waited = (self._steady.now().nanoseconds - self._unbound[0][2]) / NS
+        if not pubs and waited < GRAPH_WAIT:
+            return
+        waiting, self._unbound = self._unbound, []
+        if not pubs:
+            self._hold(f"set-points from a writer the graph does not show after {GRAPH_WAIT:g} s")
+            return
+        for msg, seq, _ in waiting:
+            if not self._admit(pubs, msg, seq):
+                return
+
+    def _follow(self, msg: PoseStamped) -> None:
+        """A set-point of the bound planner: checked, then buffered for the steps."""
+        t = m.stamp_ns(msg.header.stamp)
+        x, z = m.pose_xz(msg)
+        if t <= 0 or not (math.isfinite(x) and math.isfinite(z)):
+            self.get_logger().warning(f"ignored /tool/command with stamp {t} ns at ({x}, {z})",
+                                      throttle_duration_sec=5.0)
+            return
+        if msg.header.frame_id not in (m.FRAME, ""):
+            self.get_logger().warning(f"ignored /tool/command in frame '{msg.header.frame_id}': "
+                                      f"expected '{m.FRAME}'", throttle_duration_sec=5.0)
+            return
+        why = self.gate.judge(t, x, z, self.sim.state.tool)
+        if why:
+            self._hold(why)
+            return
+        started = self.run.command(t, x, z)
+        self._commands_fresh.received(self._steady.now().nanoseconds)
+        if started:
+            self.get_logger().info(
+                f"process starts at {t / NS:.3f} s (set-point stamp {t / NS:.3f} s): first "
+                f"set-point ({x * 1e3:.2f}, {z * 1e3:.2f}) mm")
+        if self._pending:
+            self._try_step()
+
+    def _stream_live(self) -> bool:
+        """Whether set-points still stream: one arrived within command_timeout (wall), judged
+        fairly after a stall of this node's own process (:class:`Freshness`)."""
+        return not self._commands_fresh.stale(self._steady.now().nanoseconds)
+
+    def _on_checked(self, msg) -> None:
+        self._lead.on_checked(msg.data, self._steady.now().nanoseconds)
+        if self._pending:
+            self._try_step()

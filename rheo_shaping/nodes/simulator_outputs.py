@@ -1,0 +1,128 @@
+"""What the ``simulator`` node publishes: the sheet's state, the simulated camera, markers,
+/diagnostics and progress lines (a part of :class:`~.simulator.SimulatorNode`; the
+decisions are the core's: :func:`rheo_shaping.sheet.setpoints.run_status`)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..records.measurement import MeasurementParams, profile_frame
+from ..sheet.setpoints import run_status
+from ..units import NS
+from . import messages as m
+
+
+class SimulatorOutputs:
+    """The simulator node's publishing (mixed into :class:`~.simulator.SimulatorNode`, whose
+    state it reads)."""
+
+    # -- publishing -------------------------------------------------------------------
+    def _publish(self, t_ns: int) -> None:
+        s = self.settings
+        if (self._last_pub_ns is None or s.publish_period == 0.0 or self._force_publish
+                or t_ns - self._last_pub_ns >= s.publish_period * NS - 1):
+            self._force_publish = False
+            self._publish_state(t_ns)
+        if s.camera and (self._last_camera is None or t_ns >= self._last_camera):
+            # frames on a grid of 1 / camera_rate (each at the first step at or after it)
+            period = int(round(NS / s.camera_rate))
+            self._last_camera = (t_ns // period + 1) * period
+            self._publish_camera(t_ns)
+        self._publish_steady(t_ns)
+
+    def _publish_steady(self, t_ns: int) -> None:
+        """What goes out on the steady clock: markers, /diagnostics, progress lines."""
+        s = self.settings
+        now = self._steady.now().nanoseconds
+        if s.publish_markers and (self._last_marker is None
+                                  or now - self._last_marker >= s.marker_period * NS):
+            self._last_marker = now
+            self.pub_markers.publish(m.markers_msg(
+                t_ns, self.sim.nodes(), self.run.tensions(), self._run_cell.material.F_break,
+                self._run_cell.sheet.thickness, self._tool_outline + self.sim.state.tool,
+                self._cake_outline))
+        if self._last_diag is None or now - self._last_diag >= s.diagnostics_period * NS:
+            self._measure_rate(now)
+            self._last_diag = now
+            self.pub_diag.publish(self._diagnostics(t_ns))
+        self._progress()
+
+    def _publish_state(self, t_ns: int) -> None:
+        self._last_pub_ns = t_ns
+        st = self.sim.state
+        self.pub_profile.publish(m.profile_msg(st.x, t_ns))
+        self._publish_tensions()
+        self.pub_pose.publish(m.pose_msg(st.tool, t_ns))
+        self.pub_wrench.publish(m.wrench_msg(self.sim.tool_force(), t_ns))
+
+    def _publish_tensions(self) -> None:
+        contact = math.nan if self.run.broken else self.sim.contact_tension()
+        self.pub_tensions.publish(m.tensions_msg(self.run.tensions()))
+        self._lead.published()
+        self.pub_contact.publish(m.float_msg(contact))
+
+    def _hold_camera(self) -> None:
+        """While /clock holds: camera frames of the waiting sheet at the rate they come at when
+        running (camera_rate x real_time_factor per wall second), for late joiners."""
+        s = self.settings
+        now = self._steady.now().nanoseconds
+        period = NS / (s.camera_rate * s.real_time_factor)
+        if s.camera and (self._last_hold_camera is None
+                         or now - self._last_hold_camera >= period):
+            self._last_hold_camera = now
+            self._publish_camera(self._t_ns)
+
+    def _publish_camera(self, t_ns: int) -> None:
+        """A frame of the simulated camera (rheo_shaping.records.measurement.profile_frame)."""
+        s = self.settings
+        if self.run.broken or self._camera_rng.random() < s.camera_frame_dropout:
+            return
+        ms = MeasurementParams(profile_spacing=s.camera_spacing, profile_noise=s.camera_noise,
+                               point_dropout=s.camera_point_dropout)
+        pts = profile_frame(self.sim.nodes(), ms, self._camera_rng)
+        self.pub_camera.publish(m.profile_msg(pts, t_ns))
+
+    def _measure_rate(self, now: int) -> None:
+        if self._rate_ref is not None and now > self._rate_ref[0]:
+            self.achieved_factor = (self._t_ns - self._rate_ref[1]) / (now - self._rate_ref[0])
+            wanted = self.settings.real_time_factor
+            if (self._sim_clock and self.started and self.summary is None
+                    and self.achieved_factor < 0.5 * wanted):
+                self.get_logger().warning(
+                    f"running at {self.achieved_factor:.1f}x instead of {wanted:g}x (computation "
+                    f"or set-points lag; lockstep waits so far: {self._waits})",
+                    throttle_duration_sec=10.0)
+        self._rate_ref = (now, self._t_ns)
+
+    def _progress(self) -> None:
+        period = self.settings.progress_period
+        if period <= 0 or not self.started or self.sim.state.t < self._next_progress:
+            return
+        while self._next_progress <= self.sim.state.t:
+            self._next_progress += period
+        st = self.sim.state
+        self.get_logger().info(
+            f"t = {st.t:6.1f} s: tool ({st.tool[0] * 1e3:.2f}, {st.tool[1] * 1e3:.2f}) mm, "
+            f"largest tension {float(np.max(st.tension)):.4f} N, contact "
+            f"{self.sim.contact_tension():.4f} N, F_max so far {self.peak.value:.4f} N, "
+            f"x{self.achieved_factor:.1f} real time")
+
+    def _diagnostics(self, t_ns: int):
+        st = self.sim.state
+        level, message = run_status(self.run.broken, self.gate.held, self.started,
+                                    self.summary is not None, float(st.t),
+                                    self._run_cell.movement.process_time)
+        values = {"process_time": float(st.t), "tool_x": float(st.tool[0]),
+                  "tool_z": float(st.tool[1]),
+                  "tension_max": float(np.max(self.run.tensions())),
+                  "F_max": float(self.peak.value) if self.started else 0.0,
+                  "real_time_factor": self.settings.real_time_factor,
+                  "achieved_factor": float(self.achieved_factor), "lockstep_waits": self._waits,
+                  "monitor_waits": self._lead.waits, "clock_holds": self._clock_holds,
+                  "late_steps": self._late_steps}
+        if self.summary is not None:
+            values.update({"final_F_max": self.summary.F_max, "final_SF": self.summary.SF,
+                           "final_delta": self.summary.delta})
+        return m.diagnostics_msg(t_ns, "rheo_shaping/simulator", level, message, values,
+                                 m.hardware_id(self.get_namespace()))
