@@ -16,7 +16,7 @@ from pathlib import Path
 from rheo_shaping.params.config import dump_cell, load_cell
 from rheo_shaping.diagnosis.benchmark import base_cell, make_case
 from rheo_shaping.diagnosis.engine import diagnose
-from rheo_shaping.records.measurement import synthesize_record
+from rheo_shaping.planning.movement import synthesize_record
 
 KINDS = ("single", "single", "none")
 

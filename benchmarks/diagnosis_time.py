@@ -31,7 +31,7 @@ CASES = {"free": ("none", 5, 11), "offset": ("single", 4, 4), "kelvin": ("single
 def records_of(name: str, base):
     """The three records of case ``name`` on the diagnosis cell ``base``."""
     from rheo_shaping.diagnosis.benchmark import make_case
-    from rheo_shaping.records.measurement import synthesize_record
+    from rheo_shaping.planning.movement import synthesize_record
     from rheo_shaping.sheet.effects import EFFECTS
     if name in CASES:
         return make_case(CASES[name][1], CASES[name][0], CASES[name][2], base)["records"]

@@ -6,7 +6,8 @@ import json
 from dataclasses import replace
 
 from ..sheet.effects import active_effects
-from ..records.measurement import MeasurementParams, synthesize_record
+from ..planning.movement import synthesize_record
+from ..records.measurement import MeasurementParams
 from ..records.bag import RecordError, write_record
 from ..params.schema import ParameterError, iter_fields, validate_value
 from . import UserError

@@ -1,7 +1,7 @@
 """Cases of the gap watch's acceptance campaign (benchmarks/gapwatch_*.py).
 
 A case is what ``rheo-shaping record --params FILE --seed S`` makes
-(:func:`~rheo_shaping.records.measurement.synthesize_record`, written with
+(:func:`~rheo_shaping.planning.movement.synthesize_record`, written with
 :func:`~rheo_shaping.records.bag.write_record` and read back): the cell with
 no effect or one library effect at mid magnitude (the middle of its
 ``realistic`` range, a random sign for ``tool_offset`` and ``mass_error``),
@@ -22,7 +22,8 @@ import numpy as np
 from ..params.node_params import GapWatchNodeParams
 from ..params.cell import CellParams
 from ..planning.movement import movement_plan
-from ..records.measurement import MeasurementParams, synthesize_record
+from ..planning.movement import synthesize_record
+from ..records.measurement import MeasurementParams
 from ..records.bag import read_record, write_record
 from ..sheet.effects import EFFECTS, nominal
 from ..sheet.simulation import RunResult, run_scenario

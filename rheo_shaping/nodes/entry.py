@@ -6,7 +6,7 @@ A signal must end a node cleanly at any moment of its start-up, with exit code 0
 no traceback.  Before ``rclpy.init`` nothing of ROS exists yet, so SIGINT and SIGTERM
 end the process at once (:func:`_early_exit`); this covers the imports (numpy, scipy,
 numba) and the loading or first compilation of the sheet kernel
-(:func:`rheo_shaping.planning.movement.warm_up`), which therefore happen here, before ROS.  From
+(:func:`rheo_shaping.nodes.spin.warm_up`), which therefore happen here, before ROS.  From
 ``rclpy.init`` on, rclpy's own handler shuts the context down and
 :func:`rheo_shaping.nodes.spin.run_node` ends the node cleanly; once it returns, the process
 ends at once with its code (no interpreter finalisation, during which a signal would kill

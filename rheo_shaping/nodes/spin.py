@@ -104,7 +104,6 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
     set_command_line(args)            # -p NAME:=VALUE beats the params file (ros_params)
     # the compiled sheet step, loaded (or compiled on a user's first run) while a signal
     # still ends the process at once (nodes/entry.py): nothing of ROS exists yet
-    from ..planning.movement import warm_up
     warm_up()
     stop = _StopSignal()
     try:
@@ -154,3 +153,22 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
         node.destroy_node()
         rclpy.try_shutdown()
     return code
+
+
+def warm_up() -> float:
+    """Load (or, on a user's first run, compile) every entry of the compiled step the nodes
+    use, by running a short process of the default cell (cake, workplane and tool shapes,
+    the settle, a scenario) once; returns the wall time it took [s].
+
+    The node executables call it before ``rclpy.init``, so that loading the compiled code
+    (numba calls back into Python through ctypes while it loads) and a long first compile
+    happen while a signal can still end the process at once (:mod:`.entry`)."""
+    import time
+    from dataclasses import replace
+
+    from ..params.cell import CellParams
+    from ..planning.movement import run_movement
+    t0 = time.perf_counter()
+    cell = CellParams()
+    run_movement(replace(cell, movement=replace(cell.movement, process_time=5.0)))
+    return time.perf_counter() - t0

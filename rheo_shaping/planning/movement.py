@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..params.cell import CellParams
+from ..records.measurement import MeasurementParams, measure
+from ..records.record import Record
 from ..sheet.simulation import RunResult, run_scenario
 from .plans import MotionLimits, Plan, Waypoint, plan_waypoints
 from .scenarios import ScenarioPlan, movement_limits, movement_scenario, scenario_plan
@@ -63,19 +65,12 @@ def autostart_refusal(tool_xz, home_xz, start_xz, tolerance: float) -> str:
             f"there")
 
 
-def warm_up() -> float:
-    """Load (or, on a user's first run, compile) every entry of the compiled step the nodes
-    use, by running a short process of the default cell (cake, workplane and tool shapes,
-    the settle, a scenario) once; returns the wall time it took [s].
-
-    The node executables call it before ``rclpy.init``, so that loading the compiled code
-    (numba calls back into Python through ctypes while it loads) and a long first compile
-    happen while a signal can still end the process at once (:mod:`rheo_shaping.nodes.entry`).
-    """
-    import time
-    from dataclasses import replace
-
-    t0 = time.perf_counter()
-    cell = CellParams()
-    run_movement(replace(cell, movement=replace(cell.movement, process_time=5.0)))
-    return time.perf_counter() - t0
+def synthesize_record(params: CellParams, measurement: MeasurementParams = MeasurementParams(),
+                      seed: int | None = None, name: str = "") -> tuple[Record, RunResult]:
+    """A stand-in record of the cell of ``params``: its movement planned, run (effects on as
+    set) and measured (:mod:`rheo_shaping.records.measurement`); returns the record and the
+    true run."""
+    path = movement_plan(params)
+    run = run_scenario(params, path)
+    rng = np.random.default_rng(seed)
+    return measure(run, path, params, measurement, rng, name), run

@@ -3,10 +3,11 @@
 A real shaping cell reports the robot's tool pose (what it commands, at its
 controller rate), a vision system's points on the sheet's centreline (its own
 spacing, noise, frame rate and dropouts) and, optionally, a load cell's force
-on the tool.  :func:`synthesize_record` runs the cell of a params set, with
-whatever effects are switched on in ``params.effects``, and measures it that
-way.  The :class:`~rheo_shaping.records.record.Record` it returns carries the NOMINAL
-cell as its scenario (what the user believes), never the truth.
+on the tool.  :func:`measure` gives that view of a run;
+:func:`rheo_shaping.planning.movement.synthesize_record` runs the cell of a params set, with
+whatever effects are switched on in ``params.effects``, and measures it that way.  The
+:class:`~rheo_shaping.records.record.Record` carries the NOMINAL cell as its scenario (what
+the user believes), never the truth.
 """
 from __future__ import annotations
 
@@ -18,8 +19,7 @@ from ..sheet.effects import nominal
 from ..params.cell import CellParams
 from .record import Record
 from ..params.schema import param
-from ..planning.movement import movement_plan
-from ..sheet.simulation import RunResult, run_scenario
+from ..sheet.simulation import RunResult
 
 
 @dataclass(frozen=True)
@@ -100,13 +100,3 @@ def measure(run: RunResult, path, params: CellParams, measurement: MeasurementPa
         wrench = wrench + rng.normal(0.0, ms.wrench_noise, wrench.shape)
     return Record(scenario=nominal(params), pose_t=pose_t, pose_xz=pose, profile_t=frame_t,
                   profiles=tuple(profiles), wrench_t=wrench_t, wrench_xz=wrench, name=name)
-
-
-def synthesize_record(params: CellParams, measurement: MeasurementParams = MeasurementParams(),
-                      seed: int | None = None, name: str = "") -> tuple[Record, RunResult]:
-    """Run the cell of ``params`` (effects on as set) and measure it; returns the record and the
-    true run."""
-    path = movement_plan(params)
-    run = run_scenario(params, path)
-    rng = np.random.default_rng(seed)
-    return measure(run, path, params, measurement, rng, name), run

@@ -22,7 +22,8 @@ from rheo_shaping.diagnosis.evaluate import Task, run_batch
 from rheo_shaping.diagnosis.linear import Solver, Stack
 from rheo_shaping.diagnosis.where import PHASES, phases
 from rheo_shaping.sheet.effects import EFFECTS
-from rheo_shaping.records.measurement import MeasurementParams, synthesize_record
+from rheo_shaping.planning.movement import synthesize_record
+from rheo_shaping.records.measurement import MeasurementParams
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.records.bag import write_record
 

@@ -114,7 +114,7 @@ def test_naming_needs_most_of_the_excess_and_a_clear_margin():
 ])
 def test_bad_floor_options_are_one_line_errors(tmp_path, capsys, args, says):
     rec = tmp_path / "r"
-    from rheo_shaping.records.measurement import synthesize_record
+    from rheo_shaping.planning.movement import synthesize_record
     from rheo_shaping.records.bag import write_record
     from dataclasses import replace
     from rheo_shaping.params.cell import CellParams

@@ -11,7 +11,7 @@ from rheo_shaping.diagnosis import initial_state as ist
 from rheo_shaping.diagnosis.compare import polylines_at
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
-from rheo_shaping.records.measurement import synthesize_record
+from rheo_shaping.planning.movement import synthesize_record
 from rheo_shaping.sheet.simulation import LaidSheet, run_scenario
 from rheo_shaping.worlds.dynamic import _polyline_length, laid_shape, run_world
 from rheo_shaping.worlds.params import LayParams

@@ -13,7 +13,8 @@ from _support.figures import saved_figures
 from rheo_shaping.diagnosis.engine import diagnose
 from rheo_shaping.diagnosis.report import force_residual, write
 from rheo_shaping.params.cell import CellParams
-from rheo_shaping.records.measurement import MeasurementParams, synthesize_record
+from rheo_shaping.planning.movement import synthesize_record
+from rheo_shaping.records.measurement import MeasurementParams
 from rheo_shaping.sheet.effects import EFFECTS
 
 

@@ -27,7 +27,8 @@ from rheo_shaping.gapwatch.watch import GapWatch
 from rheo_shaping.params.config import load_cell
 from rheo_shaping.params.node_params import GapWatchNodeParams
 from rheo_shaping.planning.movement import movement_plan
-from rheo_shaping.records.measurement import MeasurementParams, synthesize_record
+from rheo_shaping.planning.movement import synthesize_record
+from rheo_shaping.records.measurement import MeasurementParams
 from rheo_shaping.records.bag import read_record, write_record
 from rheo_shaping.sheet.effects import EFFECTS
 from rheo_shaping.sheet.simulation import run_scenario

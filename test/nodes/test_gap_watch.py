@@ -28,7 +28,7 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes import topics as T  # noqa: E402
-from rheo_shaping.records.measurement import synthesize_record  # noqa: E402
+from rheo_shaping.planning.movement import synthesize_record  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
 from _support.cells import base_cell, write_params  # noqa: E402

@@ -15,7 +15,8 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from rheo_shaping.params.cell import CellParams
-from rheo_shaping.records.measurement import MeasurementParams, synthesize_record
+from rheo_shaping.planning.movement import synthesize_record
+from rheo_shaping.records.measurement import MeasurementParams
 from rheo_shaping.records.qos import RECORDED_QOS
 from rheo_shaping.records.bag import POSE, PROFILE, TYPES, WRENCH, write_record
 

@@ -12,8 +12,8 @@ from rheo_shaping.cli import main
 from rheo_shaping.params.config import dump_cell
 from rheo_shaping.records.csv_import import import_csv
 from rheo_shaping.sheet.effects import EFFECTS
-from rheo_shaping.records.measurement import (MeasurementParams, nodes_at, resample_polyline,
-                                              synthesize_record)
+from rheo_shaping.planning.movement import synthesize_record
+from rheo_shaping.records.measurement import MeasurementParams, nodes_at, resample_polyline
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.records.bag import RecordError, read_record, read_truth, write_record
 
