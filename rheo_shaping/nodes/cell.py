@@ -24,7 +24,7 @@ from rclpy.parameter import Parameter
 from ..planning.states import AT_REST
 from .monitor import MonitorNode
 from .planner import PlannerNode
-from .session import ros_session
+from .session import eta, ros_session
 from .simulator import SimulatorNode
 from .topics import CLOCK_REMAP
 
@@ -118,8 +118,8 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
             if progress is not None and progress_period > 0 and sim.started and t >= next_report:
                 st = sim.sim.state
                 elapsed = time.monotonic() - t_started
-                eta = f", ETA {elapsed * (pt - t) / t:4.0f} s" if t > 0 and t < pt else ""
-                say(f"  t = {t:6.1f} / {pt:g} s{eta}  tool ({st.tool[0] * 1e3:6.2f}, "
+                left = eta(elapsed, t, pt)
+                say(f"  t = {t:6.1f} / {pt:g} s{left}  tool ({st.tool[0] * 1e3:6.2f}, "
                     f"{st.tool[1] * 1e3:6.2f}) mm  largest tension {max(st.tension):.4f} N  "
                     f"planner {planner.state}, monitor {monitor.state}")
                 while next_report <= t:

@@ -31,3 +31,12 @@ def ros_session(args: list[str], executor_type: type = SingleThreadedExecutor
         for node in reversed(nodes):
             node.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def eta(elapsed_s: float, done: float, total: float) -> str:
+    """", ETA N s" for a command's progress line: the time [s] left at the pace so far
+    (``done`` of ``total``, in any one unit, ``elapsed_s`` [s] for it); "" before the
+    first part or after the end."""
+    if not 0 < done < total:
+        return ""
+    return f", ETA {elapsed_s * (total - done) / done:4.0f} s"
