@@ -19,12 +19,10 @@ from std_msgs.msg import String
 from ..params.fingerprint import cell_mismatch
 from ..params.cell import CellParams
 from ..safety.clock_guard import ClockGuard
+from ..safety.command_gate import UNNAMED
 from ..safety.one_of_each import Announcement, settle_refusal, settle_time, twin_reason
 from ..units import NS
 from . import topics as T
-
-#: The node name the graph gives an endpoint whose node it does not know yet.
-UNNAMED = "_NODE_NAME_UNKNOWN_"
 
 
 def guard_clock(node: Node, guard: ClockGuard, on_fault: Callable[[str], None]) -> None:

@@ -30,7 +30,7 @@ class PlannerSupervision:
         if self.pub_command is None:
             if not self.presence.settled or self.presence.twin:
                 return
-            why = commander_refusal(self._commander)
+            why = commander_refusal(self._commander, self.settings.check_cell)
             if why:
                 self.get_logger().info(f"waiting: {why}", throttle_duration_sec=5.0)
                 return

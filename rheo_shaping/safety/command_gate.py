@@ -56,6 +56,10 @@ class Publisher:
     gid: str              # hex
 
 
+#: The node name the graph gives a writer before it knows the writer's node.
+UNNAMED = "_NODE_NAME_UNKNOWN_"
+
+
 class CommandGate:
     """Decides, per set-point, whether the tool follows it (see the module docstring)."""
 
@@ -94,15 +98,14 @@ class CommandGate:
         """Why a set-point with publication sequence number ``seq`` is not from the bound
         planner, given the graph's publishers of ``/tool/command``; "" if it is."""
         pubs = list(publishers)
-        if self.bound is not None and self.bound not in pubs:
-            self.bound, self._seq = None, 0         # the bound planner left (rebind below)
+        self._follow_bound(pubs)
         if self.bound is None:
             if len(pubs) != 1:
                 names = ", ".join(f"{p.node} ({p.gid[:12]})" for p in pubs) or "none"
                 return (f"{len(pubs)} publishers of /tool/command in the graph ({names}): "
                         f"the simulator follows exactly one planner")
             self.bound = pubs[0]
-        others = [p for p in pubs if p != self.bound]
+        others = [p for p in pubs if p.gid != self.bound.gid]
         if others:
             names = ", ".join(f"{p.node} ({p.gid[:12]})" for p in others)
             return (f"a second publisher of /tool/command: {names}, besides the bound planner "
@@ -117,9 +120,21 @@ class CommandGate:
         """The bound planner's node name, or "" when none is bound: a bound writer that the
         graph no longer shows (its process ended, or its DDS lease ran out after a kill) is
         let go here, so a new planner can take the tool (what ``/shaping/commander`` says)."""
-        if self.bound is not None and self.bound not in list(publishers):
-            self.bound, self._seq = None, 0
+        self._follow_bound(list(publishers))
         return "" if self.bound is None else self.bound.node
+
+    def _follow_bound(self, pubs: list[Publisher]) -> None:
+        """The bound writer as the graph shows it now, found by its GID (the graph learns a
+        writer's node name after the writer: the name may change from unknown to known); let
+        go when the graph no longer shows it (the bound planner left: rebind on its next
+        set-point)."""
+        if self.bound is None:
+            return
+        same = [p for p in pubs if p.gid == self.bound.gid]
+        if not same:
+            self.bound, self._seq = None, 0
+        elif same[0].node != self.bound.node and not same[0].node.endswith(UNNAMED):
+            self.bound = same[0]
 
     # -- motion limits ----------------------------------------------------------------
     def judge(self, t_ns: int, x: float, z: float, tool_now: PointLike) -> str:

@@ -100,15 +100,19 @@ def settle_refusal(same_nodes: int, same_writers: int, unnamed_writers: int, you
     return ""
 
 
-def commander_refusal(bound: str | None) -> str:
+def commander_refusal(bound: str | None, expected: bool = True) -> str:
     """Why a planner may not make its ``/tool/command`` writer yet ("" if it may): the
     simulator's latched ``/shaping/commander`` (``bound``: the node name of the planner it
     follows, "" for none, None before the message came) names another planner: an older one
     that runs (this one's twin, whose announcement may come later than the simulator's on a
     busy machine), or one that was killed and whose writer the graph still shows.  A writer
-    made then would be a second commander, and the simulator would hold the tool.  Before
-    the message comes (a robot adapter that does not say it) nothing is refused: the
-    simulator's latched message comes with its cell, which the planner waits for first."""
+    made then would be a second commander, and the simulator would hold the tool.
+    ``expected``: the cell's simulator says it (``check_cell``: a simulator or robot
+    adapter that publishes its cell publishes its commander): wait for the message, which
+    may come after the cell's on a busy machine."""
+    if bound is None:
+        return ("waiting for the simulator's commander on /shaping/commander" if expected
+                else "")
     if bound:
         return (f"the simulator follows {bound}: a planner makes its /tool/command writer only "
                 f"once the simulator follows none (that one ends, its DDS lease runs out after "

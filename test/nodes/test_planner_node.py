@@ -50,6 +50,9 @@ class Bench:
         self.pose = self.node.create_publisher(PoseStamped, "/tool/pose", 10)
         self.cell = self.node.create_publisher(String, "/shaping/cell", LATCHED)
         self.cell.publish(String(data=cell_message(self.planner.cell)))
+        # the simulator says it follows no planner yet (the planner waits for that)
+        self.commander = self.node.create_publisher(String, "/shaping/commander", LATCHED)
+        self.commander.publish(String(data=""))
         wait_for_subscribers(ros, self.clock)
         wait_for_subscribers(ros, self.ready)
         wait_for_subscribers(ros, self.pose)
@@ -224,6 +227,8 @@ def test_starts_only_once_its_set_points_have_a_subscriber(ros):
     pose = node.create_publisher(PoseStamped, "/tool/pose", 10)
     cell = node.create_publisher(String, "/shaping/cell", LATCHED)
     cell.publish(String(data=cell_message(planner.cell)))
+    commander = node.create_publisher(String, "/shaping/commander", LATCHED)
+    commander.publish(String(data=""))
     wait_for_subscribers(ros, clock)
     wait_for_subscribers(ros, ready)
     t = [5 * NS]

@@ -71,7 +71,8 @@ def test_a_planner_makes_its_command_writer_only_when_the_simulator_follows_none
     writer the graph still shows) makes no writer, so it is never a second commander."""
     assert commander_refusal("") == ""
     assert "follows /planner" in commander_refusal("/planner")
-    assert commander_refusal(None) == ""          # not said (yet, or by a robot adapter)
+    assert "waiting for the simulator's commander" in commander_refusal(None)
+    assert commander_refusal(None, expected=False) == ""      # check_cell off: not asked
 
 
 def test_the_gate_lets_go_of_a_bound_planner_the_graph_no_longer_shows():
@@ -83,3 +84,9 @@ def test_the_gate_lets_go_of_a_bound_planner_the_graph_no_longer_shows():
     assert gate.commander([old, new]) == "/planner"       # the old one is still there
     assert gate.commander([new]) == ""                    # gone: the tool is free to take
     assert gate.source([new], 1) == ""                     # the new writer's own count
+    # the graph learns a writer's node name after the writer: the same GID is the same one
+    gate = CommandGate(ToolLimits(max_speed=0.1, max_accel=1.0, max_jump=0.01))
+    unnamed = Publisher("_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_", "01.aa")
+    assert gate.source([unnamed], 1) == ""
+    assert gate.commander([old]) == "/planner"            # named now, still bound
+    assert gate.source([old], 2) == ""
