@@ -161,7 +161,11 @@ def test_lost_monitor_stops_the_tool(ros):
     b.heartbeat = False
     b.until(lambda: b.planner.aborted, timeout=5.0, what="stop on monitor loss")
     assert "monitor lost" in b.planner.abort_reason
-    assert b.planner.state in ("stopping", "retracting")
+    # it stops (a busy machine may have ticked the short stop to its end before this line)
+    assert b.planner.state in ("stopping", "retracting", "holding")
+    b.until(lambda: b.planner.state == "holding", timeout=30.0, what="holding", dt=0.1)
+    b.drain()
+    assert {"stopping", "retracting"} & set(b.states()), b.states()
 
 
 def test_reset_refused_while_moving_then_rearms_with_an_approach(ros):
