@@ -92,15 +92,17 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     hi = np.r_[np.ones(n_s), chain_lim]
     chain_solver = Solver(G.chain)
 
-    def misfit(outs: list) -> float:
-        """J of the fit records at a tried point, the chain refitted (inf if a run failed)."""
+    def tried_point(u_s: np.ndarray, outs: list) -> tuple:
+        """(sheet knobs, outcomes, J of the fit records with the chain refitted, the chain's
+        knobs) of a point that was run; J is inf if a run failed."""
         if not all_ok(outs[:nf]):
-            return math.inf
-        return float(chain_solver.solve(G.z(outs[:nf]), -chain_lim, chain_lim)[1])
+            return u_s, outs, math.inf, None
+        u_c, J = chain_solver.solve(G.z(outs[:nf]), -chain_lim, chain_lim)
+        return u_s, outs, float(J), u_c
 
     u_lin, _ = solver.solve(z0, lo, hi)
-    tried = [(np.zeros(n_s), nominal.outs)]
-    best_u, best_J = np.zeros(n_s), misfit(nominal.outs)
+    tried = [tried_point(np.zeros(n_s), nominal.outs)]
+    best_u, best_J = np.zeros(n_s), tried[0][2]
     run.stage("baseline fit", (2 + STEP_HALVINGS) * len(ctx.data))
     u_try, steps, halvings = np.clip(u_lin[:n_s], -1, 1), 0, 0
     while steps < 2:
@@ -108,8 +110,8 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
             outs = run([Task(d, ctx.params(d, u_try), keep_run=True) for d in ctx.data])
         except ParameterError:
             break
-        tried.append((u_try, outs))
-        J_try = misfit(outs)
+        tried.append(tried_point(u_try, outs))
+        J_try = tried[-1][2]
         if not J_try < best_J and halvings < STEP_HALVINGS:
             # the model is not linear that far: half the step from the best point so far
             halvings += 1
@@ -125,10 +127,9 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
         du, _ = solver.solve(zb, np.r_[-1 - u_try, -chain_lim], np.r_[1 - u_try, chain_lim])
         u_try = np.clip(u_try + du[:n_s], -1, 1)
     best = None
-    for u_try, outs in tried:
-        if not all_ok(outs[:nf]) or (ctx.H and not all_ok(outs[nf:])):
+    for u_try, outs, J, u in tried:
+        if not math.isfinite(J) or (ctx.H and not all_ok(outs[nf:])):
             continue
-        u, J = chain_solver.solve(G.z(outs[:nf]), -chain_lim, chain_lim)
         if best is None or J < best[1]:
             best = (u_try, J, outs, u)
     assert best is not None         # the nominal point is tried, and every nominal run ran
