@@ -165,15 +165,12 @@ class Runner:
         """``fn(None, item)`` for every item, in order, on this runner's executor, counted
         as simulations (for a stage whose runs are not :class:`Task` s)."""
         expect = getattr(self.progress, "expect", None)
-        if expect is not None:
+        if expect is not None:             # a progress display learns each batch's size first
             expect(len(items))
         return run_tasks(self.executor, fn, None, list(items), self._count)
 
     def __call__(self, tasks: Sequence[Task]) -> list[Outcome]:
-        expect = getattr(self.progress, "expect", None)
-        if expect is not None:             # a progress display learns each batch's size first
-            expect(len(tasks))
-        return run_batch(tasks, self.executor, self._count)
+        return self.map(_run_one, tasks)
 
     def _count(self, n: int) -> None:
         self.runs += n
