@@ -9,12 +9,9 @@ import math
 from geometry_msgs.msg import PoseStamped
 from std_msgs.msg import String
 
-from ..safety.command_gate import Publisher
+from ..safety.command_gate import GRAPH_WAIT, Publisher
 from ..units import NS
 from . import messages as m
-
-#: Longest wall-clock time [s] a set-point waits for the graph to show its publisher.
-GRAPH_WAIT = 5.0
 
 
 class SetpointIntake:
@@ -71,10 +68,11 @@ class SetpointIntake:
             return
         pubs = self._command_publishers()
         waited = (self._steady.now().nanoseconds - self._unbound[0][2]) / NS
-        if not pubs and waited < GRAPH_WAIT:
+        what = self.gate.unbound_wait(pubs, waited)
+        if what == "wait":
             return
         waiting, self._unbound = self._unbound, []
-        if not pubs:
+        if what == "hold":
             self._hold(f"set-points from a writer the graph does not show after {GRAPH_WAIT:g} s")
             return
         for msg, seq, _ in waiting:

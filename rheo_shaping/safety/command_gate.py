@@ -37,6 +37,8 @@ MIN_GAP_NS = 100_000
 #: Executed set-points kept to judge a replacement (a stop re-planned from the executed
 #: pose replaces up to ``max_lead`` of them).
 KEEP = 1000
+#: Longest wall-clock time [s] a set-point waits for the graph to show its publisher.
+GRAPH_WAIT = 5.0
 
 
 @dataclass(frozen=True)
@@ -115,6 +117,15 @@ class CommandGate:
                     f"{self._seq}): another writer on /tool/command")
         self._seq = max(self._seq, int(seq))
         return ""
+
+    def unbound_wait(self, publishers: Sequence[Publisher], waited_s: float) -> str:
+        """What to do with set-points that came before the graph showed their writer, the
+        oldest waiting ``waited_s`` [s] of wall time: "wait" while the graph shows no writer
+        and the wait is under :data:`GRAPH_WAIT`, "hold" when it still shows none after it,
+        "judge" once it shows one or more (each is then judged by :meth:`source`, in order)."""
+        if publishers:
+            return "judge"
+        return "wait" if waited_s < GRAPH_WAIT else "hold"
 
     def commander(self, publishers: Sequence[Publisher]) -> str:
         """The bound planner's node name, or "" when none is bound: a bound writer that the

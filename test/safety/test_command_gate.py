@@ -6,7 +6,7 @@ import pytest
 
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
-from rheo_shaping.safety.command_gate import CommandGate, Publisher, ToolLimits
+from rheo_shaping.safety.command_gate import GRAPH_WAIT, CommandGate, Publisher, ToolLimits
 from rheo_shaping.units import NS
 
 PLANNER = Publisher("/planner", "01.0f.aa")
@@ -27,6 +27,15 @@ def test_no_single_publisher_in_the_graph_binds_nothing():
     g = CommandGate(LIMITS)
     assert "0 publishers of /tool/command" in g.source([], 1)
     assert "2 publishers" in g.source([PLANNER, ROGUE], 1) and g.bound is None
+
+
+def test_set_points_before_their_writer_is_in_the_graph_wait_then_hold():
+    g = CommandGate(LIMITS)
+    assert g.unbound_wait([], 0.0) == "wait"
+    assert g.unbound_wait([], GRAPH_WAIT - 1e-3) == "wait"
+    assert g.unbound_wait([], GRAPH_WAIT) == "hold"
+    assert g.unbound_wait([PLANNER], GRAPH_WAIT + 10) == "judge"
+    assert g.unbound_wait([PLANNER, ROGUE], 0.0) == "judge"   # source() refuses them then
 
 
 def test_a_sample_out_of_the_bound_writers_sequence_is_another_writer():
