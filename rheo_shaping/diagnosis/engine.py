@@ -119,21 +119,21 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         gap = replace(gap, below_tolerance=below)
         chain_c = sensor_stage(ctx, base)
         cands = candidates_stage(ctx, base, gap, chain_c, library)
-        naming: dict = {}
-
-        def rule(c) -> bool:
-            """Beyond the floor: most of the excess on fit and holdout, clearly the best."""
-            if fl.source == "numerics":
-                return True
-            naming.update(fl_mod.clear_name(c, cands.effects, base.J, base.J_h,
-                                            bool(ctx.hold_d)))
-            return naming["most"] and naming["clear"]
+        rule = None
+        if fl.source != "numerics":
+            def rule(c) -> bool:
+                """Most of the excess on fit and holdout records, clearly the best."""
+                n = fl_mod.clear_name(c, cands.effects, base.J, base.J_h, bool(ctx.hold_d))
+                return n["most"] and n["clear"]
         verdict = verdict_stage(ctx, base, gap, chain_c, cands, library, rule)
+        named = verdict.fit or (chain_c if verdict.chain_side else None)
+        naming = (fl_mod.clear_name(named, cands.effects, base.J, base.J_h, bool(ctx.hold_d))
+                  if rule is not None and named is not None else None)
         after = after_stage(ctx, base, verdict, chain_c)
         runs = run.runs
     diag = _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs)
     diag.initial_state = initial_summary(data)
-    diag.floor = _floor_report(fl, diag, verdict.fit, naming or None, below, tolerance, ctx.sp,
+    diag.floor = _floor_report(fl, diag, named, naming, below, tolerance, ctx.sp,
                                ctx.sf, base.solver.A, cands.responses, base.parts)
     return diag
 

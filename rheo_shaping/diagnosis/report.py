@@ -232,7 +232,9 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
             lines.append(f"The verdict leaves {v['J_minus_1']:.4f} ({v['noise_units']:.2f} "
                          f"noise units; profile {v['profile_systematic_m'] * 1e3:.3f} mm, tool "
                          f"force {_fmt(v['force_systematic_N'], 1e3, 2)} mN): "
-                         + ("beyond the floor." if v["beyond_floor"] else "within the floor."))
+                         + ("beyond the floor: the named cause explains most of the gap, and "
+                            "something the library does not hold remains beside it."
+                            if v["beyond_floor"] else "within the floor."))
         if fl.get("naming"):
             n = fl["naming"]
             lines.append(f"Naming rule: explains {_fmt(n['explained_fit'], 100, 0)} % of the "

@@ -122,10 +122,16 @@ class Verdict:
 
 def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explanation,
                   cands: Candidates, library: Sequence[str], rule=None) -> Verdict:
-    """Stage 7: name the best single effect if it is significant and adequate and beats the
-    chain's hypothesis; else the chain's hypothesis if it is; else the best pair; else
-    ``unexplained`` (``none`` when no gap is left).  ``rule(explanation) -> bool``: a
-    further condition on the named one (the model-form floor's, :func:`floor.clear_name`)."""
+    """Stage 7: name the best single effect if it is significant and explains the gap and
+    beats the chain's hypothesis; else the chain's hypothesis if it does; else the best pair;
+    else ``unexplained`` (``none`` when no gap is left).
+
+    "Explains the gap": with the numerics floor (``rule`` None) the remainder must be
+    adequate (within the null plus the numerics allowance, :func:`check.adequate`).  With a
+    model-form floor, ``rule(explanation) -> bool`` (:func:`floor.clear_name`: most of the
+    baseline's excess on the fit and holdout records, clearly more than the best other
+    explanation) decides instead, and what the named one leaves is reported against the
+    floor (flagged when beyond it), never a reason to refuse a cause that explains most."""
     n_s, has_h, rp = ctx.n_s, bool(ctx.hold_d), gap.replay
     effects, base_c = cands.effects, cands.base_c
     pairs: list[Explanation] = []
@@ -134,14 +140,18 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
         chain_c.p = stats.bonferroni_p(chain_c.LR, chain_c.k)
     out = outside(chain_c.fitted_u[n_s:])
     chain_c.adequate = chain_c.checked and adequate(chain_c, base.J_h, has_h, replay=rp)
-    chain_ok = gap.left and chain_c.checked and chain_c.p <= stats.ALPHA and chain_c.adequate
     for c in effects:
         c.adequate = c.checked and adequate(c, base.J_h, has_h, base_c, rp)
+
+    def explains(c: Explanation) -> bool:
+        if not (c.checked and c.p <= stats.ALPHA):
+            return False
+        return c.adequate if rule is None else bool(rule(c))
+    chain_ok = gap.left and explains(chain_c)
     ranked = sorted(effects, key=rank_key)
     if gap.left and ranked:
         lead = ranked[0]
-        if lead.checked and lead.p <= stats.ALPHA and lead.adequate and not (
-                chain_ok and chain_c.J < lead.J):
+        if explains(lead) and not (chain_ok and chain_c.J < lead.J):
             verdict_fit = lead
         elif chain_ok:
             pass
@@ -151,12 +161,10 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
                 bp = pairs[0]
                 bp.adequate = bp.checked and adequate(bp, base.J_h, has_h, base_c, rp)
                 # a pair must beat each of its parts significantly
-                if bp.checked and bp.p <= stats.ALPHA and bp.adequate:
+                if explains(bp):
                     verdict_fit = bp
     if (verdict_fit is not None and verdict_fit.J_parts and chain_ok
             and chain_c.J < verdict_fit.J):
-        verdict_fit = None
-    if verdict_fit is not None and rule is not None and not rule(verdict_fit):
         verdict_fit = None
     chain_side = chain_ok and verdict_fit is None
     name = ("none" if not gap.left else "+".join(verdict_fit.names) if verdict_fit

@@ -108,6 +108,49 @@ def test_naming_needs_most_of_the_excess_and_a_clear_margin():
     assert not fl.clear_name(weak, [weak, other], 2.0, 2.0, True)["most"]
 
 
+def _verdict(lead: Explanation, chain: Explanation, model_form: bool):
+    """The verdict stage on one effect and the chain's hypothesis, the baseline at J = 3 on
+    the fit and holdout records (stand-ins for the context: nothing is simulated)."""
+    from types import SimpleNamespace
+    from rheo_shaping.diagnosis.stages import GapTest
+    from rheo_shaping.diagnosis.verdict import Candidates, verdict_stage
+    n_s = 2
+    for c in (lead, chain):
+        c.checked, c.baseline_u = True, np.zeros(n_s + 6)
+    ctx = SimpleNamespace(n_s=n_s, hold_d=[object()])
+    base = SimpleNamespace(J=3.0, J_h=3.0)
+    base_c = Explanation((), {}, 3.0, checked=True)
+    cands = Candidates([lead], {}, 1, base_c)
+    rule = None
+    if model_form:
+        def rule(c):
+            n = fl.clear_name(c, [lead], base.J, base.J_h, True)
+            return n["most"] and n["clear"]
+    return verdict_stage(ctx, base, GapTest(0.01, (None, None)), chain, cands, ["x"], rule)
+
+
+def test_against_the_model_form_floor_an_effect_that_explains_most_is_named_not_refused():
+    # the effect takes 75 % / 70 % of the excess and leaves J - 1 = 0.5 / 0.6: far beyond
+    # the numerics null (0.05), so refused there; named against the model-form floor
+    def lead():
+        return Explanation(("friction_tool",), {}, 1.5, J_holdout=1.6, p=0.0)
+    chain = Explanation((), {}, 2.9, J_holdout=2.9, p=0.5, chain_free=True)
+    assert _verdict(lead(), chain, model_form=False).name == "unexplained"
+    v = _verdict(lead(), chain, model_form=True)
+    assert v.name == "friction_tool" and not v.fit.adequate
+    # half of the excess on the holdout records is asked too
+    weak = Explanation(("friction_tool",), {}, 1.5, J_holdout=2.2, p=0.0)
+    assert _verdict(weak, chain, model_form=True).name == "unexplained"
+
+
+def test_against_the_model_form_floor_the_chain_is_named_by_the_same_rule():
+    lead = Explanation(("bending",), {}, 2.8, J_holdout=2.8, p=0.0)
+    chain = Explanation((), {}, 1.4, J_holdout=1.5, p=0.0, chain_free=True)
+    v = _verdict(lead, chain, model_form=True)
+    assert v.name == "measurement chain" and v.chain_side
+    assert _verdict(lead, chain, model_form=False).name == "unexplained"
+
+
 @pytest.mark.parametrize("args, says", [
     (["--floor", "flat"], "floor 'flat'"),
     (["--tolerance", "-1", "0.01"], "--tolerance -1.0 0.01"),
