@@ -8,8 +8,10 @@ commands:
   run [ARGS...]         `rheo-shaping ARGS` in .venv; without ARGS the main job,
                         `rheo-shaping cell` (the ROS 2 cell on the default cell)
   test [PYTEST_ARGS...] the whole suite: the core stage in .venv-core (after checking that
-                        rclpy is NOT importable there), then the ros stage in .venv; a path
-                        argument goes only to its stage
+                        rclpy is NOT importable there) and the ros stage in .venv, side by
+                        side (each stage's output when it ends); a path argument goes only
+                        to its stage
+  test --serial [...]   the stages one after the other, output live
   test --noble [...]    the noble stage alone: the core tests in .venv-noble, on the versions
                         Ubuntu 24.04 ships for Jazzy (requirements-noble.txt)
   test --stages=LIST    the stages named (core,ros,noble); CI (.ci/run) runs all three
@@ -224,41 +226,70 @@ def pick_stages(args: list[str]) -> tuple[list[str], list[str]]:
     return [s for s in STAGE_VENVS if s in (stages or DEFAULT_STAGES)], rest
 
 
+#: Stages that run side by side (``dev.py test --serial``: one after the other). The core
+#: stage keeps a core busy with numerics while the ros stage mostly waits on DDS and on
+#: simulated time, so two at once take about the time of the longer one.
+STAGE_JOBS = 2
+
+
+def run_stage(stage: str, env: dict, opts: list[str], paths: dict, live: bool,
+              logdir: Path) -> tuple[bool, dict, float]:
+    """Run one stage's pytest (output live, or into ``logdir/<stage>.log`` and printed when
+    it ends); (ok, counts, seconds)."""
+    venv, tests = STAGE_VENVS[stage]
+    t0 = time.monotonic()
+    if tests == "core" and subprocess.run([str(venv.python), "-c", "import rclpy"],
+                                          env=env, capture_output=True).returncode == 0:
+        say(f"{stage}: FAIL (`import rclpy` succeeds in {venv.path.name}: it must not)")
+        return False, {"failed": 1}, 0.0
+    xml = logdir / f"{stage}.xml"
+    cmd = [str(venv.python), "-m", "pytest", f"--stage={tests}", f"--junitxml={xml}",
+           *opts, *(paths[tests] or [str(d) for d in folders(tests)])]
+    say(f"{stage}: ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} $ "
+        + " ".join(shlex.quote(c) for c in cmd))
+    if live:
+        rc = subprocess.run(cmd, cwd=ROOT, env=env).returncode
+    else:
+        log = logdir / f"{stage}.log"
+        say(f"{stage}: its output follows when it ends (meanwhile: tail -f {log})")
+        with open(log, "w") as out:
+            rc = subprocess.run(cmd, cwd=ROOT, env=env, stdout=out,
+                                stderr=subprocess.STDOUT).returncode
+        say(f"{stage}: output ({time.monotonic() - t0:.0f} s)")
+        sys.stdout.write(log.read_text(errors="replace"))
+        sys.stdout.flush()
+    counts = junit_counts(xml)
+    ok = rc in (0, 5)                         # 5: nothing collected, not a failure
+    if not ok and not counts.get("failed"):
+        counts["failed"] = 1                  # pytest itself failed (usage error, crash)
+    return ok, counts, time.monotonic() - t0
+
+
 def cmd_test(args: list[str], verbose: bool) -> int:
     t_all = time.monotonic()
+    serial = "--serial" in args
+    args = [a for a in args if a != "--serial"]
     stages, args = pick_stages(args)
     ensure_venvs([STAGE_VENVS[s][0] for s in stages], verbose)
     env, (opts, paths) = ros_env(), split_pytest_args(args)
     lines = [f"setup: ok ({time.monotonic() - t_all:.0f} s)"]
     totals, failed = {"passed": 0, "failed": 0, "skipped": 0}, []
-    for stage in stages:
-        venv, tests = STAGE_VENVS[stage]
-        if any(paths.values()) and not paths[tests]:
-            continue
-        t0 = time.monotonic()
-        if tests == "core" and subprocess.run([str(venv.python), "-c", "import rclpy"],
-                                              env=env, capture_output=True).returncode == 0:
-            failed.append(stage)
-            lines.append(f"{stage}: FAIL (`import rclpy` succeeds in {venv.path.name}: it "
-                         f"must not)")
-            continue
-        with tempfile.TemporaryDirectory() as tmp:
-            xml = Path(tmp) / "junit.xml"
-            cmd = [str(venv.python), "-m", "pytest", f"--stage={tests}", f"--junitxml={xml}",
-                   *opts, *(paths[tests] or [str(d) for d in folders(tests)])]
-            say(f"{stage}: ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} $ "
-                + " ".join(shlex.quote(c) for c in cmd))
-            rc = subprocess.run(cmd, cwd=ROOT, env=env).returncode
-            counts = junit_counts(xml)
-        ok = rc in (0, 5)                     # 5: nothing collected, not a failure
-        if not ok and not counts.get("failed"):
-            counts["failed"] = 1              # pytest itself failed (usage error, crash)
-        for k in totals:
-            totals[k] += counts.get(k, 0)
-        failed += [] if ok else [stage]
-        lines.append(f"{stage}: {'ok' if ok else 'FAIL'} ({counts.get('passed', 0)} passed, "
-                     f"{counts.get('failed', 0)} failed, {counts.get('skipped', 0)} skipped;"
-                     f" {time.monotonic() - t0:.0f} s)")
+    todo = [s for s in stages if not (any(paths.values()) and not paths[STAGE_VENVS[s][1]])]
+    jobs = 1 if serial or len(todo) < 2 else STAGE_JOBS
+    if jobs > 1:
+        say(f"test: stages {', '.join(todo)}, {jobs} at a time (--serial: one after the other)")
+    with tempfile.TemporaryDirectory() as tmp, \
+            concurrent.futures.ThreadPoolExecutor(jobs) as pool:
+        futures = {s: pool.submit(run_stage, s, env, opts, paths, jobs == 1, Path(tmp))
+                   for s in todo}
+        for stage in todo:                    # the summary in stage order
+            ok, counts, seconds = futures[stage].result()
+            for k in totals:
+                totals[k] += counts.get(k, 0)
+            failed += [] if ok else [stage]
+            lines.append(f"{stage}: {'ok' if ok else 'FAIL'} ({counts.get('passed', 0)} "
+                         f"passed, {counts.get('failed', 0)} failed, "
+                         f"{counts.get('skipped', 0)} skipped; {seconds:.0f} s)")
     print()
     for line in lines:
         say("test " + line)

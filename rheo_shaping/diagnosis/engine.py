@@ -119,12 +119,12 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         gap = replace(gap, below_tolerance=below)
         chain_c = sensor_stage(ctx, base)
         cands = candidates_stage(ctx, base, gap, chain_c, library)
-        rule = None
-        if fl.source != "numerics":
-            def rule(c) -> bool:
-                """Most of the excess on fit and holdout records, clearly the best."""
-                n = fl_mod.clear_name(c, cands.effects, base.J, base.J_h, bool(ctx.hold_d))
-                return n["most"] and n["clear"]
+
+        def clear(c) -> bool:
+            """Most of the excess on fit and holdout records, clearly the best."""
+            n = fl_mod.clear_name(c, cands.effects, base.J, base.J_h, bool(ctx.hold_d))
+            return n["most"] and n["clear"]
+        rule = None if fl.source == "numerics" else clear
         verdict = verdict_stage(ctx, base, gap, chain_c, cands, library, rule)
         named = verdict.fit or (chain_c if verdict.chain_side else None)
         naming = (fl_mod.clear_name(named, cands.effects, base.J, base.J_h, bool(ctx.hold_d))

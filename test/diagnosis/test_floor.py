@@ -121,12 +121,12 @@ def _verdict(lead: Explanation, chain: Explanation, model_form: bool):
     base = SimpleNamespace(J=3.0, J_h=3.0)
     base_c = Explanation((), {}, 3.0, checked=True)
     cands = Candidates([lead], {}, 1, base_c)
-    rule = None
-    if model_form:
-        def rule(c):
-            n = fl.clear_name(c, [lead], base.J, base.J_h, True)
-            return n["most"] and n["clear"]
-    return verdict_stage(ctx, base, GapTest(0.01, (None, None)), chain, cands, ["x"], rule)
+
+    def clear(c):
+        n = fl.clear_name(c, [lead], base.J, base.J_h, True)
+        return n["most"] and n["clear"]
+    return verdict_stage(ctx, base, GapTest(0.01, (None, None)), chain, cands, ["x"],
+                         clear if model_form else None)
 
 
 def test_against_the_model_form_floor_an_effect_that_explains_most_is_named_not_refused():
