@@ -140,7 +140,7 @@ def push_out(nodes: np.ndarray, params: CellParams) -> np.ndarray:
     sheet's thickness (what the measurement noise put inside)."""
     r = 0.5 * params.sheet.thickness
     out = np.array(nodes, float)
-    for region in (Cake(params.cake.height, params.cake.fillet_radius), Workplane()):
+    for region in (Cake.of(params.cake), Workplane()):
         d, n = region.signed_distance(out)
         inside = d < r
         out[inside] += (r - d[inside])[:, None] * n[inside]
