@@ -29,6 +29,7 @@ from . import stats
 from .candidates import PROBES, REFINE_STEPS, Explanation, linear_columns, magnitude
 from .context import Baseline, FitContext, Group, forward_jacobian
 from .evaluate import Task, all_ok, apply
+from .laid_length import MIN_FRAMES, fit_offsets, window_frames, with_offsets
 
 #: One refinement of the diagnosis's discretisation: factors on the solver's steps (the chain
 #: goes from N to 2 N + 1 masses).
@@ -242,6 +243,34 @@ def simulate_points(points, ctx: FitContext, base: Baseline, *, m: int, first: b
             c.J_holdout = H.J(s.zh_raw + H.chain @ uc)
         c.baseline_u = np.r_[u_sheet, uc]
         c.checked = True
+
+
+def holdout_lengths(cands: list[Explanation], ctx: FitContext) -> None:
+    """Each candidate's holdout records with their laid rest lengths fitted under its own
+    cell (its sheet knobs and its effect), then run again: a laid record's length is a
+    nuisance of that record, fitted on its first seconds (:mod:`.laid_length`) under the
+    cell being judged, as the baseline's holdout lengths are under the baseline's.  Without
+    it a candidate whose knobs moved the bonds or the sag (which move the length) is judged
+    on the holdout with the baseline's lengths, which only its fit records' knobs absorb.
+    Nothing to do without laid holdout records."""
+    H, nh, n_s = ctx.H, len(ctx.hold_d), ctx.n_s
+    if H is None or not any(len(window_frames(d)) >= MIN_FRAMES for d in ctx.hold_d):
+        return
+    todo = [c for c in cands if c.checked and math.isfinite(c.J) and not c.chain_free
+            and c.baseline_u is not None]
+    if not todo:
+        return
+    data = [d for _ in todo for d in ctx.hold_d]
+    params = [apply(ctx.params(d, c.fitted_u[:n_s]), c.candidate)
+              for c in todo for d in ctx.hold_d]
+    data = with_offsets(data, fit_offsets(data, params, ctx.run.map))
+    outs = ctx.run([Task(d, p) for d, p in zip(data, params)])
+    for i, c in enumerate(todo):
+        o = outs[i * nh:(i + 1) * nh]
+        if not all_ok(o):
+            continue
+        c.search.zh_raw = H.z(o)
+        c.J_holdout = H.J(c.search.zh_raw + H.chain @ c.fitted_u[n_s:])
 
 
 def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict):

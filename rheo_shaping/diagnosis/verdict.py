@@ -12,7 +12,8 @@ from . import stats
 from .baseline import CHAIN
 from .candidates import (CHECKED, PAIRED, PROBES, Explanation, fit_pair, fit_single,
                          rank_key)
-from .check import adequate, check, needs_numerics, numerics, refine_points, relinearise
+from .check import (adequate, check, holdout_lengths, needs_numerics, numerics, refine_points,
+                    relinearise)
 from .context import Baseline, FitContext
 from .evaluate import Outcome, Task, all_ok, apply
 from .result import num
@@ -82,6 +83,7 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
         need = [c for c in need if needs_numerics(c, base.J_h, has_h, gap.replay)]
     if need:
         numerics(need + [base_c], ctx, base, responses)
+    holdout_lengths(effects[:CHECKED], ctx)
     return Candidates(effects, responses, m, base_c)
 
 
@@ -101,6 +103,7 @@ def pairs_stage(ctx: FitContext, base: Baseline, gap: GapTest,
     pairs.sort(key=lambda c: (c.p, c.J))
     if pairs:
         check(pairs[:1], ctx, base, m=cands.m, responses=cands.responses)
+        holdout_lengths(pairs[:1], ctx)
         if needs_numerics(pairs[0], base.J_h, bool(ctx.hold_d), gap.replay):
             # the baseline again, refined the same way as the pair (pairs come from
             # effects, which come with the baseline's candidate)
