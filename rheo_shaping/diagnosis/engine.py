@@ -175,8 +175,12 @@ def _floor_report(floor, diag: Diagnosis, verdict_fit, naming, below_tol: bool, 
                                       "beyond_floor": bool(verdict_fit.J_holdout - 1.0
                                                            > floor.quantile(True))}
         if floor.source != "numerics" and responses:
+            # the model-form discrepancy is at least the floor's, and at least what the
+            # named effect leaves on the fit records when that is beyond the floor
+            q = fl_mod.discrepancy_size(floor.quantile(), verdict_fit.J)
             out["model_form_interval_width"] = fl_mod.model_form_interval(
-                verdict_fit, floor.quantile(), A, responses)
+                verdict_fit, q, A, responses)
+            out["model_form_discrepancy"] = q
     return out
 
 

@@ -29,8 +29,9 @@ record length, fit and holdout record counts).
   ``MOST`` of the baseline's excess on the fit and on the holdout records and beats the
   best other single effect by ``CLEAR_MARGIN`` of that excess; else ``unexplained``.
 * **Intervals** (:func:`model_form_interval`): an effect's value is widened by the
-  largest shift a discrepancy as large as the floor's 95 % quantile could cause (the
-  discrepancy along the effect's response, the baseline's columns projected out).
+  largest shift a discrepancy as large as the floor's 95 % quantile, or as what the named
+  effect leaves when that is larger, could cause (the discrepancy along the effect's
+  response, the baseline's columns projected out).
 """
 from __future__ import annotations
 
@@ -242,6 +243,14 @@ def remainder(J: float, parts: dict, sp: float, sf: float, floor: Floor,
     return {"J_minus_1": J - 1.0, "noise_units": math.sqrt(max(J - 1.0, 0.0)),
             "profile_systematic_m": sys_p, "force_systematic_N": sys_f,
             "floor_q95": q, "beyond_floor": bool(J - 1.0 > q)}
+
+
+def discrepancy_size(q95: float, J_named: float) -> float:
+    """The squared size (balanced misfit units) of the model-form discrepancy an interval is
+    widened for: the floor's 95 % quantile ``q95``, or what the named effect leaves on the fit
+    records (``J_named`` - 1) when that is larger (a remainder beyond the floor is model form
+    the floor does not hold)."""
+    return max(q95, J_named - 1.0) if math.isfinite(J_named) else q95
 
 
 def model_form_interval(c, q95: float, A: np.ndarray, responses) -> list[float]:

@@ -97,6 +97,12 @@ def test_the_model_form_interval_is_the_largest_shift_a_floor_sized_discrepancy_
     assert c.interval["mass_error"][0] == pytest.approx((0.09 - widths[0], 0.11 + widths[0]))
 
 
+def test_the_discrepancy_an_interval_is_widened_for_is_at_least_what_the_named_effect_leaves():
+    assert fl.discrepancy_size(0.23, 1.1) == pytest.approx(0.23)      # within the floor
+    assert fl.discrepancy_size(0.23, 18.0) == pytest.approx(17.0)     # beyond: its remainder
+    assert fl.discrepancy_size(0.23, math.inf) == pytest.approx(0.23)
+
+
 def test_naming_needs_most_of_the_excess_and_a_clear_margin():
     lead = Explanation(("friction_tool",), {}, 1.1, J_holdout=1.3)
     other = Explanation(("bending",), {}, 1.6)
