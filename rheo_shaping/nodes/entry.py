@@ -35,7 +35,12 @@ def _run(module: str, function: str = "main") -> int:
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     import importlib
     node = importlib.import_module(f"rheo_shaping.nodes.{module}")
-    code = getattr(node, function)()
+    try:
+        code = getattr(node, function)()
+    except KeyboardInterrupt:
+        # a stop signal whose Python handler ran after the node had already stopped: the
+        # stop asked for, not a crash (uncaught it would end the process by the signal, -2)
+        code = 0
     # The node is done (stopped, or it refused its parameters).  The interpreter's own
     # finalisation (numba, llvmlite, scipy) takes seconds on a busy machine and restores the
     # default signal handlers first, so a Ctrl-C then would end the process by the signal

@@ -135,12 +135,25 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
         return 0
     code = 0
     try:
+        code = _spin(node, name, stop)
+    except KeyboardInterrupt:
+        # rclpy's C handler shut the context down and spin returned before Python ran our
+        # handler, which then raised in the except clauses above: the stop we asked for
+        pass
+    finally:
+        _teardown(node)
+    return code
+
+
+def _spin(node: Node, name: str, stop: "_StopSignal") -> int:
+    """Spin ``node`` until it is stopped; its exit code (2: it yielded to an older node)."""
+    try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Yielded as exc:
         rclpy.logging.get_logger(name).fatal(f"yields: {exc}")
-        code = 2
+        return 2
     except Exception:                 # noqa: BLE001
         # rclpy's SIGINT handler shuts the context down asynchronously; when that lands
         # while the executor builds its wait set, rcl reports an invalid context
@@ -149,10 +162,20 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
         # either is the shutdown we asked for; without one, it is a real failure.
         if rclpy.ok() and stop.received is None:
             raise
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return 0
+
+
+def _teardown(node: Node) -> None:
+    """Destroy ``node`` and shut rclpy down; once more if the stop signal's handler, run
+    late (it raises once, on the first signal), cut the first pass short: the node leaves
+    the graph cleanly instead of lingering there until its DDS lease runs out."""
+    for _ in range(2):
+        try:
+            node.destroy_node()
+            rclpy.try_shutdown()
+            return
+        except KeyboardInterrupt:
+            continue
 
 
 def warm_up() -> float:

@@ -59,3 +59,20 @@ def test_the_same_error_without_a_signal_surfaces():
     proc = _run("none")
     assert proc.returncode == 1, proc.stderr
     assert "RuntimeError: no signal arrived" in proc.stderr
+
+
+def test_a_stop_signal_handled_late_in_the_teardown_does_not_cut_it_short():
+    """The stop signal's Python handler raises once, at the next bytecode of the main thread:
+    when rclpy's own handler has already ended the spin, that can be inside the teardown
+    (seen under load: a node ended by the signal, exit -2). The teardown then runs again."""
+    from rheo_shaping.nodes.spin import _teardown
+    calls = []
+
+    class Node:
+        def destroy_node(self):
+            calls.append("destroy")
+            if len(calls) == 1:
+                raise KeyboardInterrupt
+
+    _teardown(Node())
+    assert calls == ["destroy", "destroy"]
