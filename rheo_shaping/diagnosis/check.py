@@ -240,7 +240,7 @@ def simulate_points(points, ctx: FitContext, base: Baseline, *, m: int, first: b
         c.p = stats.bonferroni_p(c.LR, c.k, m)
         if H is not None:
             s.zh_raw = H.z(o[nf:])
-            c.J_holdout = H.J(s.zh_raw + H.chain @ uc)
+            c.J_holdout = H.J_with_chain(s.zh_raw, uc)
         c.baseline_u = np.r_[u_sheet, uc]
         c.checked = True
 
@@ -270,7 +270,7 @@ def holdout_lengths(cands: list[Explanation], ctx: FitContext) -> None:
         if not all_ok(o):
             continue
         c.search.zh_raw = H.z(o)
-        c.J_holdout = H.J(c.search.zh_raw + H.chain @ c.fitted_u[n_s:])
+        c.J_holdout = H.J_with_chain(c.search.zh_raw, c.fitted_u[n_s:])
 
 
 def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict):

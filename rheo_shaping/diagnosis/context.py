@@ -51,6 +51,11 @@ class Group:
     def J(self, z: np.ndarray) -> float:
         return float(z @ z)
 
+    def J_with_chain(self, z_raw: np.ndarray, u_chain: np.ndarray) -> float:
+        """J of the raw residual ``z_raw`` with the measurement chain at ``u_chain`` (in
+        tolerance units; linear in the residual): how a fit's chain carries to the holdout."""
+        return self.J(z_raw + self.chain @ u_chain)
+
     def n_eff(self, z: np.ndarray) -> dict:
         """Each observable's effective sample size of the residual ``z`` (:mod:`stats`)."""
         st = self.stack

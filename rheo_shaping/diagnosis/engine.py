@@ -120,15 +120,22 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         chain_c = sensor_stage(ctx, base)
         cands = candidates_stage(ctx, base, gap, chain_c, library)
 
+        judged: dict[int, dict] = {}                 # id(explanation) -> its clear_name
+
+        def naming_of(c) -> dict:
+            if id(c) not in judged:
+                judged[id(c)] = fl_mod.clear_name(c, cands.effects, base.J, base.J_h,
+                                                  bool(ctx.hold_d))
+            return judged[id(c)]
+
         def clear(c) -> bool:
             """Most of the excess on fit and holdout records, clearly the best."""
-            n = fl_mod.clear_name(c, cands.effects, base.J, base.J_h, bool(ctx.hold_d))
+            n = naming_of(c)
             return n["most"] and n["clear"]
         rule = None if fl.source == "numerics" else clear
         verdict = verdict_stage(ctx, base, gap, chain_c, cands, library, rule)
         named = verdict.fit or (chain_c if verdict.chain_side else None)
-        naming = (fl_mod.clear_name(named, cands.effects, base.J, base.J_h, bool(ctx.hold_d))
-                  if rule is not None and named is not None else None)
+        naming = naming_of(named) if rule is not None and named is not None else None
         after = after_stage(ctx, base, verdict, chain_c)
         runs = run.runs
     diag = _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs)

@@ -137,7 +137,7 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     zB_raw = G.z(base_outs[:nf])
     zB = zB_raw + G.chain @ u_c
     H = ctx.H
-    J_base_h = H.J(H.z(base_outs[nf:]) + H.chain @ u_c) if H else math.nan
+    J_base_h = H.J_with_chain(H.z(base_outs[nf:]), u_c) if H else math.nan
     return Baseline(u_s, u_c, J_base, J_base_h, base_outs, zB_raw, zB, G.stack.J_parts(zB),
                     G.n_eff(zB), A_sheet, solver, chain_solver)
 
