@@ -16,12 +16,14 @@ import argparse
 import json
 import os
 import time
+from dataclasses import replace
 
 import numpy as np
 
 from rheo_shaping.gapwatch.campaign import Case, default_shared, run_case
 from rheo_shaping.gapwatch.floor import Floor
 from rheo_shaping.params.config import load_cell
+from rheo_shaping.params.node_params import GapWatchNodeParams
 from rheo_shaping.parallel import executor_from_spec, run_tasks
 from rheo_shaping.sheet.effects import EFFECT_NAMES
 
@@ -40,12 +42,20 @@ def main() -> None:
                     help="diagnose the whole run (the node's diagnosis at the end of a run that "
                          "warned) for the first K WARN runs of each effect (default 0)")
     ap.add_argument("--floor", default=None, help="floor file (default: the shipped one)")
+    ap.add_argument("--diagnosis-baseline", default="held", choices=("held", "calibrated"),
+                    help="the diagnoses' sheet knobs: held as the model cell writes them (the "
+                         "node's default) or calibrated within their tolerances")
+    ap.add_argument("--commissioning-error", type=float, default=0.0, metavar="U",
+                    help="the true cell's sheet knobs off the model's by U(-U, U) tolerances each "
+                         "(a model calibrated to within U; default 0: the model is the cell)")
     ap.add_argument("--executor", default="local:2")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     cell = load_cell(a.params)
     floor = Floor.load(a.floor)
-    shared = default_shared(cell, floor)
+    shared = default_shared(cell, floor, replace(GapWatchNodeParams(),
+                                                 diagnosis_baseline=a.diagnosis_baseline),
+                            commissioning_error=a.commissioning_error)
     effects = [e.strip() for e in a.effects.split(",") if e.strip()]
     cases = [Case("", 1 + i) for i in range(a.runs)]
     cases += [Case(e, 1 + i, diagnose=i < a.diagnose, diagnose_end=i < a.diagnose_end)
@@ -60,7 +70,8 @@ def main() -> None:
            "nominal_max_z": np.nanmax([r["max_z"] for r in nominal], axis=0).tolist()
            if nominal else [], "effects": {}, "wall_s": wall,
            "cpu_s_per_run": float(np.mean([r["cpu_s"] for r in res])),
-           "floor": a.floor or "shipped"}
+           "floor": a.floor or "shipped", "diagnosis_baseline": a.diagnosis_baseline,
+           "commissioning_error": a.commissioning_error}
     for e in effects:
         rs = [r for r in res if r["effect"] == e]
         warned = [r for r in rs if r["first_warn"] is not None]
