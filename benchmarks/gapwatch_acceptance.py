@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 from dataclasses import replace
 
@@ -61,8 +62,17 @@ def main() -> None:
     cases += [Case(e, 1 + i, diagnose=i < a.diagnose, diagnose_end=i < a.diagnose_end)
               for e in effects for i in range(a.effect_runs)]
     t0 = time.monotonic()
+    done = 0
+
+    def progress(k: int) -> None:
+        """Cases finished so far, the elapsed time and an ETA, on stderr."""
+        nonlocal done
+        done += k
+        el = time.monotonic() - t0
+        left = f", ETA {el * (len(cases) - done) / done:.0f} s" if done < len(cases) else ""
+        print(f"  {done}/{len(cases)} cases, {el:.0f} s{left}", file=sys.stderr, flush=True)
     with executor_from_spec(a.executor) as ex:
-        res = run_tasks(ex, run_case, shared, cases)
+        res = run_tasks(ex, run_case, shared, cases, progress=progress, chunks_per_worker=16)
     wall = time.monotonic() - t0
     nominal = [r for r in res if not r["effect"]]
     out = {"runs": a.runs, "nominal_warn": sum(r["first_warn"] is not None for r in nominal),
