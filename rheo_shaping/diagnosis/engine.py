@@ -104,7 +104,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             raise ValueError("--reference needs at least two effect-free records (one is "
                              "held out)")
         ref = diagnose(reference[:-1], reference[-1:], library=(), jobs=jobs,
-                       executor=executor, initial_state=initial_state)
+                       executor=executor, initial_state=initial_state, baseline=baseline)
         path = floor if str(floor).endswith(".json") else fl_mod.FLOOR_FILE
         scale = fl_mod.reference_scale(ref, reference[0].scenario.sheet.n_masses,
                                        float(round(max(r.duration for r in reference))), path)
