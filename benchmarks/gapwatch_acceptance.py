@@ -15,13 +15,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 
 from rheo_shaping.gapwatch.campaign import Case, default_shared, run_case
 from rheo_shaping.gapwatch.floor import Floor
 from rheo_shaping.params.config import load_cell
+from rheo_shaping.params.node_params import GapWatchNodeParams
 from rheo_shaping.parallel import executor_from_spec, run_tasks
 from rheo_shaping.sheet.effects import EFFECT_NAMES
 
@@ -40,19 +43,36 @@ def main() -> None:
                     help="diagnose the whole run (the node's diagnosis at the end of a run that "
                          "warned) for the first K WARN runs of each effect (default 0)")
     ap.add_argument("--floor", default=None, help="floor file (default: the shipped one)")
+    ap.add_argument("--diagnosis-baseline", default="held", choices=("held", "calibrated"),
+                    help="the diagnoses' sheet knobs: held as the model cell writes them (the "
+                         "node's default) or calibrated within their tolerances")
+    ap.add_argument("--commissioning-error", type=float, default=0.0, metavar="U",
+                    help="the true cell's sheet knobs off the model's by U(-U, U) tolerances each "
+                         "(a model calibrated to within U; default 0: the model is the cell)")
     ap.add_argument("--executor", default="local:2")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     cell = load_cell(a.params)
     floor = Floor.load(a.floor)
-    shared = default_shared(cell, floor)
+    shared = default_shared(cell, floor, replace(GapWatchNodeParams(),
+                                                 diagnosis_baseline=a.diagnosis_baseline),
+                            commissioning_error=a.commissioning_error)
     effects = [e.strip() for e in a.effects.split(",") if e.strip()]
     cases = [Case("", 1 + i) for i in range(a.runs)]
     cases += [Case(e, 1 + i, diagnose=i < a.diagnose, diagnose_end=i < a.diagnose_end)
               for e in effects for i in range(a.effect_runs)]
     t0 = time.monotonic()
+    done = 0
+
+    def progress(k: int) -> None:
+        """Cases finished so far, the elapsed time and an ETA, on stderr."""
+        nonlocal done
+        done += k
+        el = time.monotonic() - t0
+        left = f", ETA {el * (len(cases) - done) / done:.0f} s" if done < len(cases) else ""
+        print(f"  {done}/{len(cases)} cases, {el:.0f} s{left}", file=sys.stderr, flush=True)
     with executor_from_spec(a.executor) as ex:
-        res = run_tasks(ex, run_case, shared, cases)
+        res = run_tasks(ex, run_case, shared, cases, progress=progress, chunks_per_worker=16)
     wall = time.monotonic() - t0
     nominal = [r for r in res if not r["effect"]]
     out = {"runs": a.runs, "nominal_warn": sum(r["first_warn"] is not None for r in nominal),
@@ -60,7 +80,8 @@ def main() -> None:
            "nominal_max_z": np.nanmax([r["max_z"] for r in nominal], axis=0).tolist()
            if nominal else [], "effects": {}, "wall_s": wall,
            "cpu_s_per_run": float(np.mean([r["cpu_s"] for r in res])),
-           "floor": a.floor or "shipped"}
+           "floor": a.floor or "shipped", "diagnosis_baseline": a.diagnosis_baseline,
+           "commissioning_error": a.commissioning_error}
     for e in effects:
         rs = [r for r in res if r["effect"] == e]
         warned = [r for r in rs if r["first_warn"] is not None]

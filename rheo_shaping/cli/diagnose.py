@@ -53,6 +53,11 @@ def add_parser(sub) -> None:
     p.add_argument("--tolerance", nargs=2, type=float, metavar=("PROFILE_MM", "FORCE_N"),
                    help="practical tolerance: a baseline remainder below both (systematic "
                         "profile RMS [mm], tool-force RMS [N]) is not worth naming")
+    p.add_argument("--baseline", default="calibrated", choices=("calibrated", "held"),
+                   help="the sheet knobs (material, mass, bonds, sag, cake) fitted within their "
+                        "tolerances (calibrated, the default), or held as the scenario writes "
+                        "them (held: the scenario is a cell already calibrated, for one by "
+                        "--write-scenario of a commissioning run; what changed since)")
     add_executor_arguments(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -131,7 +136,8 @@ def run(args: argparse.Namespace) -> int:
         with executor_from_args(args) as executor:
             diag = diagnose(fit, hold, library=library, progress=progress,
                             executor=executor, initial_state=args.initial_state,
-                            floor=args.floor, reference=ref, tolerance=tol)
+                            floor=args.floor, reference=ref, tolerance=tol,
+                            baseline=args.baseline)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     finally:

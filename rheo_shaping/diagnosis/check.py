@@ -155,7 +155,8 @@ def check(cands: list[Explanation], ctx: FitContext, base: Baseline, *, m: int,
     """
     points = []
     for c in cands:
-        points.append((c, np.clip(base.u_s + c.fitted_u[:ctx.n_s], -1, 1), c.values))
+        points.append((c, np.clip(base.u_s + c.fitted_u[:ctx.n_s], -ctx.sheet_lim,
+                                  ctx.sheet_lim), c.values))
     simulate_points(points, ctx, base, m=m, first=True)
     if responses is None:
         return
@@ -173,7 +174,7 @@ def refine_points(cands: list[Explanation], ctx: FitContext, base: Baseline, *, 
             if c.chain_free or not math.isfinite(c.J) or c.search.z_raw is None:
                 continue
             A_c = c.search.jacobian if c.search.jacobian is not None else base.A_sheet
-            step = chord(c, A_c, ctx.G, responses)
+            step = chord(c, A_c, ctx.G, responses, ctx.sheet_lim)
             if step is not None:
                 points.append((c, *step))
         if not points:
@@ -273,11 +274,11 @@ def holdout_lengths(cands: list[Explanation], ctx: FitContext) -> None:
         c.J_holdout = H.J_with_chain(c.search.zh_raw, c.fitted_u[n_s:])
 
 
-def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict):
+def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict, box: float = 1.0):
     """The next point (sheet u, values) of candidate ``c``: one linearised step from its run
-    (the sheet knobs' Jacobian ``A_sheet``, the effects' probe responses; a curve effect of a
-    single candidate by the secant through its last two simulated points); None when an
-    effect has too few probe responses."""
+    (the sheet knobs' Jacobian ``A_sheet`` within |u| <= ``box``, the effects' probe
+    responses; a curve effect of a single candidate by the secant through its last two
+    simulated points); None when an effect has too few probe responses."""
     n_s = A_sheet.shape[1]
     s = c.search
     cols, lo_e, hi_e, slots = [], [], [], []
@@ -311,10 +312,10 @@ def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict):
     u_cur = c.fitted_u[:n_s]
     solver = G.solver(A_sheet)
     lim = np.ones(G.chain.shape[1])
-    du, _ = solver.solve(s.simulated_z, np.r_[-1 - u_cur, -lim], np.r_[1 - u_cur, lim],
+    du, _ = solver.solve(s.simulated_z, np.r_[-box - u_cur, -lim], np.r_[box - u_cur, lim],
                          np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
     du = du * s.damp
-    u_new = np.clip(u_cur + du[:n_s], -1, 1)
+    u_new = np.clip(u_cur + du[:n_s], -box, box)
     vals = {n: list(v) for n, v in c.values.items()}
     for (name, k, is_curve), x in zip(slots, du[solver.A.shape[1]:]):
         if is_curve:

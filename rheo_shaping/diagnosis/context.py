@@ -79,6 +79,7 @@ class FitContext:
     run: Runner
     sp: float                       # m, profile noise
     sf: float                       # N, tool force noise
+    sheet_lim: float = 1.0          # the sheet knobs' box, |u| <= this (0: held as written)
 
     @property
     def data(self) -> list[RecordData]:
@@ -139,8 +140,9 @@ class Baseline:
         """The linearised model at this baseline (knobs within their box, chain within
         tolerance), what the effects are fitted on."""
         lim = ctx.chain_lim
-        return LinearFit(self.z_raw, self.solver, np.r_[-1 - self.u_s, -lim],
-                         np.r_[1 - self.u_s, lim], ctx.G.stack, self.n_eff, self.parts)
+        b = ctx.sheet_lim
+        return LinearFit(self.z_raw, self.solver, np.r_[-b - self.u_s, -lim],
+                         np.r_[b - self.u_s, lim], ctx.G.stack, self.n_eff, self.parts)
 
 
 def forward_jacobian(ctx: FitContext, z_ref: np.ndarray, at: Callable[[int, float], list],

@@ -65,12 +65,17 @@ from .stages import Nominal, baseline_stage, gap_stage, nominal_stage, sensor_st
 from .verdict import After, Candidates, Verdict, after_stage, candidates_stage, verdict_stage
 
 
+#: How the baseline's sheet knobs are taken: fitted within their tolerances, or held as written.
+BASELINE_MODES = ("calibrated", "held")
+
+
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
              library: Sequence[str] = EFFECT_NAMES, jobs: int | None = None,
              progress: Callable[[int], None] | None = None,
              executor: Executor | None = None, initial_state: str = "settled",
              floor: str = "numerics", reference: Sequence[Record] = (),
-             tolerance: tuple[float, float] | None = None) -> Diagnosis:
+             tolerance: tuple[float, float] | None = None,
+             baseline: str = "calibrated") -> Diagnosis:
     """Diagnose the gap between ``records`` (fitted) and their scenario; check on ``holdout``.
 
     ``initial_state``: how each record's model starts (:mod:`.initial_state`: ``settled``,
@@ -80,9 +85,16 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
     ``numerics``, the stored finer-chain null; ``model-form``, the dynamic world's
     calibration for this configuration, scaled to ``reference`` records' remainder when
     given; or a calibration file's path).  ``tolerance`` (profile [m], tool force [N]): a
-    baseline remainder below both is not worth naming (``none``)."""
+    baseline remainder below both is not worth naming (``none``).  ``baseline``:
+    ``calibrated`` (the sheet knobs fitted within their tolerances, :mod:`.baseline`) or
+    ``held`` (kept as written: the scenario is a cell already calibrated, for one a
+    commissioning diagnosis corrected, and the question is what changed since; the gap
+    watch's question).  The measurement chain is fitted within its tolerances either way."""
     if not records:
         raise ValueError("diagnose needs at least one record to fit")
+    if baseline not in BASELINE_MODES:
+        raise ValueError(f"baseline {baseline!r}: expected one of {', '.join(BASELINE_MODES)}")
+    sheet_lim = 1.0 if baseline == "calibrated" else 0.0
     if floor not in fl_mod.KINDS and not str(floor).endswith(".json"):
         raise ValueError(f"floor {floor!r}: expected one of {', '.join(fl_mod.KINDS)} or a "
                          "calibration file (.json)")
@@ -92,7 +104,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             raise ValueError("--reference needs at least two effect-free records (one is "
                              "held out)")
         ref = diagnose(reference[:-1], reference[-1:], library=(), jobs=jobs,
-                       executor=executor, initial_state=initial_state)
+                       executor=executor, initial_state=initial_state, baseline=baseline)
         path = floor if str(floor).endswith(".json") else fl_mod.FLOOR_FILE
         scale = fl_mod.reference_scale(ref, reference[0].scenario.sheet.n_masses,
                                        float(round(max(r.duration for r in reference))), path)
@@ -102,7 +114,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         [d.initial for d in data], initial_state == "auto"))]
     with stats.using_null(None), Runner(executor, jobs, progress) as run:
         data = laid_lengths(data, [d.record.scenario for d in data], run)
-        nominal, ctx = nominal_stage(data, len(records), run)
+        nominal, ctx = nominal_stage(data, len(records), run, sheet_lim)
         fl = _floor((floor, scale, bool(reference)), data, ctx.nf, len(ctx.hold_d), ctx.sp,
                     ctx.sf)
         stats.using_null_now(fl.sample)              # the gap test and adequacy use it
@@ -112,7 +124,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             # and the baseline from there on the same Jacobian
             run.stage("laid lengths and baseline again")
             data = laid_lengths(data, [ctx.params(d, base.u_s) for d in data], run)
-            nominal, ctx = nominal_stage(data, len(records), run)
+            nominal, ctx = nominal_stage(data, len(records), run, sheet_lim)
             base = baseline_stage(ctx, nominal, base.A_sheet)
         gap = gap_stage(ctx, base)
         below = fl_mod.within_tolerance(base.parts, ctx.sp, ctx.sf, tolerance)
@@ -140,6 +152,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         runs = run.runs
     diag = _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs)
     diag.initial_state = initial_summary(data)
+    diag.baseline_mode = baseline
     diag.floor = _floor_report(fl, diag, named, naming, below, tolerance, ctx.sp,
                                ctx.sf, base.solver.A, cands.responses, base.parts)
     return diag

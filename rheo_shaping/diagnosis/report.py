@@ -288,8 +288,11 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
     else:
         lines.append("No candidate accounts for what the baseline leaves (significant and "
                      "adequate on fit and holdout records): see the signature below.")
+    held = ("The sheet knobs are held as the scenario writes them (`--baseline held`: the "
+            "scenario is taken for a calibrated cell); only the measurement chain is fitted."
+            if diag.baseline_mode == "held" else "")
     lines += ["", "## Baseline: what a careful user knows within a tolerance", "",
-              _sentence(diag.baseline_took_text()), "",
+              (held + " " if held else "") + _sentence(diag.baseline_took_text()), "",
               "| knob | written | fitted | in tolerances | outside |", "|---|---|---|---|---|"]
     for name, b in diag.baseline.items():
         lines.append(f"| {name} | {_g(b.get('written'))} | {_g(b['value'])} {b['unit']} | "

@@ -48,6 +48,7 @@ class Diagnosis:
     J_replay: tuple = (None, None)   # draws of the model's own replay misfit (fit, holdout)
     initial_state: dict | None = None  # how each record's model started (initial_state.py)
     floor: dict | None = None        # the model-form floor the verdict was judged against
+    baseline_mode: str = "calibrated"  # the sheet knobs fitted, or "held" as written
 
     def explained(self, fr: Explanation, holdout: bool = False) -> float:
         """Fraction of the baseline's excess misfit the candidate removes."""
@@ -108,7 +109,8 @@ class Diagnosis:
                 "gap_after": self.gap_after, "noise": self.noise, "records": self.records,
                 "holdout": self.holdout, "simulations": self.runs,
                 "J_numerics_baseline": self.numerics_json(),
-                "initial_state": _finite(self.initial_state), "floor": _finite(self.floor)}
+                "initial_state": _finite(self.initial_state), "floor": _finite(self.floor),
+                "baseline_mode": self.baseline_mode}
 
     def numerics_json(self) -> dict | None:
         """The baseline's numerics misfit (None when no candidate was checked)."""

@@ -41,8 +41,10 @@ class Nominal:
     J0_h: float                     # nominal misfit, holdout records (nan without)
 
 
-def nominal_stage(data: list[RecordData], nf: int, run: Runner) -> tuple[Nominal, FitContext]:
-    """Stage 1: the nominal models, the noise (MAD of second differences), the fit context."""
+def nominal_stage(data: list[RecordData], nf: int, run: Runner,
+                  sheet_lim: float = 1.0) -> tuple[Nominal, FitContext]:
+    """Stage 1: the nominal models, the noise (MAD of second differences), the fit context
+    (the sheet knobs fitted within +-``sheet_lim`` tolerances; 0: held as written)."""
     run.stage("nominal models", len(data))
     nominal = run([Task(d, d.record.scenario, keep_run=True) for d in data])
     bad = [d.record.name for d, o in zip(data, nominal) if not o.ok]
@@ -62,7 +64,7 @@ def nominal_stage(data: list[RecordData], nf: int, run: Runner) -> tuple[Nominal
     fit_d, hold_d = data[:nf], data[nf:]
     G = Group.of(fit_d, sp, sf, nominal[:nf])
     H = Group.of(hold_d, sp, sf, nominal[nf:]) if hold_d else None
-    ctx = FitContext(fit_d, hold_d, G, H, run, sp, sf)
+    ctx = FitContext(fit_d, hold_d, G, H, run, sp, sf, sheet_lim)
     J0 = G.J(G.z(nominal[:nf]))
     J0h = H.J(H.z(nominal[nf:])) if H else math.nan
     return Nominal(nominal, sp, sf, J0, J0h), ctx
@@ -88,8 +90,9 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
                                    invalid, announce=lambda n: run.stage("baseline Jacobian", n))
     solver = G.solver(A_sheet)
     chain_lim = ctx.chain_lim
-    lo = np.r_[-np.ones(n_s), -chain_lim]
-    hi = np.r_[np.ones(n_s), chain_lim]
+    b = ctx.sheet_lim
+    lo = np.r_[-b * np.ones(n_s), -chain_lim]
+    hi = np.r_[b * np.ones(n_s), chain_lim]
     chain_solver = Solver(G.chain)
 
     def tried_point(u_s: np.ndarray, outs: list) -> tuple:
@@ -104,7 +107,7 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     tried = [tried_point(np.zeros(n_s), nominal.outs)]
     best_u, best_J = np.zeros(n_s), tried[0][2]
     run.stage("baseline fit", (2 + STEP_HALVINGS) * len(ctx.data))
-    u_try, steps, halvings = np.clip(u_lin[:n_s], -1, 1), 0, 0
+    u_try, steps, halvings = np.clip(u_lin[:n_s], -b, b), 0, 0
     while steps < 2:
         try:
             outs = run([Task(d, ctx.params(d, u_try), keep_run=True) for d in ctx.data])
@@ -124,8 +127,8 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
         steps += 1
         zb = G.z(outs[:nf])
         # chord step: same Jacobian from the new point
-        du, _ = solver.solve(zb, np.r_[-1 - u_try, -chain_lim], np.r_[1 - u_try, chain_lim])
-        u_try = np.clip(u_try + du[:n_s], -1, 1)
+        du, _ = solver.solve(zb, np.r_[-b - u_try, -chain_lim], np.r_[b - u_try, chain_lim])
+        u_try = np.clip(u_try + du[:n_s], -b, b)
     best = None
     for u_try, outs, J, u in tried:
         if not math.isfinite(J) or (ctx.H and not all_ok(outs[nf:])):
@@ -179,8 +182,9 @@ def sensor_stage(ctx: FitContext, base: Baseline) -> Explanation:
     baseline.  Checked by simulation with the effects (:func:`verdict.candidates_stage`)."""
     n_s = ctx.n_s
     free = ctx.chain_free
-    u_ch, J_ch = base.solver.solve(base.z_raw, np.r_[-1 - base.u_s, -free],
-                                   np.r_[1 - base.u_s, free])
+    b = ctx.sheet_lim
+    u_ch, J_ch = base.solver.solve(base.z_raw, np.r_[-b - base.u_s, -free],
+                                   np.r_[b - base.u_s, free])
     chain_c = Explanation((), {}, J_ch,
                           ctx.G.stack.J_parts(base.solver.residual(base.z_raw, u_ch)),
                           baseline_u=u_ch, chain_free=True)

@@ -77,8 +77,10 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
     has_h = bool(ctx.hold_d)
     need = [c for c in effects[:CHECKED] if needs_numerics(c, base.J_h, has_h, gap.replay)]
     if need:
-        # a strong effect changes how the knobs act: refit from its own Jacobian
-        relinearise(need, ctx)
+        # a strong effect changes how the knobs act: refit from its own Jacobian (knobs
+        # held as written have none to refit)
+        if ctx.sheet_lim > 0:
+            relinearise(need, ctx)
         refine_points(need, ctx, base, m=m, responses=responses)
         need = [c for c in need if needs_numerics(c, base.J_h, has_h, gap.replay)]
     if need:

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..params.node_params import GapWatchNodeParams
+from ..diagnosis.baseline import SHEET, with_sheet
 from ..params.cell import CellParams
 from ..planning.movement import movement_plan
 from ..planning.movement import synthesize_record
@@ -68,13 +69,19 @@ def visible_time(truth: RunResult, model: RunResult, profile_noise: float,
 def run_case(shared: tuple, case: Case, keep_delta: bool = False) -> dict:
     """One case: (cell, floor, settings, measurement) in ``shared``; the figures as a dict
     (``keep_delta``: with every frame's measured - model Delta [m], for the floor)."""
-    cell, floor, settings, ms = shared
+    cell, floor, settings, ms, commissioning = shared
     rng = np.random.default_rng(case.seed)
     truth = cell
+    if commissioning > 0:
+        # the model is the cell calibrated to within ``commissioning`` tolerances (its own
+        # stream of draws: the effect's sign below is the same as without)
+        crng = np.random.default_rng((case.seed, 7))
+        truth = with_sheet(cell, {k.name: crng.uniform(-commissioning, commissioning)
+                                  for k in SHEET})
     values: tuple = ()
     if case.effect:
         values = mid_magnitude(case.effect, rng)
-        truth = EFFECTS[case.effect].apply(cell, values)
+        truth = EFFECTS[case.effect].apply(truth, values)
     rec, run = synthesize_record(truth, ms, seed=case.seed, name=f"{case.effect or 'nominal'}"
                                  f"-{case.seed}")
     out: dict = {"effect": case.effect, "seed": case.seed, "values": list(values)}
@@ -96,12 +103,14 @@ def run_case(shared: tuple, case: Case, keep_delta: bool = False) -> dict:
         if case.diagnose and snap:
             wd = Path(tmp) / "window"
             write_record(snap[0], wd)
-            out["diagnosis"] = diagnose_record(str(wd), str(Path(tmp) / "report"))
+            out["diagnosis"] = diagnose_record(str(wd), str(Path(tmp) / "report"),
+                                               settings.diagnosis_baseline)
             out["diagnosis"]["right"] = out["diagnosis"]["verdict"] == case.effect
         if case.diagnose_end and gw.first_warn is not None:
             wd = Path(tmp) / "run"
             write_record(gw.record(), wd)
-            out["diagnosis_end"] = diagnose_record(str(wd), str(Path(tmp) / "report_end"))
+            out["diagnosis_end"] = diagnose_record(str(wd), str(Path(tmp) / "report_end"),
+                                                   settings.diagnosis_baseline)
             out["diagnosis_end"]["right"] = out["diagnosis_end"]["verdict"] == case.effect
     return out
 
@@ -113,6 +122,10 @@ def _max_z(gw) -> list:
 
 def default_shared(cell: CellParams, floor: Floor | None = None,
                    settings: GapWatchNodeParams = GapWatchNodeParams(),
-                   ms: MeasurementParams = MeasurementParams()) -> tuple:
+                   ms: MeasurementParams = MeasurementParams(),
+                   commissioning_error: float = 0.0) -> tuple:
+    """What every case shares: the model cell, the floor, the watch's settings, the
+    measurement model and the commissioning error (the true cell's sheet knobs off the
+    model's by U(-e, e) tolerances each; 0: the model is the cell)."""
     return (nominal(cell), floor if floor is not None else Floor.load(), settings,
-            replace(ms))
+            replace(ms), float(commissioning_error))

@@ -86,16 +86,17 @@ class Verdict:
     p_gap: float | None = None            # the gap test's p-value
 
 
-def diagnose_record(record_dir: str, out_dir: str) -> dict:
-    """Diagnose the record in ``record_dir`` (all library effects, serially), write the report
-    into ``out_dir``; a :class:`Verdict` as a dict (a worker process's task)."""
+def diagnose_record(record_dir: str, out_dir: str, baseline: str = "held") -> dict:
+    """Diagnose the record in ``record_dir`` (all library effects, serially; the sheet knobs
+    ``held`` as the model cell writes them, or ``calibrated``: ``diagnose --baseline``), write
+    the report into ``out_dir``; a :class:`Verdict` as a dict (a worker process's task)."""
     t0 = time.monotonic()
     try:
         from ..diagnosis.engine import diagnose
         from ..diagnosis.report import write
         from ..records.bag import read_record
         rec = read_record(record_dir)
-        diag = diagnose([rec], jobs=1)
+        diag = diagnose([rec], jobs=1, baseline=baseline)
         paths = write(diag, Path(out_dir))
         fit = diag.verdict_fit
         params = {} if fit is None else {k: [float(x) for x in v] for k, v in fit.values.items()}
@@ -115,8 +116,9 @@ def diagnose_record(record_dir: str, out_dir: str) -> dict:
 class DiagnosisJobs:
     """At most one diagnosis at a time on ``executor`` (a worker process pool)."""
 
-    def __init__(self, executor: Executor):
+    def __init__(self, executor: Executor, baseline: str = "held"):
         self.executor = executor
+        self.baseline = baseline
         self.future: Future | None = None
         self.last: dict | None = None
 
@@ -128,5 +130,5 @@ class DiagnosisJobs:
         """Start a diagnosis of ``record_dir``; None while one runs."""
         if self.busy:
             return None
-        self.future = self.executor.submit(diagnose_record, record_dir, out_dir)
+        self.future = self.executor.submit(diagnose_record, record_dir, out_dir, self.baseline)
         return self.future

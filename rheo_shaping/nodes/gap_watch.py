@@ -266,7 +266,7 @@ class GapWatchNode(Node):
         if self.jobs is None:
             from ..parallel import local_pool
             self._pool = local_pool(1)        # spawned: this process has DDS threads
-            self.jobs = DiagnosisJobs(self._pool)
+            self.jobs = DiagnosisJobs(self._pool, self.settings.diagnosis_baseline)
         if self.jobs.busy:
             return False, "a diagnosis is running"
         rec = core.record()

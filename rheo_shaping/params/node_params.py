@@ -322,6 +322,11 @@ class GapWatchNodeParams:
         True, "on the first sustained WARN of a run, write the run so far as a record and "
         "diagnose it in a worker process; once a run that warned has ended, diagnose the "
         "whole run again")
+    diagnosis_baseline: str = param(
+        "held", "the diagnosis's sheet knobs: held as the model cell writes them (the model is "
+        "the cell as commissioned, and the question is what changed since, as WARN asks) or "
+        "calibrated within their tolerances ('rheo-shaping diagnose --baseline')",
+        choices=("held", "calibrated"))
     report_dir: str = param(
         "", "directory for the records and diagnosis reports (empty: "
         "$TMPDIR/rheo_shaping_gapwatch)")

@@ -305,3 +305,25 @@ def test_a_kelvin_cell_round_trips_to_none_and_still_sees_a_real_gap():
     rec = records(off)
     d = diagnose(rec[:2], rec[2:], library=("tool_offset", "mass_error"), jobs=2)
     assert d.p_gap <= stats.ALPHA and d.verdict == "tool_offset"
+
+
+def test_a_held_baseline_keeps_the_sheet_knobs_as_written():
+    """``baseline="held"`` (the gap watch's question: what changed since the model cell was
+    commissioned) fits the measurement chain only: a k1 8 % off the written one, which the
+    calibrated baseline takes back (u near +0.8 of its 10 % tolerance), stays in the held
+    baseline's remainder."""
+    written = cell(4, process_time=70.0, n_masses=15)
+    truth = replace(written, material=replace(written.material, k1=1.08 * written.material.k1))
+    rec, _ = synthesize_record(truth, MeasurementParams(wrench_noise=0.003), seed=5)
+    rec = replace(rec, scenario=written)
+    cal = diagnose([rec], library=(), jobs=1)
+    held = diagnose([rec], library=(), jobs=1, baseline="held")
+    assert cal.baseline["material.k1"]["u"] == pytest.approx(0.8, abs=0.25)
+    assert cal.baseline_mode == "calibrated" and held.baseline_mode == "held"
+    assert all(held.baseline[k.name]["u"] == 0.0 for k in SHEET)
+    assert held.baseline["material.k1"]["value"] == written.material.k1
+    # the held baseline leaves the k1 error, the calibrated one takes it
+    assert held.J_base - 1.0 > 2.0 * max(cal.J_base - 1.0, 0.05)
+    assert held.to_json()["baseline_mode"] == "held"
+    with pytest.raises(ValueError, match="baseline 'loose': expected one of calibrated, held"):
+        diagnose([rec], library=(), jobs=1, baseline="loose")

@@ -189,3 +189,20 @@ def test_a_short_gap_is_bridged_and_the_run_judged_on(own):
     gw = feed(cut)
     assert gw.refused["pose: the stream resumed after a gap (bridged)"] == 1
     assert gw.level == "OK" and gw.first_warn is None       # a straight move, bridged
+
+
+def test_the_diagnosis_at_warn_holds_the_model_cell_and_names_a_mass_error():
+    """The watch's diagnosis (the node's worker task on the run up to the first WARN) holds
+    the model cell's sheet knobs (``diagnosis_baseline: held``): a mass 27.5 % off is named
+    ``mass_error`` (a calibrated baseline took it as k1, c2 and the mass at its bound and
+    said ``none``, docs/gapwatch.md)."""
+    from rheo_shaping.gapwatch.campaign import Case, default_shared, run_case
+    cell = load_cell(CELL_FILE)
+    out = run_case(default_shared(cell), Case("mass_error", 1, diagnose=True))
+    (true,) = out["values"]
+    assert abs(true) == pytest.approx(0.275)
+    assert out["first_warn"] is not None and out["first_warn"] < 20.0
+    d = out["diagnosis"]
+    assert not d["error"] and d["verdict"] == "mass_error", d
+    (fraction,) = d["parameters"]["mass_error"]
+    assert fraction == pytest.approx(true, abs=0.05)
