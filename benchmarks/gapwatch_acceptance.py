@@ -21,6 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from rheo_shaping.diagnosis.baseline import BASELINE_MODES
 from rheo_shaping.gapwatch.campaign import Case, default_shared, run_case
 from rheo_shaping.gapwatch.floor import Floor
 from rheo_shaping.params.config import load_cell
@@ -43,7 +44,7 @@ def main() -> None:
                     help="diagnose the whole run (the node's diagnosis at the end of a run that "
                          "warned) for the first K WARN runs of each effect (default 0)")
     ap.add_argument("--floor", default=None, help="floor file (default: the shipped one)")
-    ap.add_argument("--diagnosis-baseline", default="held", choices=("held", "calibrated"),
+    ap.add_argument("--diagnosis-baseline", default="held", choices=BASELINE_MODES,
                     help="the diagnoses' sheet knobs: held as the model cell writes them (the "
                          "node's default) or calibrated within their tolerances")
     ap.add_argument("--commissioning-error", type=float, default=0.0, metavar="U",

@@ -8,6 +8,7 @@ import sys
 import time
 from dataclasses import replace
 
+from ..diagnosis.baseline import BASELINE_MODES
 from ..sheet.effects import EFFECT_NAMES
 from ..records.bag import RecordError, read_record
 from . import UserError
@@ -53,7 +54,7 @@ def add_parser(sub) -> None:
     p.add_argument("--tolerance", nargs=2, type=float, metavar=("PROFILE_MM", "FORCE_N"),
                    help="practical tolerance: a baseline remainder below both (systematic "
                         "profile RMS [mm], tool-force RMS [N]) is not worth naming")
-    p.add_argument("--baseline", default="calibrated", choices=("calibrated", "held"),
+    p.add_argument("--baseline", default="calibrated", choices=BASELINE_MODES,
                    help="the sheet knobs (material, mass, bonds, sag, cake) fitted within their "
                         "tolerances (calibrated, the default), or held as the scenario writes "
                         "them (held: the scenario is a cell already calibrated, for one by "

@@ -58,6 +58,10 @@ CHAIN: tuple[Knob, ...] = (
 
 KNOBS: dict[str, Knob] = {k.name: k for k in SHEET + CHAIN}
 
+#: How the sheet knobs are taken: fitted within their tolerances, or held as written (the
+#: scenario is a calibrated cell; the measurement chain is fitted either way).
+BASELINE_MODES: tuple[str, ...] = ("calibrated", "held")
+
 
 def written(params: CellParams, name: str) -> float:
     """The value of sheet knob ``name`` in ``params``."""

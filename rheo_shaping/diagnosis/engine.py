@@ -55,6 +55,7 @@ import numpy as np
 from ..records.record import Record
 from ..sheet.effects import EFFECT_NAMES
 from . import floor as fl_mod, stats
+from .baseline import BASELINE_MODES
 from .compare import RecordData, residuals
 from .context import Baseline, FitContext
 from .evaluate import Runner, apply
@@ -63,10 +64,6 @@ from .laid_length import laid_lengths
 from .result import Diagnosis, as_residuals, baseline_table, chain_correct
 from .stages import Nominal, baseline_stage, gap_stage, nominal_stage, sensor_stage
 from .verdict import After, Candidates, Verdict, after_stage, candidates_stage, verdict_stage
-
-
-#: How the baseline's sheet knobs are taken: fitted within their tolerances, or held as written.
-BASELINE_MODES = ("calibrated", "held")
 
 
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),

@@ -106,9 +106,10 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     u_lin, _ = solver.solve(z0, lo, hi)
     tried = [tried_point(np.zeros(n_s), nominal.outs)]
     best_u, best_J = np.zeros(n_s), tried[0][2]
-    run.stage("baseline fit", (2 + STEP_HALVINGS) * len(ctx.data))
+    # held knobs (b = 0): the nominal point, already run, is the only point in the box
+    run.stage("baseline fit", (2 + STEP_HALVINGS) * len(ctx.data) if b > 0 else 0)
     u_try, steps, halvings = np.clip(u_lin[:n_s], -b, b), 0, 0
-    while steps < 2:
+    while steps < 2 and b > 0:
         try:
             outs = run([Task(d, ctx.params(d, u_try), keep_run=True) for d in ctx.data])
         except ParameterError:

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..params.node_params import GapWatchNodeParams
 from ..diagnosis.baseline import SHEET, with_sheet
+from ..params.node_params import GapWatchNodeParams
 from ..params.cell import CellParams
 from ..planning.movement import movement_plan
 from ..planning.movement import synthesize_record

@@ -61,3 +61,15 @@ def test_docs_parameter_tables_are_current():
     for name, cls in NODE_PARAMS.items():
         assert parameter_table(cls) in doc, f"docs/ros.md: regenerate the `{name}` table " \
                                            f"(python -m rheo_shaping.params.node_params)"
+
+
+def test_the_gap_watch_diagnoses_with_the_diagnosis_baseline_modes():
+    """``gap_watch``'s ``diagnosis_baseline`` takes exactly ``diagnose --baseline``'s modes
+    (the schema keeps its own literal: params imports no diagnosis)."""
+    from dataclasses import fields
+    from rheo_shaping.diagnosis.baseline import BASELINE_MODES
+    from rheo_shaping.params.node_params import GapWatchNodeParams
+    spec = next(f for f in fields(GapWatchNodeParams)
+                if f.name == "diagnosis_baseline").metadata["spec"]
+    assert sorted(spec.choices) == sorted(BASELINE_MODES)
+    assert GapWatchNodeParams().diagnosis_baseline in BASELINE_MODES
