@@ -10,12 +10,18 @@ fitted and one held out):
 * ``kelvin-file``: records made from a written cell with c1 = 441 N s/m, diagnosed against it
   (the ``--write-scenario`` round trip: the model's own replay misfit is measured).
 
+``--world dynamic --seed S --indices I,J,...``: instead, cases I, J, ... of the dynamic-world
+benchmark of seed S (``diagnose-benchmark --world dynamic``: the same records, library, floor
+``model-form`` and initial state ``auto``), e.g. to time a fresh seed's cases on a quiet machine.
+
 ``--n-masses`` and ``--process-time`` set the diagnosis's cell (default: the benchmark's, 31 and
 70 s; the default cell is 63 and 120 s).  Prints one line per case and repetition, then the
 median per case, with the machine's core count and load average.
 
     python benchmarks/diagnosis_time.py [--cases free,offset,kelvin,kelvin-file] [--repeat 1]
         [--jobs 2] [--n-masses 31] [--process-time 70]
+    python benchmarks/diagnosis_time.py --world dynamic --seed 26003 --indices 0,1,3
+        --n-masses 63 --process-time 120
 """
 from __future__ import annotations
 
@@ -50,7 +56,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--n-masses", type=int, default=31)
     ap.add_argument("--process-time", type=float, default=70.0, help="record length [s]")
+    ap.add_argument("--world", choices=("finer-chain", "dynamic"), default="finer-chain",
+                    help="finer-chain: the --cases above; dynamic: --seed and --indices")
+    ap.add_argument("--seed", type=int, default=None, help="dynamic-world benchmark seed")
+    ap.add_argument("--indices", default="", help="dynamic-world case indices, e.g. 0,1,3")
     args = ap.parse_args(argv)
+    if args.world == "dynamic":
+        try:
+            idx = [int(i) for i in args.indices.split(",") if i.strip()]
+        except ValueError:
+            ap.error(f"--indices: expected integers separated by commas, got {args.indices!r}")
+        if args.seed is None or not idx or min(idx) < 0 or args.repeat < 1:
+            ap.error("--world dynamic needs --seed S and --indices I,J,... (>= 0); --repeat >= 1")
+        return dynamic_cases(args, idx)
     names = [c for c in args.cases.split(",") if c]
     bad = [c for c in names if c not in (*CASES, "kelvin-file")]
     if bad or args.repeat < 1:
@@ -80,6 +98,36 @@ def main(argv: list[str] | None = None) -> int:
                       f"load {os.getloadavg()[0]:.1f}", flush=True)
     for name, ts in times.items():
         print(f"median {name:12s} {statistics.median(ts):6.1f} s over {len(ts)}")
+    return 0
+
+
+def dynamic_cases(args, indices: list[int]) -> int:
+    """Time the dynamic-world benchmark's cases ``indices`` of ``args.seed`` as it diagnoses
+    them (its library, floor and initial state), the records made before the clock starts."""
+    from rheo_shaping.diagnosis.benchmark import KINDS_PATTERN, base_cell, make_case
+    from rheo_shaping.diagnosis.engine import diagnose
+    from rheo_shaping.diagnosis.evaluate import default_executor
+    from rheo_shaping.sheet.effects import EFFECT_NAMES
+    base = base_cell(args.n_masses, args.process_time)
+    print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start; "
+          f"dynamic world, seed {args.seed}; N = {args.n_masses}, {args.process_time:g} s "
+          f"records, {args.jobs} workers")
+    times = []
+    with default_executor(args.jobs) as ex:
+        for i in indices:
+            kind = KINDS_PATTERN[i % len(KINDS_PATTERN)]
+            case = make_case(i, kind, args.seed, base, world="dynamic")
+            withheld = case["truth"][0][0] if kind == "out_of_library" else None
+            library = tuple(x for x in EFFECT_NAMES if x != withheld)
+            for _ in range(args.repeat):
+                t0 = time.perf_counter()
+                d = diagnose(case["records"][:2], case["records"][2:], library=library,
+                             executor=ex, floor="model-form", initial_state="auto")
+                wall = time.perf_counter() - t0
+                times.append(wall)
+                print(f"case {i:3d} {kind:14s} {d.verdict:22s} {wall:6.1f} s  {d.runs:4d} "
+                      f"simulations  load {os.getloadavg()[0]:.1f}", flush=True)
+    print(f"median {statistics.median(times):6.1f} s, max {max(times):6.1f} s over {len(times)}")
     return 0
 
 
