@@ -89,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
           f"{out['none_cases']} none, "
           f"{out['sensor_cases']} sensor, {out['out_of_library_cases']} out of library), "
           f"{out['wall_time_s']:.0f} s")
+    for r in out["undrawn_cases"]:
+        print(f"  not drawn, left out: {r['no_case']}")
     for key, target in (("top1_accuracy", ">= 0.90"), ("top1_accuracy_beyond_noise", ">= 0.90"),
                         ("ranked_first_right", ""), ("param_rel_error_median", ""),
                         ("no_effect_false_name_rate", "<= 0.05"),

@@ -112,6 +112,15 @@ def measure_chain(run, path, truth: CellParams, ms: MeasurementParams, rng: np.r
     return replace(rec, profiles=profiles, wrench_xz=wrench)
 
 
+#: Draws per case before it is given up (:class:`NoCase`).
+DRAWS = 20
+
+
+class NoCase(RuntimeError):
+    """Every draw of a case was refused: a record tore the sheet (F_max >= F_break), failed to
+    run, or the cell left its parameters' bounds.  The benchmark counts such a case apart."""
+
+
 def check_world(world: str) -> str:
     """``world`` if it is one of :data:`WORLDS`, else ValueError naming them."""
     if world not in WORLDS:
@@ -126,7 +135,8 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
     without repeats) in ``world`` (:data:`WORLDS`)."""
     dynamic = check_world(world) == "dynamic"
     rng = random.Random(seed * 1000 + index)
-    for _attempt in range(20):
+    why = {"tore": 0, "failed": 0, "outside": 0}
+    for _attempt in range(DRAWS):
         truth_effects: tuple = ()
         extra = WorldEffects()
         if kind == "out_of_library" and dynamic:           # one of the world's own effects
@@ -151,6 +161,7 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
         try:
             truth = with_sheet(base, {k: -v for k, v in perturb.items()})
         except ValueError:
+            why["outside"] += 1
             continue
         for n, v in truth_effects:
             if n in EFFECTS:
@@ -172,9 +183,11 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
                 run = (run_world(t_cell, path, lay=lay, extra=extra) if lay is not None
                        else run_scenario(t_cell, path))
             except (RuntimeError, ValueError):
+                why["failed"] += 1
                 ok = False
                 break
             if run.F_max >= t_cell.material.F_break:
+                why["tore"] += 1
                 ok = False
                 break
             label = f"case{index}-m{mv}"
@@ -188,7 +201,9 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
             return {"index": index, "kind": kind, "truth": truth_effects, "movements": movements,
                     "records": records, "true_u": true_u, "sensor": sensor, "world": world,
                     "lay": None if lay is None else vars(lay)}
-    raise RuntimeError(f"case {index}: no valid {kind} case in 20 draws")
+    raise NoCase(f"case {index} of seed {seed}: no valid {kind} case in {DRAWS} draws "
+                 f"({why['tore']} tore the sheet in a record, {why['failed']} failed to run, "
+                 f"{why['outside']} put the cell outside its parameters' bounds)")
 
 
 def score_case(case: dict, diag) -> dict:
@@ -358,7 +373,10 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
     rows = run_tasks(executor, _case_task, shared, todo, progress,
                      chunks_per_worker=1 if executor is None else 2)
     rows = sorted([r for i, r in done.items() if i < n] + rows, key=lambda r: r["index"])
+    undrawn = [r for r in rows if "no_case" in r]
+    rows = [r for r in rows if "no_case" not in r]
     out = summarise(rows, time.monotonic() - t0)
+    out["undrawn_cases"] = undrawn
     out["resumed_cases"] = len([i for i in done if i < n])
     true_n = WorldNumerics().n_masses if world == "dynamic" else 2 * n_masses + 1
     out.update({"seed": seed, "world": world, "floor": shared["floor"],
@@ -374,8 +392,14 @@ def _case_task(shared: dict, i: int) -> dict:
     from .engine import diagnose
     pattern = shared["pattern"]
     kind = pattern[i % len(pattern)]
-    case = make_case(i, kind, shared["seed"], shared["base"],
-                     world=shared.get("world", "finer-chain"))
+    try:
+        case = make_case(i, kind, shared["seed"], shared["base"],
+                         world=shared.get("world", "finer-chain"))
+    except NoCase as exc:                   # counted apart, never a case nor a crash
+        row = {"index": i, "kind": kind, "no_case": str(exc)}
+        if shared.get("partial"):
+            append_partial(shared["partial"], shared["key"], row)
+        return row
     library = EFFECT_NAMES
     if kind == "out_of_library":           # a library effect withheld (a world's own: none)
         library = tuple(x for x in EFFECT_NAMES if x != case["truth"][0][0])

@@ -3,10 +3,11 @@ in a JSON-lines file, and a file of another benchmark is refused (no ROS)."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import pytest
 
-from rheo_shaping.diagnosis.benchmark import run_benchmark
+from rheo_shaping.diagnosis.benchmark import DRAWS, _case_task, base_cell, run_benchmark
 from rheo_shaping.diagnosis.checkpoint import append_partial, read_partial
 
 
@@ -37,3 +38,25 @@ def test_a_partial_file_of_another_benchmark_is_refused(tmp_path):
         read_partial(str(part), {"seed": 2})
     part.write_text(part.read_text() + '{"key": {"seed": 1}, "row": {"ind')   # cut short
     assert read_partial(str(part), {"seed": 1}) == {0: {"index": 0}}
+
+
+def test_a_case_whose_every_draw_tears_is_left_out_and_said_not_a_crash(tmp_path):
+    # a sheet that breaks at 1 mN: every draw's first record tears it
+    base = base_cell(7, 20.0)
+    base = replace(base, material=replace(base.material, F_break=1e-3))
+    part = tmp_path / "b.json.partial.jsonl"
+    key = {"seed": 3}
+    row = _case_task({"seed": 3, "base": base, "pattern": ("single",), "jobs": 1,
+                      "partial": str(part), "key": key}, 0)
+    assert set(row) == {"index", "kind", "no_case"}
+    assert f"no valid single case in {DRAWS} draws ({DRAWS} tore the sheet" in row["no_case"]
+    assert read_partial(str(part), key) == {0: row}          # kept: a resumed run skips it
+    # the benchmark counts it apart: not a case of the summary, listed as not drawn
+    kw = dict(n_masses=7, process_time=20.0, kinds=("single",), seed=3)
+    real_key = {"seed": 3, "world": "finer-chain", "n_masses": 7, "process_time_s": 20.0,
+                "floor": "numerics", "initial_state": "settled", "pattern": ["single"]}
+    part2 = tmp_path / "c.json.partial.jsonl"
+    append_partial(str(part2), real_key, row)
+    out = run_benchmark(1, partial=str(part2), jobs=1, **kw)
+    assert out["cases"] == 0 and out["case_results"] == []
+    assert out["undrawn_cases"] == [row]
