@@ -7,7 +7,8 @@ from dataclasses import replace
 
 import pytest
 
-from rheo_shaping.diagnosis.benchmark import DRAWS, _case_task, base_cell, run_benchmark
+from rheo_shaping.diagnosis.benchmark import (DRAWS, _case_task, base_cell, run_benchmark,
+                                              summarise)
 from rheo_shaping.diagnosis.checkpoint import append_partial, read_partial
 
 
@@ -60,3 +61,14 @@ def test_a_case_whose_every_draw_tears_is_left_out_and_said_not_a_crash(tmp_path
     out = run_benchmark(1, partial=str(part2), jobs=1, **kw)
     assert out["cases"] == 0 and out["case_results"] == []
     assert out["undrawn_cases"] == [row]
+
+
+def test_the_summary_counts_none_as_the_verdict_none_and_names_apart():
+    # four effect-free cases: `none`, `none`, `unexplained`, a library name
+    rows = [{"index": i, "kind": "none", "verdict": v, "correct": v in ("none", "unexplained"),
+             "p_gap": 0.5, "simulations": 1, "baseline_error_u": {}}
+            for i, v in enumerate(("none", "none", "unexplained", "bending"))]
+    s = summarise(rows, 0.0)
+    assert s["no_effect_none_rate"] == 0.5                   # the verdict itself
+    assert s["no_effect_library_name_rate"] == 0.25
+    assert s["no_effect_false_name_rate"] == 0.25
