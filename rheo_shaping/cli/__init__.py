@@ -62,7 +62,14 @@ def main(argv: list[str] | None = None) -> int:
             import os
             with open(os.devnull, "w") as null, contextlib.redirect_stdout(null):
                 return int(args.func(args) or 0)
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()                 # a closed pipe shows here, not at the exit
+        return code
+    except BrokenPipeError:
+        # the reader went away (`rheo-shaping ... | head`): stop quietly, as `cat` does
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141                          # 128 + SIGPIPE, the shell's code for it
     except UserError as exc:
         print(f"rheo-shaping {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import pytest
 
@@ -67,3 +69,15 @@ def test_a_bad_namespace_is_named_with_what_was_expected(text):
     from rheo_shaping.cli.common import ros_namespace
     with pytest.raises(UserError, match=r"^--namespace = .*: expected a ROS namespace"):
         ros_namespace(text)
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly_not_with_a_traceback():
+    # stdout is a pipe whose reader is already gone (`rheo-shaping simulate --json | head -c0`)
+    code = ("import os, sys\n"
+            "r, w = os.pipe(); os.close(r); os.dup2(w, 1)\n"
+            "from rheo_shaping.cli import main\n"
+            "sys.exit(main(['simulate', '--json']))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert "Traceback" not in done.stderr and "BrokenPipeError" not in done.stderr
+    assert done.returncode == 141, done.stderr
