@@ -112,6 +112,38 @@ def measure_chain(run, path, truth: CellParams, ms: MeasurementParams, rng: np.r
     return replace(rec, profiles=profiles, wrench_xz=wrench)
 
 
+#: What each world's figures are held to (summary key -> (">=" or "<=", value)): the finer
+#: chain's from its own benchmark, the dynamic world's from issue 26 (docs/diagnosis.md).
+TARGETS = {
+    "finer-chain": {"top1_accuracy": (">=", 0.90), "top1_accuracy_beyond_noise": (">=", 0.90),
+                    "no_effect_false_name_rate": ("<=", 0.05),
+                    "no_effect_none_rate": (">=", 0.95),
+                    "out_of_library_unexplained_rate": (">=", 0.80),
+                    "holdout_gap_shrink_median": (">=", 0.70),
+                    "baseline_within_tolerance_rate": (">=", 1.0)},
+    "dynamic": {"top1_accuracy_beyond_noise": (">=", 0.85),
+                "no_effect_none_rate": (">=", 0.90),
+                "no_effect_library_name_rate": ("<=", 0.05),
+                "out_of_library_unexplained_or_flagged_rate": (">=", 0.80),
+                "out_of_library_name_unflagged_rate": ("<=", 0.10),
+                "holdout_gap_shrink_median": (">=", 0.70),
+                "interval_coverage": (">=", 0.80)},
+}
+
+
+def against_target(world: str, key: str, value: float | None) -> str:
+    """``">= 0.85 met"`` / ``"... short"`` for summary figure ``key`` of ``world``; ``""``
+    when it has no target, ``"... n/a"`` when there is no value."""
+    t = TARGETS.get(world, {}).get(key)
+    if t is None:
+        return ""
+    op, goal = t
+    if value is None:
+        return f"{op} {goal:.2f} n/a"
+    ok = value >= goal if op == ">=" else value <= goal
+    return f"{op} {goal:.2f} {'met' if ok else 'short'}"
+
+
 #: Draws per case before it is given up (:class:`NoCase`).
 DRAWS = 20
 

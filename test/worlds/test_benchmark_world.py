@@ -2,11 +2,15 @@
 ``--world`` option, and one case diagnosed end to end."""
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from rheo_shaping.cli import main
-from rheo_shaping.diagnosis.benchmark import WORLDS, base_cell, make_case, run_benchmark
+from rheo_shaping.diagnosis.benchmark import (WORLDS, against_target, base_cell, make_case,
+                                              run_benchmark)
 from rheo_shaping.params.cell import EffectsParams
 from rheo_shaping.sheet.effects import EFFECTS
 from rheo_shaping.worlds.params import WORLD_EFFECTS
@@ -90,3 +94,23 @@ def test_a_world_record_round_trips_as_a_record_directory(tmp_path):
     assert np.allclose(back.pose_xz, rec.pose_xz) and np.allclose(back.wrench_xz, rec.wrench_xz)
     assert len(back.profiles) == len(rec.profiles)
     assert all(np.allclose(a, b) for a, b in zip(back.profiles, rec.profiles))
+
+
+def test_the_dynamic_world_prints_issue_26s_targets_and_whether_each_is_met(tmp_path, capsys):
+    # two stored cases of seed 26003 (N 31, 70 s) resumed, nothing simulated: case 0, a mould
+    # friction left `unexplained`; case 1, effect-free and `none`
+    stored = (Path(__file__).parents[2] / "benchmarks" / "results"
+              / "diagnosis_benchmark_dynamic_floor_seed26003_n31.json.partial.jsonl")
+    lines = {json.loads(x)["row"]["index"]: x for x in stored.read_text().splitlines()}
+    save = tmp_path / "b.json"
+    Path(str(save) + ".partial.jsonl").write_text(lines[0] + "\n" + lines[1] + "\n")
+    assert main(["diagnose-benchmark", "--world", "dynamic", "--n", "2", "--seed", "26003",
+                 "--n-masses", "31", "--process-time", "70", "--quiet", "--save",
+                 str(save)]) == 0
+    out = {ln.split()[0]: ln.split()[1:] for ln in capsys.readouterr().out.splitlines()[1:]}
+    assert out["no_effect_none_rate"] == ["1.000", ">=", "0.90", "met"]
+    assert out["top1_accuracy"] == ["0.000"]                     # no target on this world
+    assert out["no_effect_library_name_rate"] == ["0.000", "<=", "0.05", "met"]
+    assert against_target("dynamic", "top1_accuracy_beyond_noise", 0.846) == ">= 0.85 short"
+    assert against_target("finer-chain", "no_effect_none_rate", 0.95) == ">= 0.95 met"
+    assert against_target("dynamic", "interval_coverage", None) == ">= 0.80 n/a"
