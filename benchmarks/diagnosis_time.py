@@ -104,10 +104,9 @@ def main(argv: list[str] | None = None) -> int:
 def dynamic_cases(args, indices: list[int]) -> int:
     """Time the dynamic-world benchmark's cases ``indices`` of ``args.seed`` as it diagnoses
     them (its library, floor and initial state), the records made before the clock starts."""
-    from rheo_shaping.diagnosis.benchmark import KINDS_PATTERN, base_cell, make_case
+    from rheo_shaping.diagnosis.benchmark import KINDS_PATTERN, base_cell, library_for, make_case
     from rheo_shaping.diagnosis.engine import diagnose
     from rheo_shaping.diagnosis.evaluate import default_executor
-    from rheo_shaping.sheet.effects import EFFECT_NAMES
     base = base_cell(args.n_masses, args.process_time)
     print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start; "
           f"dynamic world, seed {args.seed}; N = {args.n_masses}, {args.process_time:g} s "
@@ -117,8 +116,7 @@ def dynamic_cases(args, indices: list[int]) -> int:
         for i in indices:
             kind = KINDS_PATTERN[i % len(KINDS_PATTERN)]
             case = make_case(i, kind, args.seed, base, world="dynamic")
-            withheld = case["truth"][0][0] if kind == "out_of_library" else None
-            library = tuple(x for x in EFFECT_NAMES if x != withheld)
+            library = library_for(case)
             for _ in range(args.repeat):
                 t0 = time.perf_counter()
                 d = diagnose(case["records"][:2], case["records"][2:], library=library,

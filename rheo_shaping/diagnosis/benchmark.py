@@ -421,6 +421,14 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
     return out
 
 
+def library_for(case: dict) -> tuple[str, ...]:
+    """The effects a case is diagnosed with: the library, less an out-of-library case's own
+    effect when it is a library one (a world's own effect withholds nothing)."""
+    if case["kind"] != "out_of_library":
+        return EFFECT_NAMES
+    return tuple(x for x in EFFECT_NAMES if x != case["truth"][0][0])
+
+
 def _case_task(shared: dict, i: int) -> dict:
     """Case ``i``: its records (its own seed), the diagnosis, the score (module-level: it
     pickles to a worker)."""
@@ -435,9 +443,7 @@ def _case_task(shared: dict, i: int) -> dict:
         if shared.get("partial"):
             append_partial(shared["partial"], shared["key"], row)
         return row
-    library = EFFECT_NAMES
-    if kind == "out_of_library":           # a library effect withheld (a world's own: none)
-        library = tuple(x for x in EFFECT_NAMES if x != case["truth"][0][0])
+    library = library_for(case)
     t1 = time.monotonic()
     diag = diagnose(case["records"][:2], case["records"][2:], library=library,
                     jobs=shared["jobs"], floor=shared.get("floor", "numerics"),
