@@ -238,6 +238,10 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
                  f"{why['outside']} put the cell outside its parameters' bounds)")
 
 
+#: Verdicts that name nothing: no gap, or a gap nothing accounts for.
+NAMES_NOTHING = ("none", "unexplained")
+
+
 def score_case(case: dict, diag) -> dict:
     names = [n for n, _ in case["truth"]]
     verdict = diag.verdict
@@ -286,9 +290,14 @@ def score_case(case: dict, diag) -> dict:
                                            if k in {s.name for s in SHEET})
     fl = diag.floor or {}
     row["floor_source"] = fl.get("source")
-    row["verdict_beyond_floor"] = (fl.get("verdict", {}).get("beyond_floor")
-                                   or fl.get("verdict_holdout", {}).get("beyond_floor")
-                                   if vf else None)
+    # what the verdict leaves against the floor (fit or holdout records beyond it), for a
+    # named effect or pair and for the measurement chain's hypothesis alike: the chain's
+    # knobs beyond their tolerances are a name too (the report flags their remainder the
+    # same way)
+    row["verdict_beyond_floor"] = (bool(fl.get("verdict", {}).get("beyond_floor")
+                                        or fl.get("verdict_holdout", {}).get("beyond_floor"))
+                                   if verdict not in NAMES_NOTHING and "verdict" in fl
+                                   else None)
     row["initial_state"] = (diag.initial_state or {}).get("mode")
     if case["kind"] == "single" and row["correct"]:
         n, v = case["truth"][0]
@@ -360,8 +369,9 @@ def summarise(rows: list[dict], wall: float) -> dict:
             sum(r["verdict"] == "unexplained" or bool(r.get("verdict_beyond_floor"))
                 for r in by["out_of_library"]) / len(by["out_of_library"])
             if by["out_of_library"] else None),
+        # a name: an effect, a pair or the measurement chain (its knobs beyond tolerance)
         "out_of_library_name_unflagged_rate": (
-            sum(r["verdict"] not in ("none", "unexplained", "measurement chain")
+            sum(r["verdict"] not in NAMES_NOTHING
                 and not r.get("verdict_beyond_floor") for r in by["out_of_library"])
             / len(by["out_of_library"]) if by["out_of_library"] else None),
         "interval_coverage": frac(single, "in_interval"),

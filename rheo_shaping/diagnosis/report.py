@@ -254,7 +254,10 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
     if vf:
         pv = f"{vf.p:.3g}" if vf.p > 0 else "< 1e-300"
         lines.append(f"Strength: likelihood ratio {vf.LR:.1f} on {vf.k} parameter(s), p = {pv} "
-                     f"(Bonferroni over the candidates); what it leaves: J - 1 = {vf.J - 1:.4f} "
+                     f"(Bonferroni over the candidates"
+                     + ("; reported, not asked: against a model-form floor the naming rule "
+                        "decides" if model_form else "")
+                     + f"); what it leaves: J - 1 = {vf.J - 1:.4f} "
                      f"(fit), "
                      f"{_fmt(vf.J_holdout - 1 if math.isfinite(vf.J_holdout) else None, 1, 4)} "
                      "(holdout).")

@@ -114,6 +114,11 @@ def pairs_stage(ctx: FitContext, base: Baseline, gap: GapTest,
     return pairs
 
 
+def by_misfit(c: Explanation) -> tuple:
+    """The lead against a model-form floor: checked first, then the least misfit J."""
+    return (not c.checked, c.J if math.isfinite(c.J) else math.inf)
+
+
 @dataclass(frozen=True)
 class Verdict:
     """Stage 7: what the diagnosis says and the explanation it rests on."""
@@ -131,12 +136,17 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
     beats the chain's hypothesis; else the chain's hypothesis if it does; else the best pair;
     else ``unexplained`` (``none`` when no gap is left).
 
-    "Explains the gap": with the numerics floor (``rule`` None) the remainder must be
-    adequate (within the null plus the numerics allowance, :func:`check.adequate`).  With a
-    model-form floor, ``rule(explanation) -> bool`` (:func:`floor.clear_name`: most of the
-    baseline's excess on the fit and holdout records, clearly more than the best other
-    explanation) decides instead, and what the named one leaves is reported against the
-    floor (flagged when beyond it), never a reason to refuse a cause that explains most."""
+    "Explains the gap": with the numerics floor (``rule`` None) significant (likelihood
+    ratio, p <= ALPHA) and adequate (within the null plus the numerics allowance,
+    :func:`check.adequate`), the lead the best by (p, J).  With a model-form floor,
+    ``rule(explanation) -> bool`` (:func:`floor.clear_name`: most of the baseline's excess
+    on the fit and holdout records, clearly more than the best other explanation) decides
+    alone, the lead the checked effect of least J (:func:`by_misfit`); what the named one
+    leaves is reported against the floor (flagged when beyond it), never a reason to refuse
+    a cause that explains most.  The likelihood ratio is reported there, not asked: it
+    counts each observable's residuals as independent noise, while against a model-form
+    floor they are mostly a systematic discrepancy (docs/diagnosis.md, "Naming against the
+    floor")."""
     n_s, has_h, rp = ctx.n_s, bool(ctx.hold_d), gap.replay
     effects, base_c = cands.effects, cands.base_c
     pairs: list[Explanation] = []
@@ -149,11 +159,13 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
         c.adequate = c.checked and adequate(c, base.J_h, has_h, base_c, rp)
 
     def explains(c: Explanation) -> bool:
-        if not (c.checked and c.p <= stats.ALPHA):
+        if not c.checked:
             return False
-        return c.adequate if rule is None else bool(rule(c))
+        if rule is None:
+            return c.p <= stats.ALPHA and c.adequate
+        return bool(rule(c))
     chain_ok = gap.left and explains(chain_c)
-    ranked = sorted(effects, key=rank_key)
+    ranked = sorted(effects, key=rank_key if rule is None else by_misfit)
     if gap.left and ranked:
         lead = ranked[0]
         if explains(lead) and not (chain_ok and chain_c.J < lead.J):

@@ -72,3 +72,20 @@ def test_the_summary_counts_none_as_the_verdict_none_and_names_apart():
     assert s["no_effect_none_rate"] == 0.5                   # the verdict itself
     assert s["no_effect_library_name_rate"] == 0.25
     assert s["no_effect_false_name_rate"] == 0.25
+
+
+def test_out_of_library_counts_the_measurement_chain_as_a_name_flagged_or_not():
+    # six out-of-library cases; the chain's hypothesis (its knobs beyond tolerance) is a
+    # name like an effect: it counts as flagged when what it leaves is beyond the floor and
+    # as a name without the flag when it is not
+    verdicts = (("unexplained", None), ("measurement chain", True),
+                ("measurement chain", False), ("bending", True), ("bending", False),
+                ("none", None))
+    rows = [{"index": i, "kind": "out_of_library", "verdict": v, "verdict_beyond_floor": f,
+             "correct": v == "unexplained", "p_gap": 0.01, "simulations": 1,
+             "baseline_error_u": {}} for i, (v, f) in enumerate(verdicts)]
+    s = summarise(rows, 0.0)
+    assert s["out_of_library_unexplained_or_flagged_rate"] == 3 / 6
+    assert s["out_of_library_name_unflagged_rate"] == 2 / 6
+    assert s["out_of_library_unexplained_rate"] == 1 / 6
+    assert s["out_of_library_wrong_name_rate"] == 2 / 6      # sheet effects named
