@@ -163,9 +163,18 @@ def test_monitor_killed_mid_run_planner_stops(ros, procs, tmp_path):
     took = c.wait(lambda: c.state() in ("stopping", "retracting",
                   "holding"), 5.0, "the planner to stop")
     log = "".join(p.text() for p in procs.all if p.exe == "planner")
-    print(f"\nmonitor killed: planner stopped after {took:.3f} s (monitor_timeout 0.5 s)")
     assert "monitor lost" in log
-    assert took <= 0.5 + 0.5
+    # The planner's own measure of the heartbeat's silence when it stopped (its steady
+    # clock): the observer's arrival time adds this test process's scheduling on a busy
+    # machine (seen: 1.49 s with two benchmark workers and the other stages running)
+    found = re.search(r"no ready heartbeat from the monitor for ([0-9.]+) s", log)
+    assert found, log
+    age = float(found.group(1))
+    print(f"\nmonitor killed: the planner stopped after {age:.3f} s of silence by its clock "
+          f"(monitor_timeout 0.5 s), seen by the test {took:.3f} s after the kill")
+    # monitor_timeout, one supervision period (0.05 s), and one more check when the planner
+    # itself stalled for over the timeout (StallGuard)
+    assert age <= 0.5 + 0.05 + 0.5, log
 
 
 def test_planner_restarted_mid_run_does_not_resume(ros, procs, tmp_path):
