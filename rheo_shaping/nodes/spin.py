@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import signal
 import sys
+from pathlib import Path
 from typing import Callable, Iterable
 
 import rclpy
@@ -45,20 +46,41 @@ class _StopSignal:
     call argument '0' to Python object"), possibly before rclpy's own thread has shut the
     context down (seen in CI: the simulator ended with exit 1 on the test's SIGINT).
     ``received`` tells :func:`run_node` that such an error is the stop that was asked for.
+
+    Once ``rclpy.init`` has returned (``rclpy_stops``), a signal that lands in rclpy's own
+    Python code raises nothing: rclpy's handler, which ran first, shuts the context down and
+    that ends the spin (or the next rcl call of a node being built).  A KeyboardInterrupt
+    raised there cut an executor's ``Task`` short in its constructor, and the half-built
+    object's ``__del__`` printed a traceback at exit ("'Task' object has no attribute
+    '_exception'"; seen in CI, the gap watch stopped on a busy machine).
     """
 
     def __init__(self) -> None:
         self.received: int | None = None
+        self.rclpy_stops = False
 
-    def __call__(self, signum, frame) -> None:  # noqa: ARG002 - a signal handler's signature
+    def __call__(self, signum, frame) -> None:
         first = self.received is None
         self.received = signum
-        if first:                     # a second signal finds the stop under way: the node
-            raise KeyboardInterrupt   # is tearing down and must not be cut short there
+        # a second signal finds the stop under way: the node is tearing down and must not
+        # be cut short there
+        if first and not (self.rclpy_stops and in_rclpy(frame)):
+            raise KeyboardInterrupt
 
     def install(self) -> None:
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, self)
+
+
+#: rclpy's package directory: a frame whose code lies there is rclpy's own (:func:`in_rclpy`).
+RCLPY_DIR = str(Path(rclpy.__file__).resolve().parent)
+
+
+def in_rclpy(frame) -> bool:
+    """Whether ``frame`` (where a signal handler interrupted the main thread) runs rclpy's
+    own Python code."""
+    return frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(
+        RCLPY_DIR + "/")
 
 
 class Yielded(Exception):
@@ -110,6 +132,7 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
         # from here on rclpy's handlers (installed by init, chaining to these) stop the node
         stop.install()
         rclpy.init(args=args)
+        stop.rclpy_stops = True
     except KeyboardInterrupt:
         return 0
     except Exception as exc:          # noqa: BLE001  rcl refuses the arguments (RCLError)

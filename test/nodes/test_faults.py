@@ -168,13 +168,19 @@ def test_monitor_killed_mid_run_planner_stops(ros, procs, tmp_path):
     # clock): the observer's arrival time adds this test process's scheduling on a busy
     # machine (seen: 1.49 s with two benchmark workers and the other stages running)
     found = re.search(r"no ready heartbeat from the monitor for ([0-9.]+) s", log)
-    assert found, log
-    age = float(found.group(1))
-    print(f"\nmonitor killed: the planner stopped after {age:.3f} s of silence by its clock "
-          f"(monitor_timeout 0.5 s), seen by the test {took:.3f} s after the kill")
-    # monitor_timeout, one supervision period (0.05 s), and one more check when the planner
-    # itself stalled for over the timeout (StallGuard)
-    assert age <= 0.5 + 0.05 + 0.5, log
+    if found:
+        age = float(found.group(1))
+        print(f"\nmonitor killed: the planner stopped after {age:.3f} s of silence by its "
+              f"clock (monitor_timeout 0.5 s), seen by the test {took:.3f} s after the kill")
+        # monitor_timeout, one supervision period (0.05 s), and one more check when the
+        # planner itself stalled for over the timeout (StallGuard)
+        assert age <= 0.5 + 0.05 + 0.5, log
+    else:
+        # the simulator missed the monitor's checks first (its own steady clock, the same
+        # 0.5 s) and held the tool; the planner stopped on that
+        assert re.search(r"monitor lost: no \S+ for over 0\.5 s", log), log
+        print(f"\nmonitor killed: the simulator held first; the planner stopped, seen by the "
+              f"test {took:.3f} s after the kill")
 
 
 def test_planner_restarted_mid_run_does_not_resume(ros, procs, tmp_path):

@@ -10,6 +10,7 @@ Each case runs in a process of its own (run_node installs signal handlers and in
 """
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 import textwrap
@@ -76,3 +77,29 @@ def test_a_stop_signal_handled_late_in_the_teardown_does_not_cut_it_short():
 
     _teardown(Node())
     assert calls == ["destroy", "destroy"]
+
+
+def test_a_stop_signal_in_rclpys_own_code_raises_nothing_once_rclpy_stops_the_node():
+    # a KeyboardInterrupt raised in the executor's Task constructor left a half-built Task
+    # whose __del__ printed a traceback at exit (CI, the gap watch stopped on a busy
+    # machine); after rclpy.init, rclpy's own handler shuts the context down instead
+    from rclpy.task import Task
+    from rheo_shaping.nodes.spin import _StopSignal, in_rclpy
+    frames = {}
+
+    def handler():
+        frames["rclpy"] = sys._getframe(1)           # Task.__call__, rclpy's code
+    Task(handler)()
+    ours = sys._getframe()
+    assert in_rclpy(frames["rclpy"]) and not in_rclpy(ours) and not in_rclpy(None)
+    before_init = _StopSignal()
+    with pytest.raises(KeyboardInterrupt):           # before rclpy.init: no one else stops it
+        before_init(signal.SIGINT, frames["rclpy"])
+    stop = _StopSignal()
+    stop.rclpy_stops = True
+    stop(signal.SIGINT, frames["rclpy"])
+    assert stop.received == signal.SIGINT
+    in_ours = _StopSignal()
+    in_ours.rclpy_stops = True
+    with pytest.raises(KeyboardInterrupt):           # in this package's code: as before
+        in_ours(signal.SIGTERM, ours)
