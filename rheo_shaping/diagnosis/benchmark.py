@@ -240,13 +240,14 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
 
 #: Verdicts that name nothing: no gap, or a gap nothing accounts for.
 NAMES_NOTHING = ("none", "unexplained")
+#: Verdicts that name no effect of the sheet (the measurement chain's hypothesis included).
+NAMES_NO_EFFECT = NAMES_NOTHING + ("measurement chain",)
 
 
 def score_case(case: dict, diag) -> dict:
     names = [n for n, _ in case["truth"]]
     verdict = diag.verdict
-    named = (verdict.split("+") if verdict not in ("none", "unexplained", "measurement chain")
-             else [])
+    named = verdict.split("+") if verdict not in NAMES_NO_EFFECT else []
     vf = diag.verdict_fit
     row = {"index": case["index"], "kind": case["kind"], "movements": case["movements"],
            "truth": {n: list(v) for n, v in case["truth"]}, "sensor": case["sensor"],
@@ -299,6 +300,8 @@ def score_case(case: dict, diag) -> dict:
                                    if verdict not in NAMES_NOTHING and "verdict" in fl
                                    else None)
     row["initial_state"] = (diag.initial_state or {}).get("mode")
+    if "compared" in (diag.initial_state or {}):
+        row["initial_compared"] = diag.initial_state["compared"]
     if case["kind"] == "single" and row["correct"]:
         n, v = case["truth"][0]
         fit = np.asarray(vf.values[n], float)
@@ -349,8 +352,7 @@ def summarise(rows: list[dict], wall: float) -> dict:
         # the same among the cases whose effect the calibrated baseline does not absorb
         "out_of_library_unexplained_rate_beyond_noise": frac(ool_moved),
         "out_of_library_beyond_noise_cases": len(ool_moved),
-        "out_of_library_wrong_name_rate": (sum(r["verdict"] not in ("none", "unexplained",
-                                                                    "measurement chain")
+        "out_of_library_wrong_name_rate": (sum(r["verdict"] not in NAMES_NO_EFFECT
                                                for r in by["out_of_library"])
                                            / len(by["out_of_library"])
                                            if by["out_of_library"] else None),

@@ -29,7 +29,7 @@ from . import stats
 from .candidates import PROBES, REFINE_STEPS, Explanation, linear_columns, magnitude
 from .context import Baseline, FitContext, Group, forward_jacobian
 from .evaluate import Task, all_ok, apply
-from .laid_length import MIN_FRAMES, fit_offsets, window_frames, with_offsets
+from .laid_length import fit_offsets, length_fitted, with_offsets
 
 #: One refinement of the diagnosis's discretisation: factors on the solver's steps (the chain
 #: goes from N to 2 N + 1 masses).
@@ -263,7 +263,7 @@ def holdout_lengths(cands: list[Explanation], ctx: FitContext) -> None:
     counted twice (seed 26004 case 78: +0.54 mm on all three records under thinning, holdout
     J 1.08 -> 3.66).  Nothing to do without laid holdout records."""
     H, nh, n_s = ctx.H, len(ctx.hold_d), ctx.n_s
-    if H is None or not any(len(window_frames(d)) >= MIN_FRAMES for d in ctx.hold_d):
+    if H is None or not any(length_fitted(d) for d in ctx.hold_d):
         return
     todo = [c for c in cands if c.checked and math.isfinite(c.J) and not c.chain_free
             and c.baseline_u is not None]
@@ -277,8 +277,8 @@ def holdout_lengths(cands: list[Explanation], ctx: FitContext) -> None:
     for i, c in enumerate(todo):
         sh = shifts[i * nd:(i + 1) * nd]
         common = common_shift(ctx.fit_d, sh[:nf])
-        data += with_offsets(ctx.hold_d, [x - common if len(window_frames(d)) >= MIN_FRAMES
-                                          else 0.0 for d, x in zip(ctx.hold_d, sh[nf:])])
+        data += with_offsets(ctx.hold_d, [x - common if length_fitted(d) else 0.0
+                                          for d, x in zip(ctx.hold_d, sh[nf:])])
         params += params_all[i * nd + nf:(i + 1) * nd]
     outs = ctx.run([Task(d, p) for d, p in zip(data, params)])
     for i, c in enumerate(todo):
@@ -290,10 +290,10 @@ def holdout_lengths(cands: list[Explanation], ctx: FitContext) -> None:
 
 
 def common_shift(fit_d, shifts) -> float:
-    """The mean rest-length shift [m] of the fit records whose lengths are fitted (laid, with
-    ``MIN_FRAMES`` frames in the window), 0 when none is: the part of a cell's refit every
+    """The mean rest-length shift [m] of the fit records whose lengths are fitted
+    (:func:`~.laid_length.length_fitted`), 0 when none is: the part of a cell's refit every
     record asks alike, which the knobs carry (:func:`holdout_lengths`)."""
-    own = [float(x) for d, x in zip(fit_d, shifts) if len(window_frames(d)) >= MIN_FRAMES]
+    own = [float(x) for d, x in zip(fit_d, shifts) if length_fitted(d)]
     return float(np.mean(own)) if own else 0.0
 
 

@@ -107,22 +107,26 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
                                        float(round(max(r.duration for r in reference))), path)
     library = tuple(library)
     data = [RecordData.of(r, initial_state) for r in list(records) + list(holdout)]
-    data = [replace(d, initial=s) for d, s in zip(data, pool(
-        [d.initial for d in data], initial_state == "auto"))]
+    read = pool([d.initial for d in data], initial_state == "auto")
+    nf = len(records)
     with stats.using_null(None), Runner(executor, jobs, progress) as run:
-        data = laid_lengths(data, [d.record.scenario for d in data], run)
-        nominal, ctx = nominal_stage(data, len(records), run, sheet_lim)
+        start = _start([replace(d, initial=s) for d, s in zip(data, read)], nf, run, sheet_lim)
+        data, nominal, ctx, base = start
+        choice = None
+        if initial_state == "auto" and all(s is not None and s.mode == "settled"
+                                           for s in read):
+            # read as settled: the sheet hardly moved before the tool touched, which a sheet
+            # laid close to its resting shape does too; the start whose baseline fits the
+            # fit records better is taken (docs/diagnosis.md, Initial state)
+            run.stage("the laid start, to compare")
+            laid = _start([replace(d, initial=replace(s, mode="laid"))
+                           for d, s in zip(data, read)], nf, run, sheet_lim)
+            choice = {"settled_J": start[3].J, "laid_J": laid[3].J}
+            if laid[3].J < start[3].J:
+                data, nominal, ctx, base = laid
         fl = _floor((floor, scale, bool(reference)), data, ctx.nf, len(ctx.hold_d), ctx.sp,
                     ctx.sf)
         stats.using_null_now(fl.sample)              # the gap test and adequacy use it
-        base = baseline_stage(ctx, nominal)
-        if any(d.initial is not None and d.initial.mode == "laid" for d in data):
-            # the laid lengths again, with the calibrated cell (its bonds and sag move them),
-            # and the baseline from there on the same Jacobian
-            run.stage("laid lengths and baseline again")
-            data = laid_lengths(data, [ctx.params(d, base.u_s) for d in data], run)
-            nominal, ctx = nominal_stage(data, len(records), run, sheet_lim)
-            base = baseline_stage(ctx, nominal, base.A_sheet)
         gap = gap_stage(ctx, base)
         below = fl_mod.within_tolerance(base.parts, ctx.sp, ctx.sf, tolerance)
         gap = replace(gap, below_tolerance=below)
@@ -148,11 +152,27 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         after = after_stage(ctx, base, verdict, chain_c)
         runs = run.runs
     diag = _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs)
-    diag.initial_state = initial_summary(data)
+    diag.initial_state = initial_summary(data, choice)
     diag.baseline_mode = baseline
     diag.floor = _floor_report(fl, diag, named, naming, below, tolerance, ctx.sp,
                                ctx.sf, base.solver.A, cands.responses, base.parts)
     return diag
+
+
+def _start(data: list, nf: int, run: Runner, sheet_lim: float) -> tuple:
+    """Stages 1-2 from ``data``'s initial states: each laid record's rest length, the nominal
+    models and the baseline; with laid records, their lengths again with the calibrated cell
+    (its bonds and sag move them) and the baseline from there on the same Jacobian.
+    Returns (data, nominal, fit context, baseline)."""
+    data = laid_lengths(data, [d.record.scenario for d in data], run)
+    nominal, ctx = nominal_stage(data, nf, run, sheet_lim)
+    base = baseline_stage(ctx, nominal)
+    if any(d.initial is not None and d.initial.mode == "laid" for d in data):
+        run.stage("laid lengths and baseline again")
+        data = laid_lengths(data, [ctx.params(d, base.u_s) for d in data], run)
+        nominal, ctx = nominal_stage(data, nf, run, sheet_lim)
+        base = baseline_stage(ctx, nominal, base.A_sheet)
+    return data, nominal, ctx, base
 
 
 def _floor(spec, data, nf: int, nh: int, sp: float, sf: float) -> "fl_mod.Floor":

@@ -133,7 +133,7 @@ def default_executor(jobs: int | None = None) -> Executor:
 #: that has nothing to run (the replay misfit of a Maxwell cell, the effects when no gap
 #: is left) is passed over.
 STAGES = ("laid sheets' lengths", "nominal models", "baseline Jacobian", "baseline fit",
-          "laid lengths and baseline again",
+          "laid lengths and baseline again", "the laid start, to compare",
           "replay misfit (Kelvin cell)", "effect probes", "candidate checks", "verdict runs")
 
 

@@ -281,10 +281,15 @@ def estimate(record: Record, mode: str = "auto", seed: int = 0) -> InitialState:
                         noise, motion, t_c, float(sc.sheet.excess_length), ends=ends)
 
 
-def initial_summary(data) -> dict:
-    """How the records' models started: the common mode and each record's reading."""
+def initial_summary(data, choice: dict | None = None) -> dict:
+    """How the records' models started: the common mode and each record's reading;
+    ``choice``: the baselines' misfits J of the fit records from either start, when ``auto``
+    read the records as settled and compared the two ({"settled_J", "laid_J"})."""
     states = {d.record.name: d.initial for d in data}
     modes = {s.mode if s is not None else "settled" for s in states.values()}
-    return {"mode": modes.pop() if len(modes) == 1 else "mixed",
-            "records": {n: (s.as_dict() if s is not None else {"mode": "settled"})
-                        for n, s in states.items()}}
+    out = {"mode": modes.pop() if len(modes) == 1 else "mixed",
+           "records": {n: (s.as_dict() if s is not None else {"mode": "settled"})
+                       for n, s in states.items()}}
+    if choice is not None:
+        out["compared"] = dict(choice)
+    return out

@@ -87,12 +87,18 @@ def _vertex(x: np.ndarray, c: np.ndarray, k: int) -> float:
     return float(np.clip(-b / (2 * a), x[k - 1], x[k + 1])) if a > 0 else float(x[k])
 
 
+def length_fitted(d: RecordData) -> bool:
+    """Whether a record's rest-length offset is fitted: it is laid, with ``MIN_FRAMES``
+    frames or more in its window."""
+    return len(window_frames(d)) >= MIN_FRAMES
+
+
 def fit_offsets(data: Sequence[RecordData], params: Sequence[CellParams],
                 batch: Callable[[Callable, list], list] | None = None) -> list[float]:
     """Each laid record's rest-length offset [m] (0 for a settled one or one without
     ``MIN_FRAMES`` frames in its window), fitted for cell ``params[i]``; every record's
     grid runs in one ``batch(fn, items)`` (a :meth:`~.evaluate.Runner.map`; None: here)."""
-    todo = [i for i, d in enumerate(data) if len(window_frames(d)) >= MIN_FRAMES]
+    todo = [i for i, d in enumerate(data) if length_fitted(d)]
     out = [0.0] * len(data)
     if not todo:
         return out
@@ -124,7 +130,7 @@ def laid_lengths(data: Sequence[RecordData], params: Sequence[CellParams],
     """Stage 1 of a diagnosis (:data:`~.evaluate.STAGES`): ``data`` with every laid record's
     rest-length offset fitted for cell ``params[i]`` on ``run`` (an
     :class:`~.evaluate.Runner`; its executor and progress)."""
-    if not any(len(window_frames(d)) >= MIN_FRAMES for d in data):
+    if not any(length_fitted(d) for d in data):
         return list(data)
     run.stage("laid sheets' lengths")
     return with_offsets(data, fit_offsets(data, params, run.map))
@@ -138,4 +144,5 @@ def with_offsets(data: Sequence[RecordData], offsets: Sequence[float]) -> list[R
             for d, o in zip(data, offsets)]
 
 
-__all__ = ["WINDOW", "GRID", "fit_offsets", "laid_lengths", "with_offsets", "window_misfit"]
+__all__ = ["WINDOW", "GRID", "fit_offsets", "laid_lengths", "length_fitted", "with_offsets",
+           "window_misfit"]

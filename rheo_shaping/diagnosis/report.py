@@ -207,7 +207,16 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
                  f"effect-free records (95 % of them stay below "
                  f"{_fmt(q95, 1, 4)}): p_gap = {diag.p_gap:.3g}.")
     ini = diag.initial_state or {}
-    if ini.get("mode") in ("laid", "mixed"):
+    cmp = ini.get("compared")
+    if cmp is not None:
+        motion = np.median([r.get("motion_noise_units", 0.0) for r in ini["records"].values()])
+        lines.append(f"Initial state from the records: the sheet hardly moves before the tool "
+                     f"touches (median {motion:.1f} noise units), as a settled sheet and one "
+                     f"laid close to its resting shape both do. The baseline from the "
+                     f"settled drape leaves J = {cmp['settled_J']:.3f}, from the first frame's "
+                     f"sheet released J = {cmp['laid_J']:.3f}: the models start "
+                     f"{'laid' if ini.get('mode') == 'laid' else 'settled'}.")
+    elif ini.get("mode") in ("laid", "mixed"):
         laid = [r for r in ini["records"].values() if r.get("mode") == "laid"]
         lines.append(f"Initial state from the records: {len(laid)} record(s) begin with the "
                      f"sheet moving before the tool touches (median "

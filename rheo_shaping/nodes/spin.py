@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import signal
 import sys
+import sysconfig
 from pathlib import Path
 from typing import Callable, Iterable
 
@@ -76,11 +77,32 @@ class _StopSignal:
 RCLPY_DIR = str(Path(rclpy.__file__).resolve().parent)
 
 
+#: The standard library's directory: its frames are stepped past (:func:`in_rclpy`).
+STDLIB_DIR = str(Path(sysconfig.get_paths()["stdlib"]).resolve())
+
+
+def _stdlib(path: str) -> bool:
+    """Whether source file ``path`` (resolved) is the standard library's (frozen modules
+    included; installed packages, which may lie beneath it, not)."""
+    return path.startswith("<frozen ") or (
+        path.startswith(STDLIB_DIR + "/")
+        and not {"site-packages", "dist-packages"} & set(Path(path).parts))
+
+
 def in_rclpy(frame) -> bool:
     """Whether ``frame`` (where a signal handler interrupted the main thread) runs rclpy's
-    own Python code."""
-    return frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(
-        RCLPY_DIR + "/")
+    own Python code, or the standard library's called from it (``inspect`` or ``enum`` in a
+    ``Task``'s constructor): the first frame out from ``frame`` that is not the standard
+    library's is rclpy's."""
+    while frame is not None:
+        name = frame.f_code.co_filename
+        path = name if name.startswith("<") else str(Path(name).resolve())
+        if path.startswith(RCLPY_DIR + "/"):
+            return True
+        if not _stdlib(path):
+            return False
+        frame = frame.f_back
+    return False
 
 
 class Yielded(Exception):

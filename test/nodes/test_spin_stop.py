@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+from types import SimpleNamespace
 
 import pytest
 
@@ -103,3 +104,27 @@ def test_a_stop_signal_in_rclpys_own_code_raises_nothing_once_rclpy_stops_the_no
     in_ours.rclpy_stops = True
     with pytest.raises(KeyboardInterrupt):           # in this package's code: as before
         in_ours(signal.SIGTERM, ours)
+
+
+def _frame(filename: str, back=None) -> SimpleNamespace:
+    """A stand-in for an interrupted frame: what in_rclpy reads of one (f_code.co_filename,
+    f_back)."""
+    return SimpleNamespace(f_code=SimpleNamespace(co_filename=filename), f_back=back)
+
+
+def test_a_stop_signal_in_the_standard_library_counts_for_the_code_that_called_it():
+    # a signal landing in inspect or enum, called from a Task's constructor, is rclpy's: the
+    # first frame out that is not the standard library's decides
+    import inspect
+    import enum
+    import rclpy.task
+    from rheo_shaping.nodes import spin
+    ours = _frame(__file__)
+    rclpys = _frame(rclpy.task.__file__, ours)
+    assert spin.in_rclpy(_frame(inspect.__file__, _frame(enum.__file__, rclpys)))
+    assert spin.in_rclpy(_frame("<frozen importlib._bootstrap>", rclpys))
+    assert not spin.in_rclpy(_frame(inspect.__file__, ours))
+    assert not spin.in_rclpy(_frame(inspect.__file__))      # the standard library alone
+    # a package installed beneath the standard library's directory is not the library's
+    beneath = f"{spin.STDLIB_DIR}/site-packages/somepkg/mod.py"
+    assert not spin.in_rclpy(_frame(beneath, rclpys))
