@@ -201,6 +201,7 @@ def test_auto_reading_settled_takes_the_start_whose_baseline_fits_better():
     ``MOVING``) fits far better from its first frames."""
     from rheo_shaping.diagnosis.benchmark import base_cell, make_case
     from rheo_shaping.diagnosis.engine import diagnose
+    from rheo_shaping.diagnosis.report import markdown
     p = CellParams()
     p = replace(p, sheet=replace(p.sheet, n_masses=15))
     own = [synthesize_record(replace(p, movement=replace(p.movement, number=m,
@@ -219,3 +220,6 @@ def test_auto_reading_settled_takes_the_start_whose_baseline_fits_better():
     both = d.initial_state["compared"]
     assert d.initial_state["mode"] == "laid" and d.J_base == both["laid_J"]
     assert both["laid_J"] - 1.0 < 0.8 * (both["settled_J"] - 1.0)  # measured 0.73 vs 1.67
+    text = markdown(d, {})
+    assert (f"settled drape leaves J = {both['settled_J']:.3f}" in text
+            and f"released J = {both['laid_J']:.3f}: the models start laid" in text)
