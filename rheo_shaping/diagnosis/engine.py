@@ -119,8 +119,9 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
             # laid close to its resting shape does too; the start whose baseline fits the
             # fit records better is taken (docs/diagnosis.md, Initial state)
             run.stage("the laid start, to compare")
-            laid = _start([replace(d, initial=replace(s, mode="laid"))
-                           for d, s in zip(data, read)], nf, run, sheet_lim)
+            as_laid = [None if s is None else replace(s, mode="laid") for s in read]
+            laid = _start([replace(d, initial=s) for d, s in zip(data, as_laid)], nf, run,
+                          sheet_lim)
             choice = {"settled_J": start[3].J, "laid_J": laid[3].J}
             if laid[3].J < start[3].J:
                 data, nominal, ctx, base = laid
