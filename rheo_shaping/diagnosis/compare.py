@@ -20,6 +20,7 @@ from ..records.record import Record
 from ..sheet.paths import PolylinePath, ToolPath
 from ..sheet.simulation import RunResult, run_scenario
 from .initial_state import InitialState, estimate
+from .kernel import project
 
 #: Width [s] of the moving average applied to the measured pose before it drives the model.
 POSE_WINDOW = 0.4
@@ -100,6 +101,7 @@ class Residuals:
     delta_measured: float      # m, Delta of the last measured frame
     delta_model: float         # m, Delta of the model at that time
     run: RunResult
+    normal: np.ndarray | None = None   # (P, 2) unit left normal of the model at each foot point
 
 
 def simulate(params: CellParams, data: RecordData) -> RunResult:
@@ -123,24 +125,7 @@ def residuals(data: RecordData, run: RunResult) -> Residuals:
     """Profile, force and Delta residuals of a record against a model run."""
     rec = data.record
     lines = polylines_at(run, rec.profile_t)                  # (F, K, 2)
-    a = lines[data.point_frame, :-1]                           # (P, S, 2)
-    seg = lines[data.point_frame, 1:] - a
-    L2 = np.einsum("psk,psk->ps", seg, seg)
-    rel = data.point_xz[:, None, :] - a
-    s = np.clip(np.einsum("psk,psk->ps", rel, seg) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
-    foot = a + s[..., None] * seg
-    d2 = np.einsum("psk,psk->ps", data.point_xz[:, None,
-                   :] - foot, data.point_xz[:, None, :] - foot)
-    j = np.argmin(d2, axis=1)
-    idx = np.arange(len(j))
-    seg_j, foot_j = seg[idx, j], foot[idx, j]
-    cross = (seg_j[:, 0] * (data.point_xz[:, 1] - foot_j[:, 1])
-             - seg_j[:, 1] * (data.point_xz[:, 0] - foot_j[:, 0]))
-    dist = np.sqrt(d2[idx, j]) * np.sign(cross)
-    seg_len = np.sqrt(L2)
-    cum = np.concatenate((np.zeros((len(lines), 1)), np.cumsum(np.sqrt(np.einsum(
-        "fsk,fsk->fs", np.diff(lines, axis=1), np.diff(lines, axis=1))), axis=1)), axis=1)
-    arc = cum[data.point_frame, j] + s[idx, j] * seg_len[idx, j]
+    dist, arc, foot, normal = project(data.point_xz, data.point_frame, lines)
     force = None
     if rec.has_wrench:
         # every maker of a Record gives the forces with the stamps
@@ -149,8 +134,8 @@ def residuals(data: RecordData, run: RunResult) -> Residuals:
                       np.interp(rec.wrench_t, run.t, run.tool_force[:, 1])]
         force = rec.wrench_xz - model
     th = rec.scenario.sheet.thickness
-    return Residuals(dist, arc, foot_j, force, residual_gap(data.last_frame, th),
-                     residual_gap(lines[-1], th), run)
+    return Residuals(dist, arc, foot, force, residual_gap(data.last_frame, th),
+                     residual_gap(lines[-1], th), run, normal)
 
 
 def noise_level(values: np.ndarray, groups: np.ndarray | None = None) -> float:

@@ -91,7 +91,6 @@ def run_task(task: Task) -> Outcome:
     except (RuntimeError, ValueError, FloatingPointError) as exc:
         return Outcome(False, error=f"{type(exc).__name__}: {exc}")
     r = residuals(data, run)
-    lines_seg = _normals(data, run, r)
     mf = md = None
     if r.force is not None:
         t = data.record.wrench_t
@@ -101,26 +100,8 @@ def run_task(task: Task) -> Outcome:
         md = np.gradient(mf, t, axis=0) if t.size > 1 else np.zeros_like(mf)
     if not (np.all(np.isfinite(r.profile)) and (r.force is None or np.all(np.isfinite(r.force)))):
         return Outcome(False, error="non-finite residuals")
-    return Outcome(True, r.profile, lines_seg, r.arc, r.force, mf, md, r.delta_model,
+    return Outcome(True, r.profile, r.normal, r.arc, r.force, mf, md, r.delta_model,
                    r.delta_measured, float(run.F_max), run if task.keep_run else None)
-
-
-def _normals(data: RecordData, run: RunResult, r) -> np.ndarray:
-    """Unit left normal of the model's centreline at each foot point (the residual's direction)."""
-    from .compare import polylines_at
-    lines = polylines_at(run, data.record.profile_t)
-    tang = np.gradient(lines, axis=1)                                    # (F, K, 2)
-    cum = np.concatenate((np.zeros((len(lines), 1)), np.cumsum(np.linalg.norm(
-        np.diff(lines, axis=1), axis=2), axis=1)), axis=1)
-    out = np.empty((len(r.arc), 2))
-    for f in np.unique(data.point_frame):
-        sel = data.point_frame == f
-        tx = np.interp(r.arc[sel], cum[f], tang[f, :, 0])
-        tz = np.interp(r.arc[sel], cum[f], tang[f, :, 1])
-        n = np.hypot(tx, tz)
-        n = np.where(n > 0, n, 1.0)
-        out[sel] = np.c_[-tz / n, tx / n]
-    return out
 
 
 def default_executor(jobs: int | None = None) -> Executor:

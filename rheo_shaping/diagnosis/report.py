@@ -315,6 +315,16 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
               f"({', '.join(cc['outside']) or 'none needed'}) leaves J = {cc['J']:.4f} "
               f"(holdout {_fmt(cc['J_holdout'])}), p = {_g(cc['p'])}, "
               f"adequate: {cc['adequate']}.", ""]
+    tm = diag.side.get("timing")
+    if tm:
+        lines += [(f"The load cell would lag by {tm['force_lag_s']:.3g} s; the profile lags "
+                   f"the model by {tm['profile_lag_s']:.3g} s. "
+                   + ("A lag the camera sees too is not the load cell's: the tool follows its "
+                      "reported pose late (or the camera's stamps run early), which neither "
+                      "the chain nor the library holds." if tm["tool_lags"] else
+                      "The profile does not lag with it (under "
+                      f"{tm['profile_share']:.2g} of the force's lag): the load cell's own.")),
+                  ""]
     lines += ["## Candidates", "",
               "| rank | effect | parameters | J fit | J holdout | LR | p | adequate | checked |",
               "|---|---|---|---|---|---|---|---|---|"]

@@ -18,6 +18,7 @@ from .context import Baseline, FitContext
 from .evaluate import Outcome, Task, all_ok, apply
 from .result import num
 from .stages import GapTest, outside
+from .timing import lag_check
 
 
 @dataclass(frozen=True)
@@ -134,7 +135,8 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
                   cands: Candidates, library: Sequence[str], rule=None) -> Verdict:
     """Stage 7: name the best single effect if it is significant and explains the gap and
     beats the chain's hypothesis; else the chain's hypothesis if it does; else the best pair;
-    else ``unexplained`` (``none`` when no gap is left).
+    else ``unexplained`` (``none`` when no gap is left).  The chain's hypothesis with a
+    load-cell lag beyond tolerance is refused when the profile lags too (:mod:`.timing`).
 
     "Explains the gap": with the numerics floor (``rule`` None) significant (likelihood
     ratio, p <= ALPHA) and adequate (within the null plus the numerics allowance,
@@ -165,6 +167,12 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
             return c.p <= stats.ALPHA and c.adequate
         return bool(rule(c))
     chain_ok = gap.left and explains(chain_c)
+    timing = None
+    if chain_ok and "load_cell.lag" in out:
+        # a load cell lagging beyond tolerance delays the force only; a profile that lags
+        # too puts the lag on the tool (or the camera's clock), which no knob holds
+        timing = lag_check(ctx.fit_d, base.outs[:ctx.nf], chain_c.fitted_u[n_s:])
+        chain_ok = not timing["tool_lags"]
     ranked = sorted(effects, key=rank_key if rule is None else by_misfit)
     if gap.left and ranked:
         lead = ranked[0]
@@ -194,7 +202,7 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
                                 "outside": out,
                                 "values": {k.name: float(v * k.tolerance) for k, v in
                                            zip(CHAIN, chain_c.fitted_u[n_s:])}},
-            "p_gap": gap.p}
+            "p_gap": gap.p, "timing": timing}
     return Verdict(name, verdict_fit, pairs, chain_side, side)
 
 
