@@ -76,9 +76,7 @@ def lag_check(data: Sequence[RecordData], outs: Sequence[Outcome],
     tool's?  The profile's lag at the baseline's runs ``outs`` of the fit records ``data``
     against the force's; ``tool_lags`` when the profile lags by at least ``PROFILE_SHARE``
     of it."""
-    tol = np.array([k.tolerance for k in CHAIN])
-    values = np.asarray(chain_u, float) * tol
-    force_lag = float(values[_LAG])
+    force_lag = float(chain_u[_LAG]) * CHAIN[_LAG].tolerance
     p_lag = profile_lag(data, outs)
     tool = bool(force_lag > 0 and math.isfinite(p_lag) and p_lag >= PROFILE_SHARE * force_lag)
     return {"force_lag_s": force_lag, "profile_lag_s": p_lag,

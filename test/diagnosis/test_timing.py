@@ -43,7 +43,8 @@ def _at_model(rec):
 
 def _chain_u(force_lag_s: float) -> np.ndarray:
     u = np.zeros(len(CHAIN))
-    u[[k.name for k in CHAIN].index("load_cell.lag")] = force_lag_s / CHAIN[5].tolerance
+    k = [c.name for c in CHAIN].index("load_cell.lag")
+    u[k] = force_lag_s / CHAIN[k].tolerance
     return u
 
 

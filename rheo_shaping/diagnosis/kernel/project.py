@@ -22,7 +22,12 @@ def project(points, frame, lines):
       one-sided at the ends) interpolated linearly in arc length to the foot point.
     """
     P = points.shape[0]
-    K = lines.shape[1]
+    F, K = lines.shape[0], lines.shape[1]
+    cum = np.zeros((F, K))                 # each frame's arc length at its nodes [m]
+    for f in range(F):
+        for j in range(K - 1):
+            cum[f, j + 1] = cum[f, j] + math.hypot(lines[f, j + 1, 0] - lines[f, j, 0],
+                                                   lines[f, j + 1, 1] - lines[f, j, 1])
     dist = np.empty(P)
     arc = np.empty(P)
     foot = np.empty((P, 2))
@@ -54,11 +59,7 @@ def project(points, frame, lines):
         cross = sx * (pz - bfz) - sz * (px - bfx)
         sign = 1.0 if cross > 0.0 else (-1.0 if cross < 0.0 else 0.0)
         dist[p] = math.sqrt(best) * sign
-        a0 = 0.0
-        for j in range(bj):
-            a0 += math.hypot(lines[f, j + 1, 0] - lines[f, j, 0],
-                             lines[f, j + 1, 1] - lines[f, j, 1])
-        arc[p] = a0 + bs * math.sqrt(sx * sx + sz * sz)
+        arc[p] = cum[f, bj] + bs * math.sqrt(sx * sx + sz * sz)
         foot[p, 0] = bfx
         foot[p, 1] = bfz
         tx0, tz0 = _tangent(lines, f, bj)
