@@ -261,7 +261,8 @@ def score_case(case: dict, diag) -> dict:
            "candidates": [{"name": "+".join(c.names), "J": c.J, "J_holdout": c.J_holdout,
                            "p": c.p, "checked": c.checked, "adequate": c.adequate,
                            "J_num": c.J_num, "J_num_holdout": c.J_num_holdout,
-                           "J_num_perp": c.J_num_perp,
+                           "J_num_perp": c.J_num_perp, "J_num_added": c.J_num_added,
+                           "J_num_added_holdout": c.J_num_added_holdout,
                            "values": {n: list(v) for n, v in c.values.items()},
                            "interval": {n: [list(iv) for iv in ivs]
                                         for n, ivs in c.interval.items()}}

@@ -71,6 +71,8 @@ class Explanation:
     J_num_holdout: float = math.nan
     refinement: str = "chain and steps"   # what numerics() refined
     J_num_perp: float = math.nan    # the part of J_num no refit absorbs
+    J_num_added: float = math.nan   # misfit of its refinement change less the baseline's (fit)
+    J_num_added_holdout: float = math.nan
     value_shift: dict = field(default_factory=dict)  # name -> value shift under refinement
     search: Search = field(default_factory=Search, repr=False)
 

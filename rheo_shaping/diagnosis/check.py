@@ -9,9 +9,13 @@ repeated on a refined discretisation (2 N + 1 masses, every step half as long,
 :func:`refined`); J_num is the balanced misfit between the two runs.  For a method of
 first order, the coarse run's error is about twice its change under one
 halving; of order ``ORDER`` (a half, bounding what the convergence study shows) the
-error is ``1 / (1 - 2^-ORDER)`` times the change, ``NUMERICS_FACTOR`` = 11.7 times J_num in
-misfit (J is quadratic): the allowance :func:`adequate` grants above the null's quantile,
-never more than ``GAP_SHARE`` of the baseline's excess.  The same change, projected
+error is ``1 / (1 - 2^-ORDER)`` times the change, ``NUMERICS_FACTOR`` = 11.7 times its misfit
+(J is quadratic).  The effect-free null already holds the baseline's own error; what a
+candidate adds is the misfit of the difference between its change and the baseline's,
+``J_num_added`` (not the difference of their misfits, which cancels where an effect moves
+the discretisation error without growing it).  ``NUMERICS_FACTOR`` times that is the
+allowance :func:`adequate` grants above the null's quantile, never more than
+``GAP_SHARE`` of the baseline's excess.  The same change, projected
 on the effect's response, is the shift the effect's value would take on the refined
 model; ``ERROR_PER_CHANGE`` (3.4) times it widens the value's interval (:func:`numerics`).
 """
@@ -62,7 +66,9 @@ def numerics(cands: list[Explanation], ctx: FitContext, base: Baseline, response
     (:func:`refined`).  ``J_num``: all of it (fit records); ``J_num_perp``: the part no
     refit of the baseline's knobs and the candidate's own values could absorb (the change
     projected off their columns ``A`` and the effects' responses; reported, not used);
-    ``J_num_holdout``: all of it on the holdout records (no refit there).  A single effect's
+    ``J_num_holdout``: all of it on the holdout records (no refit there);
+    ``J_num_added`` (``_holdout``): the misfit of its change less the baseline's, where the
+    baseline (the explanation without names) is among ``cands``.  A single effect's
     interval is widened by the value error the refinement implies."""
     cands = [c for c in cands
              if c.checked and c.search.z_raw is not None and math.isfinite(c.J)]
@@ -77,19 +83,22 @@ def numerics(cands: list[Explanation], ctx: FitContext, base: Baseline, response
     outs = run(tasks)
     nd, nf = len(ctx.data), ctx.nf
     # where the finer chain does not run (its Newton gives up), the steps alone are refined,
-    # for every candidate alike (the baseline's J_num is compared with theirs)
+    # for every candidate alike (the baseline's change is subtracted from theirs)
     if any(not all_ok(outs[i * nd:(i + 1) * nd]) for i in range(len(cands))):
         outs = run([Task(d, refined(apply(ctx.params(d, c.fitted_u[:n_s]), c.candidate),
                                     chain=False))
                     for c in cands for d in ctx.data])
         for c in cands:
             c.refinement = "steps"
+    changes = {}
     for i, c in enumerate(cands):
         o = outs[i * nd:(i + 1) * nd]
         if not all_ok(o):
             continue                         # no allowance where no refined run runs
         dz = G.z(o[:nf]) - c.search.z_raw
         c.J_num = G.J(dz)
+        changes[id(c)] = (dz, H.z(o[nf:]) - c.search.zh_raw
+                          if H is not None and c.search.zh_raw is not None else None)
         E, slots = _columns(c, responses)
         M = np.hstack((A, E)) if E is not None else A
         Q = np.linalg.qr(M, mode="reduced")[0]
@@ -99,6 +108,15 @@ def numerics(cands: list[Explanation], ctx: FitContext, base: Baseline, response
             c.J_num_holdout = H.J(H.z(o[nf:]) - c.search.zh_raw)
         if E is not None and len(c.names) == 1:
             _widen(c, dz, A, E, slots)
+    base_c = next((c for c in cands if not c.names and id(c) in changes), None)
+    if base_c is not None:
+        d0, h0 = changes[id(base_c)]
+        for c in cands:
+            if c.names and id(c) in changes:
+                d, h = changes[id(c)]
+                c.J_num_added = G.J(d - d0)
+                if H is not None and h is not None and h0 is not None:
+                    c.J_num_added_holdout = H.J(h - h0)
 
 
 def effect_columns(name: str, responses, value) -> list[tuple[int, np.ndarray]] | None:
@@ -354,25 +372,25 @@ def adequate(c, J_base_h: float, has_holdout: bool, base=None,
     """What ``c`` leaves looks like the effect-free baseline: its excess misfit within the
     null's 95 % quantile plus an allowance for the model's discretisation error at the
     effect, on the fit and the holdout records; the holdout records must also improve on
-    the baseline.  The allowance is ``NUMERICS_FACTOR`` times the numerics misfit ``c``
-    carries beyond the baseline's own (``base``; the null already holds that), and never
-    more than ``GAP_SHARE`` of the baseline's excess: a model whose discretisation error
-    were comparable to the effect itself would contradict its convergence study, so a
-    candidate that leaves a large part of the gap is refused whatever its numerics.
-    ``replay`` (fit, holdout): draws of the model's own replay misfit on those records,
-    added to the null (:mod:`replay`; None unless the written cell has a Kelvin dashpot)."""
-    def allow(j: float, j0: float, J_b: float) -> float:
-        if not (math.isfinite(j) and math.isfinite(j0) and math.isfinite(J_b)):
+    the baseline.  The allowance is ``NUMERICS_FACTOR`` times the numerics ``c`` adds to the
+    baseline's own (the null already holds that): the misfit of its refinement change less
+    the baseline's (``J_num_added``, :func:`numerics`), measured only with ``base`` (the
+    baseline's refined run beside it).  It is never more than ``GAP_SHARE`` of the
+    baseline's excess: a model whose discretisation error were comparable to the effect
+    itself would contradict its convergence study, so a candidate that leaves a large part
+    of the gap is refused whatever its numerics.  ``replay`` (fit, holdout): draws of the
+    model's own replay misfit on those records, added to the null (:mod:`replay`; None
+    unless the written cell has a Kelvin dashpot)."""
+    def allow(added: float, J_b: float) -> float:
+        if base is None or not (math.isfinite(added) and math.isfinite(J_b)):
             return 0.0
-        return min(NUMERICS_FACTOR * max(j - j0, 0.0), GAP_SHARE * max(J_b - 1.0, 0.0))
-    b_fit = base.J_num if base is not None else math.nan
-    b_hold = base.J_num_holdout if base is not None else math.nan
+        return min(NUMERICS_FACTOR * added, GAP_SHARE * max(J_b - 1.0, 0.0))
     J_b = base.J if base is not None else math.nan
-    ok = c.J - 1.0 <= stats.null_quantile(shift=replay[0]) + allow(c.J_num, b_fit, J_b)
+    ok = c.J - 1.0 <= stats.null_quantile(shift=replay[0]) + allow(c.J_num_added, J_b)
     if ok and has_holdout and math.isfinite(J_base_h):
         ok = (c.J_holdout < J_base_h and c.J_holdout - 1.0
               <= stats.null_quantile(True, shift=replay[1])
-              + allow(c.J_num_holdout, b_hold, J_base_h))
+              + allow(c.J_num_added_holdout, J_base_h))
     return bool(ok)
 
 

@@ -278,9 +278,11 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
             lines.append(f"Numerics: the verdict's run refined ({how}) moves "
                          f"by J_num = {vf.J_num:.4f} ({vf.J_num_perp:.4f} that no refit absorbs; "
                          f"holdout {_fmt(vf.J_num_holdout, 1, 4)}), the baseline's by "
-                         f"{_fmt(b.J_num, 1, 4)} ({_fmt(b.J_num_perp, 1, 4)}): what the verdict "
-                         f"leaves may exceed the effect-free null by {NUMERICS_FACTOR:.1f} x the "
-                         "difference (the coarse model's own discretisation error at the "
+                         f"{_fmt(b.J_num, 1, 4)} ({_fmt(b.J_num_perp, 1, 4)}); the verdict's "
+                         f"change less the baseline's: J_num_added = {_fmt(vf.J_num_added, 1, 4)} "
+                         f"(holdout {_fmt(vf.J_num_added_holdout, 1, 4)}).  What the verdict "
+                         f"leaves may exceed the effect-free null by {NUMERICS_FACTOR:.1f} x "
+                         "J_num_added (the coarse model's own discretisation error at the "
                          f"effect), at most {GAP_SHARE * 100:.0f} % of the baseline's excess; "
                          "the interval includes the value error the refinement implies.")
         lines.append("")

@@ -87,6 +87,8 @@ class Diagnosis:
                     "explained_holdout": num(self.explained(fr, True)),
                     "J_numerics": {"fit": num(fr.J_num), "fit_unabsorbed": num(fr.J_num_perp),
                                    "holdout": num(fr.J_num_holdout),
+                                   "added": num(fr.J_num_added),
+                                   "added_holdout": num(fr.J_num_added_holdout),
                                    "refined": fr.refinement},
                     "value_shift_refined": fr.value_shift}
         ranked = sorted(self.effects + self.pairs, key=rank_key)

@@ -212,29 +212,37 @@ def test_diagnose_command_and_write_scenario(tmp_path, capsys):
     assert "unknown effect 'friction'" in capsys.readouterr().err
 
 
-def test_numerics_allowance_is_the_refined_error_and_never_a_large_part_of_the_gap():
-    """The allowance is NUMERICS_FACTOR x the candidate's refined-run misfit beyond the
-    baseline's, capped at GAP_SHARE of the baseline's excess (docs/diagnosis.md)."""
+def test_numerics_allowance_is_the_added_refined_error_and_never_a_large_part_of_the_gap():
+    """The allowance is NUMERICS_FACTOR x the misfit of the candidate's refinement change
+    less the baseline's (J_num_added), capped at GAP_SHARE of the baseline's excess; the
+    totals J_num do not enter (docs/diagnosis.md)."""
     from rheo_shaping.diagnosis.candidates import Explanation
     from rheo_shaping.diagnosis.check import GAP_SHARE, NUMERICS_FACTOR, ORDER, adequate
     assert NUMERICS_FACTOR == pytest.approx((1.0 / (1.0 - 2.0 ** -ORDER)) ** 2)
     base = Explanation((), {}, 2.0, J_num=0.05, J_num_holdout=0.05)    # excess 1.0
     J_bh = 2.0
 
-    def cand(J, J_num):
+    def cand(J, added, J_num=0.05):
         return Explanation(("kelvin_c1",), {"kelvin_c1": (800.0,)}, J, J_holdout=J,
-                           checked=True, J_num=J_num, J_num_holdout=J_num)
-    q = stats.null_quantile()
+                           checked=True, J_num=J_num, J_num_holdout=J_num,
+                           J_num_added=added, J_num_added_holdout=added)
+    q, qh = stats.null_quantile(), stats.null_quantile(True)
     # within the null: adequate without any numerics
-    assert adequate(cand(1.0 + 0.5 * q, 0.05), J_bh, True, base)
-    # leaves 0.2: refused on its own numerics (the baseline's), adequate with 0.02 more
-    assert not adequate(cand(1.2, 0.05), J_bh, True, base)
-    need = (0.2 - q) / NUMERICS_FACTOR
-    assert not adequate(cand(1.2, 0.05 + 0.9 * need), J_bh, True, base)
-    assert adequate(cand(1.2, 0.05 + 1.1 * need), J_bh, True, base)
+    assert adequate(cand(1.0 + 0.5 * min(q, qh), math.nan), J_bh, True, base)
+    # leaves 0.2: refused with nothing added, adequate with just enough added numerics
+    assert not adequate(cand(1.2, 0.0), J_bh, True, base)
+    need = (0.2 - min(q, qh)) / NUMERICS_FACTOR
+    assert not adequate(cand(1.2, 0.9 * need), J_bh, True, base)
+    assert adequate(cand(1.2, 1.1 * need), J_bh, True, base)
+    # the same totals as the baseline's, a change of another shape: the added part counts
+    assert adequate(cand(1.2, 1.1 * need, J_num=base.J_num), J_bh, True, base)
+    # larger totals with nothing added grant nothing
+    assert not adequate(cand(1.2, 0.0, J_num=10.0), J_bh, True, base)
+    # without the baseline's refined run beside it, no allowance
+    assert not adequate(cand(1.2, 1.1 * need), J_bh, True, None)
     # whatever its numerics, a candidate never leaves more than GAP_SHARE of the gap
-    assert not adequate(cand(1.0 + q + GAP_SHARE + 0.01, 10.0), J_bh, True, base)
-    assert adequate(cand(1.0 + q + GAP_SHARE - 0.01, 10.0), J_bh, True, base)
+    assert not adequate(cand(1.0 + max(q, qh) + GAP_SHARE + 0.01, 10.0), J_bh, True, base)
+    assert adequate(cand(1.0 + min(q, qh) + GAP_SHARE - 0.01, 10.0), J_bh, True, base)
     # the holdout records must improve on the baseline
     assert not adequate(cand(1.2, 10.0), 1.1, True, base)
 
@@ -243,6 +251,7 @@ def test_a_strong_kelvin_creep_is_named_through_its_own_jacobian_and_numerics():
     """c1 = 785 N s/m (true chain 63 masses, diagnosis 31): what the right effect leaves
     exceeds the effect-free null; its refined run shows the leftover is the model's own
     discretisation error at the effect, and the value lies within its interval."""
+    from rheo_shaping.diagnosis.check import NUMERICS_FACTOR
     case = _case("single", 34, 1)
     (name, (true,)), = case["truth"]
     assert name == "kelvin_c1"
@@ -252,6 +261,11 @@ def test_a_strong_kelvin_creep_is_named_through_its_own_jacobian_and_numerics():
     vf = d.verdict_fit
     assert vf.J - 1.0 > stats.null_quantile()             # the null alone would refuse it
     assert vf.J_num > d.numerics_base.J_num                # the effect raises the numerics
+    # what it adds is the misfit of the difference of the two changes: a norm, so it lies
+    # between the difference and the sum of their roots (J is quadratic)
+    r_c, r_0, r_a = (math.sqrt(x) for x in (vf.J_num, d.numerics_base.J_num, vf.J_num_added))
+    assert abs(r_c - r_0) - 1e-12 <= r_a <= r_c + r_0 + 1e-12
+    assert vf.J - 1.0 <= stats.null_quantile() + NUMERICS_FACTOR * vf.J_num_added
     assert vf.J - 1.0 <= 0.25 * (d.J_base - 1.0)
     (value,), ((lo, hi),) = vf.values[name], vf.interval[name]
     assert value == pytest.approx(true, rel=0.1)
