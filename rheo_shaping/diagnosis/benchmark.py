@@ -342,7 +342,9 @@ def summarise(rows: list[dict], wall: float) -> dict:
         "ranked_first_right": (sum(r["ranked_first"] == list(r["truth"])[0] for r in single)
                                / len(single)) if single else None,
         "param_rel_error_median": float(np.median(errs)) if errs else None,
-        "no_effect_false_name_rate": (1.0 - frac(by["none"])) if by["none"] else None,
+        # counted, not 1 - the `none` rate: 1 - 0.95 is 0.050000000000000044, above 0.05
+        "no_effect_false_name_rate": frac([{"correct": not r["correct"]} for r in by["none"]
+                                           if r.get("correct") is not None]),
         # the verdict `none` itself (`unexplained` and `measurement chain` name no effect
         # but are not `none`: issue 26's ">= 90 % none" counts this one)
         "no_effect_none_rate": (sum(r["verdict"] == "none" for r in by["none"]) / len(by["none"])

@@ -7,8 +7,8 @@ from dataclasses import replace
 
 import pytest
 
-from rheo_shaping.diagnosis.benchmark import (DRAWS, _case_task, base_cell, run_benchmark,
-                                              summarise)
+from rheo_shaping.diagnosis.benchmark import (DRAWS, _case_task, against_target, base_cell,
+                                              run_benchmark, summarise)
 from rheo_shaping.diagnosis.checkpoint import append_partial, read_partial
 
 
@@ -72,6 +72,14 @@ def test_the_summary_counts_none_as_the_verdict_none_and_names_apart():
     assert s["no_effect_none_rate"] == 0.5                   # the verdict itself
     assert s["no_effect_library_name_rate"] == 0.25
     assert s["no_effect_false_name_rate"] == 0.25
+    # one false name in 20 is 0.05 exactly, and meets the finer chain's bound of 0.05
+    rows = [{"index": i, "kind": "none", "verdict": "none" if i else "bending",
+             "correct": bool(i), "p_gap": 0.5, "simulations": 1, "baseline_error_u": {}}
+            for i in range(20)]
+    s = summarise(rows, 0.0)
+    assert s["no_effect_false_name_rate"] == 0.05
+    assert against_target("finer-chain", "no_effect_false_name_rate",
+                          s["no_effect_false_name_rate"]) == "<= 0.05 met"
 
 
 def test_out_of_library_counts_the_measurement_chain_as_a_name_flagged_or_not():
