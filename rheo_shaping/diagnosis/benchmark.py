@@ -114,8 +114,10 @@ def measure_chain(run, path, truth: CellParams, ms: MeasurementParams, rng: np.r
 
 #: What each world's figures are held to (summary key -> (">=" or "<=", value)): the finer
 #: chain's from its own benchmark, the dynamic world's from issue 26 (docs/diagnosis.md).
+#: Top-1 is held over the single effects beyond the gap test's null: one within it leaves
+#: records the effect-free null holds, and `none` is then the verdict it should get.
 TARGETS = {
-    "finer-chain": {"top1_accuracy": (">=", 0.90), "top1_accuracy_beyond_noise": (">=", 0.90),
+    "finer-chain": {"top1_accuracy_beyond_noise": (">=", 0.90),
                     "no_effect_false_name_rate": ("<=", 0.05),
                     "no_effect_none_rate": (">=", 0.95),
                     "out_of_library_unexplained_rate": (">=", 0.80),
