@@ -320,7 +320,7 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
     tm = diag.side.get("timing")
     if tm:
         lines += [(f"The load cell would lag by {tm['force_lag_s']:.3g} s; the profile lags "
-                   f"the model by {tm['profile_lag_s']:.3g} s. "
+                   f"the model by {tm['profile_lag_s']:.3g} s while the tool drives it. "
                    + ("A lag the camera sees too is not the load cell's: the tool follows its "
                       "reported pose late (or the camera's stamps run early), which neither "
                       "the chain nor the library holds." if tm["tool_lags"] else

@@ -11,7 +11,8 @@ from rheo_shaping.diagnosis.baseline import CHAIN
 from rheo_shaping.diagnosis.benchmark import base_cell
 from rheo_shaping.diagnosis.compare import RecordData
 from rheo_shaping.diagnosis.evaluate import Task, run_task
-from rheo_shaping.diagnosis.timing import LAG_GRID_S, PROFILE_SHARE, lag_check, profile_lag
+from rheo_shaping.diagnosis.timing import (LAG_GRID_S, PROFILE_SHARE, driven_points, lag_check,
+                                           profile_lag)
 from rheo_shaping.planning.movement import synthesize_record
 from rheo_shaping.records.measurement import MeasurementParams
 
@@ -56,6 +57,25 @@ def test_a_profile_seen_late_gives_its_lag_back_with_or_without_a_camera_offset(
     d, o = _at_model(record)
     assert abs(profile_lag([d], [o])) < WITHIN_S
     assert LAG_GRID_S.min() < 0 < LAG_S < LAG_GRID_S.max()
+
+
+def test_the_lag_is_read_on_the_frames_the_tool_drives_alone(record):
+    """Frames before the tool touches and after it leaves (a laid sheet settling at its own
+    pace in a real cell) do not enter: moved by 2 mm, they leave the lag as it was, while
+    over every frame they move it."""
+    d, o = _at_model(record)
+    driven = driven_points(d, o)
+    assert driven.any() and not driven.all()
+    frames = set(np.unique(d.point_frame[~driven]))
+    for lag_s in (0.0, LAG_S):
+        late = _seen_late(record, lag_s)
+        keep = record.profile_t + lag_s <= record.pose_t[-1]
+        idx = np.flatnonzero(keep)
+        moved = tuple(np.asarray(f) + (np.array([0.0, 2e-3]) if i in frames else 0.0)
+                      for i, f in zip(idx, late.profiles))
+        dl, ol = _at_model(replace(late, profiles=moved))
+        assert profile_lag([dl], [ol]) == pytest.approx(lag_s, abs=WITHIN_S)
+        assert abs(profile_lag([dl], [ol], driven=False) - lag_s) > 2 * WITHIN_S
 
 
 def test_a_lag_the_camera_sees_too_is_the_tool_s_and_one_it_does_not_is_the_load_cell_s(record):
