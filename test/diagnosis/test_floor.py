@@ -44,6 +44,22 @@ def test_outside_the_calibration_is_refused_with_what_to_run(floor_file):
         assert f"--n-masses {n} --process-times {T:g}" in msg and "--reference" in msg
 
 
+def test_the_stored_floor_covers_the_configurations_users_have():
+    """Issue 26: n_masses 31-63, records of 60-120 s, 2-4 records (one, two or three fitted,
+    one held out, or none held out) are calibrated in the shipped file; four fitted are
+    refused with what to run."""
+    fl._stored.cache_clear()
+    for n in (31, 47, 63):
+        for T in (60.0, 90.0, 120.0):
+            for nf in (1, 2, 3):
+                for nh in (0, 1):
+                    f = fl.stored_floor(n, T, nf, nh, 2e-4, 5e-3)
+                    assert f.config["n_fit"] == nf and f.fit.size >= 24
+                    assert math.isfinite(f.quantile()) and math.isfinite(f.quantile(True))
+    with pytest.raises(fl.FloorError, match="--groupings 4\\+1"):
+        fl.stored_floor(63, 120.0, 4, 1, 2e-4, 5e-3)
+
+
 def test_between_calibrated_values_the_largest_corner_is_taken(floor_file):
     """N = 47 and 70 s lie between all four corners: the floor is the one with the largest
     95 % quantile (63, 120 s); N = 31, 70 s between (31, 60 s) and (31, 120 s)."""
