@@ -15,9 +15,10 @@ record length, fit and holdout record counts).
   camera raises the floor in noise units as it should.
 * **Configurations.** Chain sizes and record lengths between the calibrated ones take
   the largest 95 % quantile of the corners around them (conservative); fit record
-  counts must be calibrated ones; any holdout count takes the one-record holdout
-  sample (a mean over more records spreads less: conservative).  Anything else is
-  refused with the command that calibrates it (:class:`FloorError`), never reused.
+  counts must be calibrated ones; holdout records (any count) are judged against the
+  fit records' remainders in the holdout records' noise (a configuration that stores no
+  held-out remainders, as the shipped file does not).  Anything else is refused with the
+  command that calibrates it (:class:`FloorError`), never reused.
 * **Reference records** (``diagnose --reference``): effect-free records of the user's
   own cell.  Their baseline (fitted on all but one, the last held out) gives the cell's
   own remainder in mm and N; the stored sample is scaled to it, observable by
