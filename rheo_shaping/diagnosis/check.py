@@ -97,15 +97,16 @@ def numerics(cands: list[Explanation], ctx: FitContext, base: Baseline, response
             continue                         # no allowance where no refined run runs
         dz = G.z(o[:nf]) - c.search.z_raw
         c.J_num = G.J(dz)
-        changes[id(c)] = (dz, H.z(o[nf:]) - c.search.zh_raw
-                          if H is not None and c.search.zh_raw is not None else None)
+        dh = (H.z(o[nf:]) - c.search.zh_raw
+              if H is not None and c.search.zh_raw is not None else None)
+        changes[id(c)] = (dz, dh)
         E, slots = _columns(c, responses)
         M = np.hstack((A, E)) if E is not None else A
         Q = np.linalg.qr(M, mode="reduced")[0]
         perp = dz - Q @ (Q.T @ dz)
         c.J_num_perp = G.J(perp)
-        if H is not None and c.search.zh_raw is not None:
-            c.J_num_holdout = H.J(H.z(o[nf:]) - c.search.zh_raw)
+        if H is not None and dh is not None:
+            c.J_num_holdout = H.J(dh)
         if E is not None and len(c.names) == 1:
             _widen(c, dz, A, E, slots)
     base_c = next((c for c in cands if not c.names and id(c) in changes), None)

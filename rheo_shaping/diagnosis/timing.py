@@ -60,10 +60,10 @@ def profile_misfit(data: Sequence[RecordData], outs: Sequence[Outcome],
     rs, ns = [], []
     for k, (d, o) in enumerate(zip(data, outs)):
         lines = polylines_at(o.kept_run, np.maximum(d.record.profile_t - shift_s, 0.0))
-        dist, _arc, _foot, normal = project(d.point_xz, d.point_frame, lines)
         sel = points[k] if points is not None else slice(None)
-        rs.append(dist[sel])
-        ns.append(normal[sel])
+        dist, _arc, _foot, normal = project(d.point_xz[sel], d.point_frame[sel], lines)
+        rs.append(dist)
+        ns.append(normal)
     r, n = np.concatenate(rs), np.concatenate(ns)
     offset, *_ = np.linalg.lstsq(n, r, rcond=None)
     e = r - n @ offset
