@@ -3,7 +3,8 @@ timed on the process clock, or refused with a reason (never an exception); the t
 smoothed for the model (:mod:`.watch`, whose :class:`~.watch.GapWatch` this is a part of).
 
 Samples are refused, each with a reason counted in :attr:`StreamIntake.refused`
-(never an exception): a non-finite value, a stamp that goes back, a stamp more
+(never an exception): a non-finite value, a position beyond :data:`MAX_POSITION` or a
+force beyond :data:`MAX_FORCE`, a stamp that goes back, a stamp more
 than ``max_stamp_jump`` beyond the newest pose (or before the start), a frame
 with fewer than 3 or more than ``max_points`` points.  A pose stream that goes on
 after a gap longer than ``max_stamp_jump`` (``RESUME_POSES`` poses in a row, each
@@ -25,6 +26,12 @@ import numpy as np
 
 from ..diagnosis.compare import POSE_WINDOW
 from ..params.node_params import GapWatchNodeParams
+
+#: Largest coordinate [m] of a tool pose or a profile point taken: a cell is metres across
+#: (a pose at 1e300 m sent the model into a loop it never left, its queue growing to 1 GB).
+MAX_POSITION = 10.0
+#: Largest force component [N] of a tool wrench taken (a sheet breaks near 1 N).
+MAX_FORCE = 1e4
 
 #: Second differences kept for the online noise estimates (per observable).
 NOISE_SAMPLES = 20000
@@ -136,6 +143,8 @@ class StreamIntake:
         """A tool pose (x, z) [m] at ``stamp`` [s]; the reason when refused."""
         if not (math.isfinite(x) and math.isfinite(z)):
             return self._refuse("pose: non-finite position")
+        if max(abs(x), abs(z)) > MAX_POSITION:
+            return self._refuse(f"pose: farther than {MAX_POSITION:g} m from the origin")
         t = self._time("pose", stamp, self.pose_t[-1] if self.pose_t else None)
         if isinstance(t, str):
             return t
@@ -153,6 +162,9 @@ class StreamIntake:
             return self._refuse("profile: fewer than 3 or more than max_points points")
         if not np.all(np.isfinite(pts)):
             return self._refuse("profile: non-finite point")
+        if np.max(np.abs(pts)) > MAX_POSITION:
+            return self._refuse(f"profile: a point farther than {MAX_POSITION:g} m from the "
+                                f"origin")
         t = self._time("profile", stamp, self.frames[-1].t if self.frames else None)
         if isinstance(t, str):
             return t
@@ -165,6 +177,8 @@ class StreamIntake:
         """The force of the sheet on the tool (fx, fz) [N] at ``stamp`` [s]."""
         if not (math.isfinite(fx) and math.isfinite(fz)):
             return self._refuse("wrench: non-finite force")
+        if max(abs(fx), abs(fz)) > MAX_FORCE:
+            return self._refuse(f"wrench: a force beyond {MAX_FORCE:g} N")
         t = self._time("wrench", stamp, self.wrench_t[-1] if self.wrench_t else None)
         if isinstance(t, str):
             return t

@@ -41,6 +41,7 @@ from std_srvs.srv import Trigger
 
 from ..gapwatch.feed import DiagnosisJobs
 from ..gapwatch.floor import Floor, FloorError
+from ..gapwatch.queue import SampleQueue
 from ..gapwatch.watch import GapWatch
 from ..jsonable import json_safe
 from ..params.config import ConfigError, load_cell
@@ -57,6 +58,8 @@ from .spin import Yielded, build_or_destroy, run_node
 
 #: Reader history of the measured streams (messages): 2 s of a x10 cell's 50 Hz pose.
 READER_DEPTH = 1000
+#: Wall time [s] the worker may spend on one sample before the watchdog calls it stuck.
+WORKER_STALL = 30.0
 #: Samples fed to the core between two of its updates while the queue is long.
 UPDATE_EVERY = 200
 
@@ -91,11 +94,13 @@ class GapWatchNode(Node):
         self.report_dir = Path(s.report_dir or os.path.join(tempfile.gettempdir(),
                                                             "rheo_shaping_gapwatch"))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._queue: deque = deque()
+        self._queue = SampleQueue(s.queue_limit)
+        self._worker_beat = time.monotonic()         # the worker's last sign of life [s]
+        self._stalled = False                        # the watchdog found the worker stuck
         self._early: deque = deque(maxlen=s.queue_limit)   # samples before the start
         self._wake = threading.Event()
         self._stop = threading.Event()
-        self.dropped = {"queue full": 0, "waited longer than max_lag": 0}
+        self.dropped = {"queue full": 0, "waited longer than max_lag": 0, "the model is stuck": 0}
         self.received: dict[str, int] = {}
         self.core: GapWatch | None = None
         self.start_stamp: float | None = None
@@ -143,11 +148,12 @@ class GapWatchNode(Node):
 
     # -- callbacks: plain values into the queue ---------------------------------------------
     def _put(self, item: tuple) -> None:
-        if len(self._queue) >= self.settings.queue_limit:
-            self._queue.popleft()
-            self.dropped["queue full"] += 1
-        self._queue.append(item + (time.monotonic(),))
         self.received[item[0]] = self.received.get(item[0], 0) + 1
+        if self._stalled:
+            self.dropped["the model is stuck"] += 1
+            return
+        if self._queue.put(item, time.monotonic()):
+            self.dropped["queue full"] += 1
         self._wake.set()
 
     def _on_pose(self, msg) -> None:
@@ -169,6 +175,7 @@ class GapWatchNode(Node):
     # -- the worker thread: the core --------------------------------------------------------
     def _work(self) -> None:
         while not self._stop.is_set():
+            self._worker_beat = time.monotonic()
             self._wake.wait(0.1)
             self._wake.clear()
             try:
@@ -183,9 +190,10 @@ class GapWatchNode(Node):
     def _drain(self) -> None:
         s = self.settings
         fed = 0
-        while self._queue:
-            kind, stamp, value, rx = self._queue.popleft()
-            wait = time.monotonic() - rx
+        while (item := self._queue.pop()) is not None:
+            kind, stamp, value, rx = item
+            self._worker_beat = now = time.monotonic()
+            wait = now - rx
             if kind == "start":
                 if self.start_stamp is None or stamp > self.start_stamp + 1e-9:
                     self._new_run(stamp)
@@ -312,9 +320,9 @@ class GapWatchNode(Node):
 
     # -- the reports ------------------------------------------------------------------------
     def _publish(self) -> None:
+        self._watch_worker()
         snap = self.snapshot
-        waiting = len(self._queue)
-        oldest = (time.monotonic() - self._queue[0][-1]) if waiting else 0.0
+        waiting, oldest = self._queue.waiting(time.monotonic())
         lag = {**self.lag, "queued": waiting, "oldest_queued_s": oldest}
         dropped = sum(self.dropped.values())
         level, message = snap["level"], snap["message"]
@@ -353,6 +361,18 @@ class GapWatchNode(Node):
             self.pub_markers.publish(m.gap_markers_msg(now, core.model_nodes, self.frame,
                                                        self.model.sheet.thickness,
                                                        snap["level"]))
+
+    def _watch_worker(self) -> None:
+        """The watchdog of the worker thread: stuck on one sample for over WORKER_STALL, it is
+        reported (ERROR) and nothing more is queued for it, so memory stays bounded."""
+        stuck = time.monotonic() - self._worker_beat
+        if not self._stalled and stuck > WORKER_STALL:
+            self._stalled = True
+            self.dropped["the model is stuck"] += self._queue.clear()
+            self.snapshot = {"level": "ERROR", "residuals": {},
+                             "message": f"the model has been stuck on one sample for "
+                                        f"{stuck:.0f} s: no more samples are queued"}
+            self.get_logger().error(self.snapshot["message"])
 
     def _drop_text(self) -> str:
         return ", ".join(f"{k}: {v}" for k, v in self.dropped.items() if v)

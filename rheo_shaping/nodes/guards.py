@@ -19,8 +19,9 @@ from std_msgs.msg import String
 from ..params.fingerprint import cell_mismatch
 from ..params.cell import CellParams
 from ..safety.clock_guard import ClockGuard
-from ..safety.command_gate import UNNAMED
+from ..safety.command_gate import UNNAMED, Publisher
 from ..safety.one_of_each import Announcement, settle_refusal, settle_time, twin_reason
+from ..safety.owners import StreamOwner, Trust, owner_name
 from ..units import NS
 from . import topics as T
 
@@ -47,6 +48,41 @@ def guard_clock(node: Node, guard: ClockGuard, on_fault: Callable[[str], None]) 
         node.destroy_subscription(ts._clock_sub)
         ts._clock_sub = None
         ts._subscribe_to_clock_topic()
+
+
+def publishers_of(node: Node, topic: str) -> list[Publisher]:
+    """The writers of ``topic`` (a resolved name) as the graph shows them now."""
+    return [Publisher(f"{i.node_namespace.rstrip('/')}/{i.node_name}",
+                      ".".join(f"{b:02x}" for b in i.endpoint_gid))
+            for i in node.get_publishers_info_by_topic(topic)]
+
+
+class OwnedStream:
+    """A stream of ``node`` taken only from the cell's node ``owner`` of its namespace (the
+    core's :class:`~rheo_shaping.safety.owners.StreamOwner`, asked of the graph at each
+    sample).  A foreign writer is logged once with its node name."""
+
+    def __init__(self, node: Node, topic: str, owner: str):
+        self._node = node
+        self.topic = node.resolve_topic_name(topic)
+        self.core = StreamOwner(self.topic, owner_name(node.get_namespace(), owner))
+
+    def trust(self) -> Trust:
+        trust = self.core.judge(publishers_of(self._node, self.topic))
+        if trust.foreign and self.core.report_once(trust):
+            self._node.get_logger().error(f"refused: {trust.reason}")
+        return trust
+
+    def take(self, info=None) -> Trust:
+        """The trust of a sample just received (``info``: its rmw message info, when the
+        executor passes it): untrusted also when its sequence number does not continue the
+        bound writer's."""
+        trust = self.trust()
+        seq = int((info or {}).get("publication_sequence_number", 0))
+        if trust.trusted and not self.core.accept(seq):
+            return Trust(False, f"a sample of {self.topic} out of {self.core.owner}'s sequence "
+                         f"(number {seq}): another writer", ())
+        return trust
 
 
 def clock_publishers(node: Node) -> int:
@@ -161,9 +197,20 @@ class Presence:
 
     def _on(self, msg: String) -> None:
         other = Announcement.parse(msg.data)
-        if other is not None and other.node == self.mine.node and self.mine < other:
+        if other is None:
+            self._node.get_logger().warning(f"ignored a malformed {T.PRESENCE.contract}: "
+                                            f"{msg.data[:80]!r}", throttle_duration_sec=5.0)
+            return
+        if other.node == self.mine.node and self.mine < other:
             self._younger.add(other)
-        why = twin_reason(self.mine, other) if other is not None else ""
+        why = twin_reason(self.mine, other)
+        if why and self._settled:
+            # a running node never quits on an announcement: an older twin is found before
+            # a node acts (the settle time), so an "older" one now is a forgery or a clock
+            self._node.get_logger().error(f"ignored: {why} (announced after this node "
+                                          f"started to act: it runs on)",
+                                          throttle_duration_sec=5.0)
+            return
         if why and not self.twin:
             self.twin = why
             self._on_twin(why)

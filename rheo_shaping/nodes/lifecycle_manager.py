@@ -29,9 +29,12 @@ from std_srvs.srv import Trigger
 from ..params.node_params import LifecycleManagerParams
 from ..safety.lifecycle import CELL_ORDER, CellLifecycle, Step
 from ..safety.watchdog import StallGuard
+from ..params.wire import WireError, read_fields
 from ..units import NS
 from . import messages as m
 from . import topics as T
+from .guards import OwnedStream
+from .managed import HEARTBEAT_FIELDS
 from .ros_params import SchemaParameters
 from .spin import build_or_destroy, run_node
 
@@ -53,6 +56,10 @@ class LifecycleManagerNode(Node):
         self._change_state = {}
         self._calls: dict[str, tuple[str, object, int]] = {}   # node -> (transition, future, t)
         self._waiting: dict[str, tuple[str, int]] = {}         # asked, service not seen yet
+        # each heartbeat only from its node, /shaping/ready only from the monitor
+        self._beat_src = {name: OwnedStream(self, f"{name}/heartbeat", name)
+                          for name in CELL_ORDER}
+        self._ready_src = OwnedStream(self, T.READY.name, "monitor")
         for name in CELL_ORDER:
             self.create_subscription(T.HEARTBEAT.type, f"{name}/heartbeat",
                                      lambda msg, n=name: self._on_heartbeat(n, msg),
@@ -83,18 +90,21 @@ class LifecycleManagerNode(Node):
 
     # -- observations ---------------------------------------------------------------
     def _on_heartbeat(self, name: str, msg: String) -> None:
+        trust = self._beat_src[name].trust()
+        if not trust.trusted:
+            return            # another writer's beat never stands for the node (logged once)
         try:
-            beat = json.loads(msg.data)
-            state, transitions, instance = (str(beat["state"]), int(beat["transitions"]),
-                                            str(beat["instance"]))
-        except (ValueError, KeyError, TypeError):
-            self.get_logger().warning(f"{name}/heartbeat: not a heartbeat: {msg.data[:80]!r}",
-                                      throttle_duration_sec=5.0)
+            beat = read_fields(msg.data, HEARTBEAT_FIELDS)
+        except WireError as exc:
+            self.get_logger().warning(f"{name}/heartbeat: not a heartbeat ({exc}): "
+                                      f"{msg.data[:80]!r}", throttle_duration_sec=5.0)
             return
-        self.core.heartbeat(name, state, self._steady.now().nanoseconds, transitions, instance)
+        self.core.heartbeat(name, beat["state"], self._steady.now().nanoseconds,
+                            beat["transitions"], beat["instance"])
 
     def _on_ready(self, msg: Bool) -> None:
-        self.core.monitor_ready(msg.data, self._steady.now().nanoseconds)
+        if self._ready_src.trust().trusted:
+            self.core.monitor_ready(msg.data, self._steady.now().nanoseconds)
 
     # -- services -------------------------------------------------------------------
     def _on_startup(self, request, response):

@@ -41,6 +41,7 @@ from std_msgs.msg import Bool, String
 
 from ..params.schema import ParameterError
 from ..safety.lifecycle import HEARTBEAT_PERIOD
+from ..params.wire import Field
 from ..units import NS
 from .monitor import MonitorNode
 from .planner import MOVING, PlannerNode
@@ -49,6 +50,10 @@ from . import topics as T
 from .spin import run_node
 
 SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
+
+#: A heartbeat's JSON keys as the lifecycle manager reads them (rheo_shaping.params.wire).
+HEARTBEAT_FIELDS = {"state": Field(str, max_len=32), "transitions": Field(int, 0, 2**31),
+                    "instance": Field(str, max_len=64)}
 
 
 class Managed(LifecycleNodeMixin):

@@ -46,14 +46,13 @@ from std_srvs.srv import Trigger
 from ..params.node_params import MonitorNodeParams
 from ..params.cell import CellParams
 from ..safety.abort_budget import abort_horizon, monitor_abort_ratio
-from ..params.schema import ParameterError
 from ..safety.acknowledge import Acknowledgements
 from ..safety.clock_guard import ClockGuard
 from ..safety.monitor import TensionMonitor
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
-from .guards import CellCheck, Presence, clock_publishers, guard_clock
+from .guards import CellCheck, OwnedStream, Presence, clock_publishers, guard_clock
 from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
 from ..units import NS
@@ -83,6 +82,11 @@ class MonitorNode(Node):
         self.acks = Acknowledgements(s.abort_hold)   # what /shaping/checked says
         self.pub_diag = self._publisher(T.DIAGNOSTICS)
         self._subs = []
+        # the tensions only from the simulator of this namespace, the planner's state only
+        # from its planner (docs/ros.md, "Who may write what")
+        self._owned = {t.contract: OwnedStream(self, t.name, "simulator")
+                       for t in (T.TENSIONS, T.CONTACT_TENSION)}
+        self._planner_src = OwnedStream(self, T.PLANNER_STATE.name, "planner")
         self._subscribe(s.max_data_age)
         self.create_subscription(T.PLANNER_STATE.type, T.PLANNER_STATE.name,
                                  self._on_planner_state, T.PLANNER_STATE.qos)
@@ -134,34 +138,13 @@ class MonitorNode(Node):
             self.get_logger().info(choice.note)
 
     def _on_parameters(self, names: set[str]) -> None:
-        if names & {"max_data_age", "acknowledge"}:
-            self._watchdog_guard = StallGuard(0.5 * self.settings.max_data_age)
-            for sub in self._subs:
-                self.destroy_subscription(sub)
-            self._subscribe(self.settings.max_data_age)
-        if "period" in names:
-            self._watchdog.cancel()
-            self.destroy_timer(self._watchdog)
-            self._watchdog = self.create_timer(self.settings.period, self._on_watchdog,
-                                               clock=self._steady)
+        """Only the tunable settings change at runtime (the rest is read-only)."""
         if "diagnostics_period" in names:
             self._diag_timer.cancel()
             self.destroy_timer(self._diag_timer)
             self._diag_timer = self.create_timer(self.settings.diagnostics_period,
                                                  self._publish_diagnostics, clock=self._steady)
-        relevant = {"abort_ratio", "detect_time", "stop_time", "noise_sigma",
-                    *self.params.names("cell")}
-        try:
-            if names & relevant:
-                self._set_ratio()
-        except ParameterError as exc:
-            self._configure()
-            self._abort(f"no abort threshold after the parameter change: {exc}")   # fail safe
-            return
         self._configure()
-        self.get_logger().info(f"parameters {sorted(names)} changed: abort at "
-                               f"{self.threshold:.4f} N, "
-                               f"trend horizon {self.horizon:.3f} s")
 
     def _publisher(self, topic: T.Topic):
         return self.create_publisher(topic.type, topic.name, topic.qos)
@@ -231,7 +214,17 @@ class MonitorNode(Node):
         return response
 
     # -- data -------------------------------------------------------------------------
+    def _owner_refuses(self, topic: str, info=None) -> bool:
+        """Whether a sample of ``topic`` is not the simulator's (a second writer aborts, with
+        its node name; a writer the graph does not name yet only drops the sample)."""
+        trust = self._owned[topic].take(info)
+        if trust.foreign:
+            self._abort(f"monitor: {trust.reason}")
+        return not trust.trusted
+
     def _on_tensions(self, msg: Float64MultiArray, info=None) -> None:
+        if self._owner_refuses(T.TENSIONS.contract, info):
+            return
         self.core.on_tensions(msg.data, self._steady.now().nanoseconds,
                               self.get_clock().now().nanoseconds)
         # judged: the simulator may run on (monitor_lead), unless an abort is on its way
@@ -239,6 +232,8 @@ class MonitorNode(Node):
         self._acknowledge(self.acks.on_judged(seq))
 
     def _on_planner_state(self, msg: String) -> None:
+        if not self._planner_src.trust().trusted:
+            return          # another writer's state cannot lift the hold of an abort
         self._acknowledge(self.acks.on_planner_state(msg.data))
 
     def _acknowledge(self, seq: int | None) -> None:
@@ -246,6 +241,8 @@ class MonitorNode(Node):
             self.pub_checked.publish(UInt64(data=seq))
 
     def _on_contact(self, msg: Float64) -> None:
+        if self._owner_refuses(T.CONTACT_TENSION.contract):
+            return
         self.core.on_contact(msg.data, self._steady.now().nanoseconds)
 
     def _on_stamped(self, topic: str, msg) -> None:

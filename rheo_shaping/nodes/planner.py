@@ -58,7 +58,7 @@ from ..safety.clock_guard import ClockGuard
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
-from .guards import CellCheck, Presence, clock_publishers, guard_clock
+from .guards import CellCheck, OwnedStream, Presence, clock_publishers, guard_clock
 from .planner_supervision import PlannerSupervision
 from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
@@ -75,7 +75,6 @@ class PlannerNode(PlannerSupervision, Node):
     def _build(self, node_kwargs: dict) -> None:
         self.get_logger().info('starting: parameters, then the plan')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": PlannerNodeParams},
-                                       on_change=self._on_parameters,
                                        cli_args=node_kwargs.get('cli_args'))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         # /tool/command is created once no older planner of this name is known (a twin
@@ -89,6 +88,7 @@ class PlannerNode(PlannerSupervision, Node):
                 for topic, callback in ((T.ABORT, self._on_abort), (T.READY, self._on_ready),
                                         (T.TOOL_POSE, self._on_pose))}
         self._ready_topic = subs[T.READY.contract].topic_name      # resolved (namespace)
+        self._ready_src = OwnedStream(self, T.READY.name, "monitor")   # only the monitor's
         self._tool_pose: np.ndarray | None = None     # the latest measured tool pose [m]
         self._pose_ns: int | None = None              # its stamp: the executed time [ns]
         self._lead_note = ""                          # why set-points wait for execution
@@ -105,7 +105,6 @@ class PlannerNode(PlannerSupervision, Node):
         self.create_service(Trigger, '~/reset', self._on_reset)
 
         self.cell_used, self.plan = self._make_plan()
-        self.plan_error = ""          # the configured plan is refused (parameters changed)
         self._start_failed = ""       # the run could not start (e.g. its approach); ~/reset
         self.streamer: TrajectoryStreamer | None = None
         self.aborted = False
@@ -115,6 +114,7 @@ class PlannerNode(PlannerSupervision, Node):
         self.grid: SetpointGrid | None = None       # the run's set-point times (core)
         self._ready = False
         self._ready_rx: int | None = None
+        self._ready_rx_cell: int | None = None      # the same on the node's clock [ns]
         self._supervise_guard: StallGuard | None = None
         self._state = ""
         self._command_timer = self.create_timer(1.0 / self.settings.control_rate, self._stream)
@@ -141,29 +141,6 @@ class PlannerNode(PlannerSupervision, Node):
     @property
     def settings(self) -> PlannerNodeParams:
         return self.params["settings"]
-
-    def _on_parameters(self, names: set[str]) -> None:
-        if "control_rate" in names:
-            self._command_timer.cancel()
-            self.destroy_timer(self._command_timer)
-            self._command_timer = self.create_timer(1.0 / self.settings.control_rate, self._stream)
-            if self.grid is not None:         # keep the grid aligned with now
-                self.grid.realign(int(round(NS / self.settings.control_rate)))
-        if names & set(self.params.names("cell")) or names & {"optimise_d", "d_min", "d_max",
-                                                              "d_step", "delta_limit",
-                                                              "clearance_factor"}:
-            if self.streamer is None:
-                try:
-                    self.cell_used, self.plan = self._make_plan()
-                except ParameterError as exc:
-                    self.plan_error = str(exc)
-                    self.get_logger().error(f"no plan: {exc}")
-                else:
-                    self.plan_error = ""
-                    self.get_logger().info(f"plan rebuilt: {self.plan.duration:.1f} s")
-            else:
-                self.get_logger().info("plan parameters changed: they take effect at the next "
-                                       "run (~/reset)")
 
     def _make_plan(self) -> tuple[CellParams, Plan]:
         cell, s = self.cell, self.settings
@@ -224,17 +201,24 @@ class PlannerNode(PlannerSupervision, Node):
         age = (self._steady.now().nanoseconds - self._ready_rx) / NS
         if age > self.settings.monitor_timeout:
             return False, f"no ready heartbeat from the monitor for {age:.2f} s"
+        if self._ready_rx_cell is not None and self.get_clock().ros_time_is_active:
+            # on the cell's clock too: at x10 a wall second is ten of unwatched motion
+            cell_age = (self._now_ns() - self._ready_rx_cell) / NS
+            if cell_age > self.settings.monitor_timeout:
+                return False, (f"no ready heartbeat from the monitor for {cell_age:.2f} s of "
+                               f"the cell's clock")
         if not self._ready:
             return False, "the monitor reports not ready"
-        beats = self.count_publishers(self._ready_topic)
-        if beats > 1:
-            return False, f"{beats} publishers of {self._ready_topic} (a spoofed heartbeat?)"
+        trust = self._ready_src.trust()
+        if not trust.trusted:
+            return False, trust.reason
         return True, ""
 
     # -- callbacks ------------------------------------------------------------------
     def _on_ready(self, msg: Bool) -> None:
         self._ready = bool(msg.data)
         self._ready_rx = self._steady.now().nanoseconds
+        self._ready_rx_cell = self._now_ns()
 
     def _on_pose(self, msg: PoseStamped) -> None:
         self._tool_pose = np.array(m.pose_xz(msg), dtype=float)

@@ -116,7 +116,7 @@ class PlannerSupervision:
         return ""
 
     def _start(self, now_ns: int) -> None:
-        if self.plan_error or self._start_failed:
+        if self._start_failed:
             self._set_state("error")
             return
         try:

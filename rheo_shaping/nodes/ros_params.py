@@ -14,7 +14,11 @@ with dotted names such as ``material.k1``; a node's settings from
 * an on-set-parameters callback that refuses, at runtime
   (``set_parameters``), any value the schema refuses, and any combination the
   dataclasses' cross-field checks refuse, with the schema's message (it names
-  the parameter, the value and the range);
+  the parameter, the value and the range); and every parameter that is not
+  ``tunable`` in the schema (the cell, the thresholds, timeouts and limits): those are
+  read-only once the node is configured, a change means a new cell (a restart, or
+  cleanup and configure through the lifecycle, which checks it against the simulator's
+  cell again);
 * a start-up check (:meth:`SchemaParameters.__init__`) that refuses an invalid
   value from the params file with the same message, and an unknown name in a
   cell section (a typo must not fall back to a default silently).
@@ -89,7 +93,8 @@ def describe(fi: FieldInfo) -> ParameterDescriptor:
     unit = f" [{spec.unit}]" if spec.unit else ""
     valid = spec.range_text() if (spec.choices or spec.lo is not None or spec.hi is not None
                                   or spec.length is not None or spec.min_length) else ""
-    text = f"{spec.description}{unit}" + (f"; valid: {valid}" if valid else "")
+    text = (f"{spec.description}{unit}" + (f"; valid: {valid}" if valid else "")
+            + ("" if spec.tunable else "; read-only while the node runs"))
     desc = ParameterDescriptor(name=fi.name, description=text, additional_constraints=valid)
     if fi.kind in (float, int, tuple):
         desc.dynamic_typing = True          # 120 and 120.0 both accepted; the schema checks
@@ -129,8 +134,10 @@ class SchemaParameters:
 
     def __init__(self, node: Node, groups: Mapping[str, type],
                  on_change: Callable[[set[str]], None] | None = None,
-                 cli_args: Iterable[str] | None = None):
+                 cli_args: Iterable[str] | None = None, locked: bool = True):
+        """``locked``: parameters that are not ``tunable`` are refused at runtime."""
         self.node = node
+        self.locked = locked
         self.groups = dict(groups)
         self.fields: dict[str, FieldInfo] = {}
         self.group_of: dict[str, str] = {}
@@ -219,6 +226,11 @@ class SchemaParameters:
                 if p.name not in self.fields:
                     continue
                 fi = self.fields[p.name]
+                if self.locked and self.values and not fi.spec.tunable:
+                    raise ParameterError(
+                        f"parameter '{p.name}' is read-only while {self.node.get_name()} runs "
+                        f"(the cell's safety rests on it): a change means a new cell, a "
+                        f"restart or cleanup and configure through the lifecycle")
                 updated[p.name] = validate_value(p.name, plain_value(p.value), fi.kind, fi.spec)
             if updated and self.values:       # after start-up: check the whole set
                 flat = self._current()

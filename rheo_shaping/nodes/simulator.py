@@ -29,8 +29,8 @@ with the tool at that set-point, exactly as the offline run starts with the
 tool at its plan's start.  The tool follows the set-points linearly
 interpolated by their stamps; after the newest one it holds.  At
 ``movement.process_time`` the node logs F_max, SF and Delta.  ``~/reset``
-(std_srvs/Trigger) restarts the run (settled sheet, process time 0); cell
-parameters changed at runtime take effect then.
+(std_srvs/Trigger) restarts the run (settled sheet, process time 0); the cell's
+parameters are read-only while the node runs (docs/ros.md, "Parameters").
 """
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ from ..safety.command_gate import CommandGate, ToolLimits
 from ..safety.watchdog import Freshness
 from . import messages as m
 from . import topics as T
-from .guards import Presence
+from .guards import OwnedStream, Presence
 from .simulator_intake import SetpointIntake
 from .simulator_outputs import SimulatorOutputs
 from .ros_params import SchemaParameters
@@ -82,7 +82,6 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
     def _build(self, node_kwargs: dict, message_info: bool) -> None:
         self.get_logger().info('starting: parameters, then the settled sheet')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": SimulatorNodeParams},
-                                       on_change=self._on_parameters,
                                        cli_args=node_kwargs.get('cli_args'))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         pub = self._publisher
@@ -113,7 +112,12 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         self._commander: str | None = None          # what /shaping/commander said last
         self._commander_ns = 0                      # steady time it was last checked
         self._last_hold_pub = None     # steady time of the last state re-published on hold
-        self.create_subscription(T.CHECKED.type, T.CHECKED.name, self._on_checked, T.CHECKED.qos)
+        # acknowledgements only from the monitor of this namespace (a second writer holds)
+        self._checked = OwnedStream(self, T.CHECKED.name, "monitor")
+        self.create_subscription(
+            T.CHECKED.type, T.CHECKED.name,
+            (lambda msg, info: self._on_checked(msg, info)) if message_info
+            else self._on_checked, T.CHECKED.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
         # time of the latest computed state (node or simulated clock)
@@ -196,31 +200,8 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         s = self.settings
         self._sim_clock = s.real_time_factor != 1.0 or s.publish_clock
         self._dt_ns = max(int(round(s.real_time_factor * s.step_period * NS)), 1)
-        if self._sim_clock and self.pub_clock is None:
+        if self._sim_clock:
             self.pub_clock = self._publisher(T.CLOCK)
-        elif not self._sim_clock and self.pub_clock is not None:
-            self.destroy_publisher(self.pub_clock)
-            self.pub_clock = None
-
-    def _on_parameters(self, names: set[str]) -> None:
-        settings = {n for n in names if n in self.params.names("settings")}
-        if settings & {"max_tool_speed", "max_tool_accel", "max_tool_jump"}:
-            self.gate.limits = self._tool_limits()
-        if settings:
-            was = self._sim_clock
-            self._configure_time()
-            if "step_period" in settings:
-                self._timer.cancel()
-                self.destroy_timer(self._timer)
-                self._timer = self.create_timer(self.settings.step_period, self._on_timer,
-                                                clock=self._steady)
-            if was != self._sim_clock:
-                self.get_logger().warning("the clock source changed at runtime: the other nodes' "
-                                          "use_sim_time must follow")
-            self._rate_ref = None
-        if names - settings:
-            self.get_logger().info(f"cell parameters {sorted(names - settings)} changed: "
-                                   "they take effect at ~/reset")
 
     # -- the run (the core's SetpointRun) ---------------------------------------------
     def _new_run(self) -> None:
@@ -277,6 +258,11 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         return self._lead.waits
 
     def _on_reset(self, request, response):
+        why = self._reset_refusal()
+        if why:
+            response.success, response.message = False, f"not reset: {why}"
+            self.get_logger().warning(response.message)
+            return response
         if self.gate.held:
             self.destroy_publisher(self.pub_abort)     # drops its latched abort sample
             self.pub_abort = self._latched(T.ABORT)
@@ -287,6 +273,17 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         response.message = "run restarted: settled sheet at process time 0"
         self.get_logger().info(response.message)
         return response
+
+    def _reset_refusal(self) -> str:
+        """Why ~/reset may not re-arm now ("" if it may): the cause of a hold that would
+        latch again at once (a lost monitor, a second writer of its acknowledgements)."""
+        trust = self._checked.trust()
+        if trust.foreign:
+            return trust.reason
+        if self.settings.monitor_timeout > 0 and self._lead.lost(self._steady.now().nanoseconds):
+            return (f"the monitor is lost (no {T.CHECKED.contract} for over "
+                    f"{self.settings.monitor_timeout:g} s): restart it first")
+        return ""
 
     # -- stepping ---------------------------------------------------------------------
     def _on_timer(self) -> None:

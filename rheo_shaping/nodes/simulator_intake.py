@@ -12,6 +12,7 @@ from std_msgs.msg import String
 from ..safety.command_gate import GRAPH_WAIT, Publisher
 from ..units import NS
 from . import messages as m
+from .guards import publishers_of
 
 
 class SetpointIntake:
@@ -19,9 +20,7 @@ class SetpointIntake:
     whose gate, run and publishers it uses)."""
 
     def _command_publishers(self) -> list[Publisher]:
-        return [Publisher(f"{i.node_namespace.rstrip('/')}/{i.node_name}",
-                          ".".join(f"{b:02x}" for b in i.endpoint_gid))
-                for i in self.get_publishers_info_by_topic(self._command_sub.topic_name)]
+        return publishers_of(self, self._command_sub.topic_name)
 
     # -- set-points -------------------------------------------------------------------
     def _on_command(self, msg: PoseStamped, info=None) -> None:
@@ -109,7 +108,18 @@ class SetpointIntake:
         fairly after a stall of this node's own process (:class:`Freshness`)."""
         return not self._commands_fresh.stale(self._steady.now().nanoseconds)
 
-    def _on_checked(self, msg) -> None:
+    def _on_checked(self, msg, info=None) -> None:
+        """An acknowledgement: taken only from the bound monitor, never beyond the samples
+        published; a second writer holds the tool."""
+        trust = self._checked.take(info)
+        if trust.foreign:
+            self._hold(trust.reason)
+            return
+        if not trust.trusted or msg.data > self._lead.sent:
+            why = trust.reason or f"beyond the {self._lead.sent} samples published"
+            self.get_logger().warning(f"ignored /shaping/checked {msg.data} ({why})",
+                                      throttle_duration_sec=5.0)
+            return
         self._lead.on_checked(msg.data, self._steady.now().nanoseconds)
         if self._pending:
             self._try_step()

@@ -75,6 +75,9 @@ def read_yaml(path: str | Path) -> dict:
         raise ConfigError(f"{path}: {where}: {exc.problem}") from None
     except yaml.YAMLError as exc:
         raise ConfigError(f"{path}: not valid YAML ({exc})") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: nested too deep to read (a params file nests node names "
+                          f"and parameters a few levels)") from None
     if data is None:
         data = {}
     if not isinstance(data, dict):

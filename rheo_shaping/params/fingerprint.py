@@ -14,6 +14,7 @@ from typing import Any
 
 from .cell import CellParams
 from .schema import to_flat
+from .wire import load_json
 
 
 def cell_values(cell: CellParams) -> dict[str, Any]:
@@ -43,11 +44,11 @@ def cell_mismatch(own: CellParams, message: str, own_name: str = "this node",
 
     A message that is not a cell message is a mismatch too (named as such)."""
     try:
-        data = json.loads(message)
+        data = load_json(message, max_depth=3)
         fingerprint, values = data["fingerprint"], data["values"]
         if not isinstance(values, dict) or not isinstance(fingerprint, str):
             raise TypeError
-    except (ValueError, KeyError, TypeError):
+    except (ValueError, KeyError, TypeError):          # WireError is a ValueError
         return f"the cell message of {other_name} is not a cell fingerprint: {message[:80]!r}"
     mine = cell_values(own)
     if fingerprint == cell_fingerprint(own) and values == mine:

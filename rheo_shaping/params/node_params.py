@@ -51,10 +51,11 @@ class SimulatorNodeParams:
         "real_time_factor x step_period (the core sub-steps within "
         "it)", "s", 0.0, 1.0, lo_open=True)
     publish_period: float = param(
-        0.05, "simulated time between published sheet states (0: every step)", "s", 0.0, 10.0)
-    publish_markers: bool = param(True, "publish /sheet/markers for RViz")
+        0.05, "simulated time between published sheet states (0: every step)", "s", 0.0, 10.0,
+        tunable=True)
+    publish_markers: bool = param(True, "publish /sheet/markers for RViz", tunable=True)
     marker_period: float = param(
-        0.2, "wall-clock time between /sheet/markers", "s", 0.0, 60.0, lo_open=True)
+        0.2, "wall-clock time between /sheet/markers", "s", 0.0, 60.0, lo_open=True, tunable=True)
     publish_clock: bool = param(
         False, "publish /clock (simulated time) even when real_time_factor is 1")
     lockstep: bool = param(
@@ -81,9 +82,10 @@ class SimulatorNodeParams:
         0.0, 60.0, lo_open=True)
     diagnostics_period: float = param(
         1.0, "wall-clock time between the simulator's /diagnostics "
-             "status", "s", 0.0, 60.0, lo_open=True)
+             "status", "s", 0.0, 60.0, lo_open=True, tunable=True)
     progress_period: float = param(
-        10.0, "process time between progress lines in the log (0: none)", "s", 0.0, 3600.0)
+        10.0, "process time between progress lines in the log (0: none)", "s", 0.0, 3600.0,
+        tunable=True)
     max_tool_speed: float = param(
         0.05, "joint limit of the executed tool path: a set-point path faster than this stops the "
         "tool (it holds) with the reason, published on /shaping/abort", "m/s", 0.0, 1.0,
@@ -97,8 +99,9 @@ class SimulatorNodeParams:
     monitor_timeout: float = param(
         0.5, "once the monitor has acknowledged samples (/shaping/checked), no acknowledgement "
         "for this wall-clock time is a lost (frozen) monitor: the tool holds, the reason goes "
-        "out on /shaping/abort (0: never; on simulated time the sheet stands still meanwhile, "
-        "at most monitor_lead samples past the newest acknowledgement)", "s", 0.0, 60.0)
+        "out on /shaping/abort (on simulated time the sheet stands still meanwhile, "
+        "at most monitor_lead samples past the newest acknowledgement)", "s", 0.0, 2.0,
+        lo_open=True)
     camera: bool = param(
         True, "publish sheet/measured_profile: a simulated camera with the measurement model of "
         "rheo-shaping record (rheo_shaping.records.measurement: points along the centreline, "
@@ -157,7 +160,7 @@ class PlannerNodeParams:
         "faster than any monitor can stop the tool (0: no check)", "", 0.0, 10.0)
     trajectory_period: float = param(
         0.1, "time between the points of /tool/planned_trajectory (every jerk switch is "
-        "added)", "s", 0.0, 10.0, lo_open=True)
+        "added)", "s", 0.0, 10.0, lo_open=True, tunable=True)
     optimise_d: bool = param(
         False, "movement 4: before moving, pick d with the core model (smallest predicted "
         "F_max with Delta <= delta_limit, paper Fig. 18)")
@@ -172,6 +175,10 @@ class PlannerNodeParams:
         1, "processes used by optimise_d (1: in the node's process)", "", 1, 64)
 
 
+#: The largest ``abort_ratio`` any cell may set: a threshold at F_break leaves no time to stop
+#: (a set ratio is further checked against principle 4 at the cell's speed).
+MAX_ABORT_RATIO = 0.99
+
 #: ``abort_ratio`` value meaning: compute it with safety principle 4 for the
 #: cell's configured speed (rheo_shaping.safety.abort_budget; docs/ros.md "Abort threshold").
 AUTO_ABORT_RATIO = 0.0
@@ -185,7 +192,8 @@ class MonitorNodeParams:
         AUTO_ABORT_RATIO, "abort when a link tension reaches abort_ratio x material.F_break; 0: "
         "the largest ratio safety principle 4 allows at the cell's configured speed, "
         "(F_break - r (detect_time + stop_time) - 3 noise_sigma) / F_break with r the largest "
-        "tension rate of movements 1-4 computed by the core at start", "", 0.0, 1.0)
+        "tension rate of movements 1-4 computed by the core at start; a ratio above that "
+        "bound is refused at start", "", 0.0, MAX_ABORT_RATIO)
     noise_sigma: float = param(
         0.005, "1-sigma noise of the tension data budgeted by abort_ratio 0 (simulated data: "
         "none; a load cell's)", "N", 0.0, 10.0)
@@ -194,7 +202,7 @@ class MonitorNodeParams:
         "is not data but a lying source: abort", "", 1.0, 1e6)
     warn_ratio: float = param(
         0.8, "diagnostics WARN from this fraction of the abort "
-             "threshold", "", 0.0, 1.0, lo_open=True)
+             "threshold", "", 0.0, 1.0, lo_open=True, tunable=True)
     max_data_age: float = param(
         0.5, "longest time without tension data (wall-clock age of the newest sample on a "
         "steady clock, and the QoS deadline requested); longer: "
@@ -207,7 +215,8 @@ class MonitorNodeParams:
         0.05, "steady-clock period of the watchdog and of the /shaping/ready heartbeat", "s",
         0.0, 1.0, lo_open=True)
     diagnostics_period: float = param(
-        0.5, "wall-clock time between /diagnostics messages", "s", 0.0, 60.0, lo_open=True)
+        0.5, "wall-clock time between /diagnostics messages", "s", 0.0, 60.0, lo_open=True,
+        tunable=True)
     trend_abort: bool = param(
         False, "also abort when the tension's linear trend predicts the threshold within "
         "detect_time + stop_time (earlier aborts, more margin, but false aborts of runs that peak "
@@ -317,7 +326,7 @@ class GapWatchNodeParams:
         "", 10, 10000000)
     publish_period: float = param(
         0.5, "wall-clock time between residual, /diagnostics and marker messages", "s", 0.0,
-        60.0, lo_open=True)
+        60.0, lo_open=True, tunable=True)
     diagnose_on_warn: bool = param(
         True, "on the first sustained WARN of a run, write the run so far as a record and "
         "diagnose it in a worker process; once a run that warned has ended, diagnose the "
@@ -346,7 +355,8 @@ ROS_BUILTIN_PARAMETERS: frozenset[str] = frozenset(
 
 def parameter_table(cls: type) -> str:
     """Markdown table of a parameter dataclass: name, default, unit, range, description."""
-    rows = ["| parameter | default | unit | valid | description |", "|---|---|---|---|---|"]
+    rows = ["| parameter | default | unit | valid | at runtime | description |",
+            "|---|---|---|---|---|---|"]
     for fi in iter_fields(cls):
         spec = fi.spec
         default = list(fi.default) if isinstance(fi.default, tuple) else fi.default
@@ -356,7 +366,9 @@ def parameter_table(cls: type) -> str:
             else spec.range_text()
         if spec.unit and valid.endswith(f" {spec.unit}"):
             valid = valid[:-len(spec.unit) - 1]
-        rows.append(f"| `{fi.name}` | {default} | {spec.unit} | {valid} | {spec.description} |")
+        runtime = "tunable" if spec.tunable else "read-only"
+        rows.append(f"| `{fi.name}` | {default} | {spec.unit} | {valid} | {runtime} | "
+                    f"{spec.description} |")
     return "\n".join(rows)
 
 

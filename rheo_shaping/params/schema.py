@@ -25,6 +25,7 @@ class Spec:
     choices: tuple[str, ...] = ()    # for strings
     length: int | None = None        # for float arrays of fixed length
     min_length: int = 0              # for float arrays of variable length
+    tunable: bool = False            # may change while a node runs (else read-only then)
 
     def range_text(self) -> str:
         """Human text of the valid range, e.g. ``(0, 1e+06] N/m``."""
@@ -42,9 +43,12 @@ class Spec:
 
 def param(default: Any, description: str, unit: str = "", lo: float | None = None,
           hi: float | None = None, lo_open: bool = False, choices: Sequence[str] = (),
-          length: int | None = None, min_length: int = 0) -> Any:
-    """A dataclass field carrying a :class:`Spec` in its metadata."""
-    spec = Spec(description, unit, lo, hi, lo_open, tuple(choices), length, min_length)
+          length: int | None = None, min_length: int = 0, tunable: bool = False) -> Any:
+    """A dataclass field carrying a :class:`Spec` in its metadata.  ``tunable``: the value
+    may change while a node runs (what it shows or how often); every other parameter is
+    read-only once a node is configured (a change means a new cell)."""
+    spec = Spec(description, unit, lo, hi, lo_open, tuple(choices), length, min_length,
+                tunable)
     if isinstance(default, list):
         default = tuple(default)
     return field(default=default, metadata={"spec": spec})

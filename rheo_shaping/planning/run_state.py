@@ -119,13 +119,6 @@ class SetpointGrid:
         self._send(t_ns, out)
         return out
 
-    def realign(self, period_ns: int) -> None:
-        """A new control rate: the grid restarts at the newest time sent."""
-        self.period_ns = int(period_ns)
-        if self.last_ns is not None:
-            self.t0_ns = self.last_ns
-        self.k = 1
-
     def _send(self, t: int, out: list[int]) -> None:
         if self.last_ns is None or t > self.last_ns:
             out.append(t)

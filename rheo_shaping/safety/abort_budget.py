@@ -167,18 +167,28 @@ class AbortRatio:
 
 def monitor_abort_ratio(cell: CellParams, abort_ratio: float, horizon: float,
                         noise_sigma: float) -> AbortRatio:
-    """``abort_ratio`` [-] when > 0; with 0, safety principle 4 at the cell's configured
-    speed (:func:`configured_speed_threshold`, core runs of movements 1-4) over ``horizon``
-    [s] = t_detect + t_stop with tension noise ``noise_sigma`` [N].  Raises ParameterError
-    naming abort_ratio when the core cannot run or no threshold meets the principle."""
-    if abort_ratio > 0:
-        return AbortRatio(abort_ratio, None, "")
+    """Safety principle 4 at the cell's configured speed (:func:`configured_speed_threshold`,
+    core runs of movements 1-4) over ``horizon`` [s] = t_detect + t_stop with tension noise
+    ``noise_sigma`` [N]: with ``abort_ratio`` 0 its bound is the ratio; a set ``abort_ratio``
+    [-] is taken when it does not exceed that bound and refused when it does (a threshold at
+    F_break leaves no time to stop: abort_ratio 1.0 tore the sheet in every attack run).
+    Raises ParameterError naming abort_ratio when the core cannot run, no threshold meets
+    the principle, or a set ratio exceeds it."""
+    what = f"abort_ratio {abort_ratio:g}"
     try:
         F_abort, r, rows = configured_speed_threshold(cell, horizon, noise_sigma)
     except (RuntimeError, ValueError) as exc:
-        raise ParameterError(f"abort_ratio 0: the core could not compute the tension rates "
-                             f"({exc}); set abort_ratio") from None
+        raise ParameterError(f"{what}: the core could not compute the tension rates "
+                             f"({exc})") from None
     Fb = cell.material.F_break
+    if abort_ratio > 0:
+        if abort_ratio * Fb > F_abort:
+            raise ParameterError(
+                f"parameter 'abort_ratio' = {abort_ratio:g} is invalid: expected at most "
+                f"{F_abort / Fb:.4f}, safety principle 4 at movement.speed "
+                f"{cell.movement.speed:g} m/s (F_abort = {Fb:g} - {r:.3f} x {horizon:.3f} - "
+                f"3 x {noise_sigma:g} = {F_abort:.4f} N); 0 takes that bound")
+        return AbortRatio(abort_ratio, None, "")
     if F_abort <= 0:
         raise ParameterError(
             f"abort_ratio 0: no threshold meets safety principle 4 at movement.speed "

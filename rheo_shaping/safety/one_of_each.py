@@ -13,6 +13,8 @@ import json
 import math
 from dataclasses import asdict, dataclass
 
+from ..params.wire import Field, WireError, read_fields
+
 #: Wall-clock time [s] a node waits after its start (the planner: after the simulator's
 #: first latched message, i.e. once discovery reached the cell) before it acts: an older
 #: twin's latched announcement arrives within DDS discovery, under a second on one idle host.
@@ -46,12 +48,18 @@ class Announcement:
 
     @classmethod
     def parse(cls, text: str) -> "Announcement | None":
-        """The announcement in ``text``; None for anything else (ignored)."""
+        """The announcement in ``text`` (:func:`~rheo_shaping.params.wire.read_fields`:
+        exactly its four keys, finite integers); None for anything else (ignored)."""
         try:
-            d = json.loads(text)
-            return cls(int(d["start_ns"]), int(d["pid"]), str(d["host"]), str(d["node"]))
-        except (ValueError, KeyError, TypeError):
+            d = read_fields(text, ANNOUNCEMENT_FIELDS, max_chars=4096, max_depth=1)
+        except WireError:
             return None
+        return cls(d["start_ns"], d["pid"], d["host"], d["node"])
+
+
+#: The keys of an announcement and what each may hold.
+ANNOUNCEMENT_FIELDS = {"start_ns": Field(int, 0, 2**63 - 1), "pid": Field(int, 0, 2**31),
+                       "host": Field(str, max_len=255), "node": Field(str, max_len=1024)}
 
 
 def twin_reason(mine: Announcement, other: Announcement) -> str:

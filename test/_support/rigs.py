@@ -137,7 +137,8 @@ class FakeCell:
 
     def __init__(self, ros):
         self.ros = ros
-        self.node = ros.node("fake_cell")
+        # named as the simulator: the monitor takes the tensions from no other node
+        self.node = ros.node("simulator")
         q = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                        deadline=Duration(seconds=0.05))
         self.clock = self.node.create_publisher(Clock, "/clock", 1)

@@ -56,4 +56,4 @@ def test_cell_refuses_bad_parameters(tmp_path):
     bad_node.write_text("monitor:\n  ros__parameters:\n    abort_ratio: 1.5\n")
     proc = _run("--params", str(bad_node))
     assert proc.returncode == 2
-    assert "abort_ratio" in proc.stderr and "1.5" in proc.stderr and "[0, 1]" in proc.stderr
+    assert "abort_ratio" in proc.stderr and "1.5" in proc.stderr and "[0, 0.99]" in proc.stderr

@@ -205,7 +205,7 @@ def test_after_an_abort_acknowledgements_wait_for_the_planner_to_stop(ros, cell)
     """The sample that aborts is acknowledged only once /shaping/planner_state shows the
     planner off its plan: a simulator faster than real time stands still meanwhile."""
     monitor = make_monitor(ros, trend_abort=False, abort_hold=30.0)
-    node = ros.node("ack_planner")
+    node = ros.node("planner")      # the monitor takes the planner's state from no other node
     state = node.create_publisher(String, "/shaping/planner_state", LATCHED)
     rec = Recorder(node, {"/shaping/checked": UInt64, "/shaping/abort": (String, True)})
     state.publish(String(data="running"))

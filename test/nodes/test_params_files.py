@@ -88,7 +88,7 @@ BAD_FILES = {
     "bad_cell_value": ("/**:\n  ros__parameters:\n    material: {k1: -1.0}\n",
                        ["material.k1", "-1.0", "(0, 1e+06]"]),
     "bad_node_value": ("/**/monitor:\n  ros__parameters:\n    abort_ratio: 1.5\n",
-                       ["abort_ratio", "1.5", "[0, 1]"]),
+                       ["abort_ratio", "1.5", "[0, 0.99]"]),
 }
 
 

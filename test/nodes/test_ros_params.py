@@ -27,10 +27,11 @@ def test_every_node_setting_has_description_unit_and_range():
                 assert fi.spec.lo is not None and fi.spec.hi is not None, fi.name
 
 
-def _schema_node(ros, overrides=(), groups=None):
+def _schema_node(ros, overrides=(), groups=None, locked=True):
     node = ros.node("schema_test", parameter_overrides=list(overrides))
     return node, SchemaParameters(node,
-                                  groups or {"cell": CellParams, "settings": MonitorNodeParams})
+                                  groups or {"cell": CellParams, "settings": MonitorNodeParams},
+                                  locked=locked)
 
 
 def test_descriptors_carry_description_unit_and_range(ros):
@@ -43,7 +44,9 @@ def test_descriptors_carry_description_unit_and_range(ros):
     n = node.describe_parameter("sheet.n_masses")
     assert n.integer_range[0].from_value == 1 and n.integer_range[0].to_value == 2000
     r = node.describe_parameter("abort_ratio")
-    assert "F_break" in r.description and r.floating_point_range[0].to_value == 1.0
+    assert "F_break" in r.description and r.floating_point_range[0].to_value == 0.99
+    assert r.description.endswith("; read-only while the node runs")
+    assert not node.describe_parameter("diagnostics_period").description.endswith("runs")
     c2 = node.describe_parameter("material.c2")          # unbounded above: no ROS range
     assert not c2.floating_point_range and "inf" in c2.description
     assert params["cell"] == CellParams()
@@ -54,7 +57,7 @@ def test_start_refuses_out_of_range_value_with_the_schema_message(ros):
     with pytest.raises(ParameterError) as exc:
         _schema_node(ros, [Parameter("abort_ratio", value=1.5)])
     text = str(exc.value)
-    assert "abort_ratio" in text and "1.5" in text and "[0, 1]" in text
+    assert "abort_ratio" in text and "1.5" in text and "[0, 0.99]" in text
 
 
 def test_start_refuses_open_bound_and_cross_field(ros):
@@ -78,13 +81,14 @@ def test_integer_accepted_for_float_and_converted(ros):
 
 
 def test_runtime_set_parameters_refused_with_name_value_and_range(ros):
-    node, params = _schema_node(ros)
+    """The schema's checks at runtime (an unlocked schema node: every parameter may change)."""
+    node, params = _schema_node(ros, locked=False)
     [res] = node.set_parameters([Parameter("max_data_age", value=0.0)])    # open bound: schema
     assert not res.successful
     assert "max_data_age" in res.reason and "0.0" in res.reason and "(0, 60]" in res.reason
     [res] = node.set_parameters([Parameter("abort_ratio", value=2.0)])     # beyond: rclpy's range
     assert not res.successful
-    assert "abort_ratio" in res.reason and "2.0" in res.reason and "1.0" in res.reason
+    assert "abort_ratio" in res.reason and "2.0" in res.reason and "0.99" in res.reason
     [res] = node.set_parameters([Parameter("tool.home", value=[0.1])])
     assert not res.successful and "tool.home" in res.reason and "2 values" in res.reason
     [res] = node.set_parameters([Parameter("sheet.top_bond_x", value=-0.001)])   # cross-field
@@ -95,13 +99,33 @@ def test_runtime_set_parameters_refused_with_name_value_and_range(ros):
     assert params["settings"].abort_ratio == 0.5
 
 
-def test_monitor_threshold_follows_runtime_change(ros):
+#: What a rogue node set on the running monitor (each tore the sheet before the lock).
+ROGUE_CHANGES = [("material.F_break", 100.0), ("abort_ratio", 0.9), ("abort_ratio", 0.0),
+                 ("check_cell", False), ("max_data_age", 60.0), ("detect_time", 0.0),
+                 ("max_tension_ratio", 1e6), ("acknowledge", False), ("movement.speed", 0.01)]
+
+
+@pytest.mark.parametrize("name,value", ROGUE_CHANGES)
+def test_a_running_monitor_refuses_every_safety_parameter_change(ros, name, value):
     node = ros.add(MonitorNode(context=ros.context,
                                parameter_overrides=[Parameter("abort_ratio", value=0.7)]))
-    assert node.threshold == pytest.approx(0.7 * CellParams().material.F_break)
-    [res] = node.set_parameters([Parameter("abort_ratio", value=0.5)])
-    assert res.successful
-    assert node.threshold == pytest.approx(0.5 * CellParams().material.F_break)
+    threshold = node.threshold
+    [res] = node.set_parameters([Parameter(name, value=value)])
+    assert not res.successful
+    assert res.reason == (f"parameter '{name}' is read-only while monitor runs (the cell's "
+                          f"safety rests on it): a change means a new cell, a restart or "
+                          f"cleanup and configure through the lifecycle")
+    assert node.threshold == threshold == pytest.approx(0.7 * CellParams().material.F_break)
+    assert node.get_parameter(name).value != value
+
+
+def test_a_running_monitor_takes_a_tunable_setting(ros):
+    node = ros.add(MonitorNode(context=ros.context,
+                               parameter_overrides=[Parameter("abort_ratio", value=0.7)]))
+    [res] = node.set_parameters([Parameter("diagnostics_period", value=0.25)])
+    assert res.successful and node.settings.diagnostics_period == 0.25
+    [res] = node.set_parameters([Parameter("diagnostics_period", value=0.0)])   # still checked
+    assert not res.successful and "diagnostics_period" in res.reason
 
 
 @pytest.mark.parametrize("exe,arg,name", [

@@ -172,7 +172,7 @@ def test_waits_for_the_monitors_acknowledgements(ros):
     command_timeout it runs on."""
     sim = make_sim(ros, real_time_factor=10.0, step_period=0.01, start_on_command=False,
                    publish_period=0.0, monitor_lead=3, command_timeout=0.2)
-    node = ros.node("fake_monitor")
+    node = ros.node("monitor")             # the simulator takes acknowledgements from no other
     ack = node.create_publisher(UInt64, "/shaping/checked", 1)
     wait_for_subscribers(ros, ack)
     ros.spin_until(lambda: sim._lead.sent > 3, 20.0, "tension samples")

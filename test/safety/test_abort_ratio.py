@@ -17,6 +17,22 @@ def test_a_configured_abort_ratio_is_taken_as_given():
     assert choice.ratio == 0.85 and choice.budget is None and choice.note == ""
 
 
+def test_a_configured_ratio_beyond_principle_4_is_refused_with_the_bound():
+    """abort_ratio 1.0 sat inside the schema and tore the sheet: a set ratio above the bound
+    principle 4 gives at the configured speed is refused, naming both; the bound itself is
+    taken."""
+    cell = CellParams()
+    h = abort_horizon(cell, 0.1, 0.0)
+    F_abort, r, _ = configured_speed_threshold(cell, h, 0.005)
+    bound = F_abort / cell.material.F_break
+    assert monitor_abort_ratio(cell, bound, h, 0.005).ratio == bound
+    with pytest.raises(ParameterError, match=rf"^parameter 'abort_ratio' = 1 is invalid: "
+                                             rf"expected at most {bound:.4f}"):
+        monitor_abort_ratio(cell, 1.0, h, 0.005)
+    with pytest.raises(ParameterError, match="abort_ratio"):
+        monitor_abort_ratio(cell, bound * (1 + 1e-9), h, 0.005)
+
+
 def test_ratio_zero_is_principle_4_at_the_configured_speed():
     cell = CellParams()
     h = abort_horizon(cell, 0.1, 0.0)
