@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""The attack campaign: every attack of test/nodes/test_attacks.py, N runs each with random
-timing, at x1 and x10 simulated time (issue 27, docs/safety.md "Attacks").
+"""The attack campaign: every attack of test/nodes/test_attacks*.py, N runs each with random
+timing, at x1 and x10 simulated time (docs/safety.md, "The attack campaign").
 
 Each run is one pytest run of one attack test against the three node processes, with the
 attack's start drawn per run (``RHEO_ATTACK_SEED``: uniform in [2, 14] s of process time)
@@ -42,19 +42,29 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import cpu_name  # noqa: E402
 sys.path.insert(0, str(REPO / "test"))
 from _support.domains import claim_domain_id  # noqa: E402  (stdlib only)
-TESTS = "test/nodes/test_attacks.py"
-ATTACKS = [
+OLD = "test/nodes/test_attacks.py::"
+ROGUE = "test/nodes/test_attacks_rogue.py::"
+#: Every attack: a pytest node id of test/nodes/test_attacks*.py.
+ATTACKS = [OLD + t for t in (
     "test_a_second_commander_is_refused_and_the_tool_holds[during_run]",
     "test_a_second_commander_is_refused_and_the_tool_holds[after_abort]",
     "test_a_forged_clock_stops_the_run_with_the_reason[+30s]",
     "test_a_forged_clock_stops_the_run_with_the_reason[negative]",
     "test_a_frozen_monitor_holds_the_tool_within_the_budget",
     "test_a_second_planner_yields_and_a_start_is_served_once",
-    "test_lying_tension_data_aborts_with_the_reason",
+    "test_a_second_writer_of_the_tensions_aborts_with_its_name[lying]",
+    "test_a_second_writer_of_the_tensions_aborts_with_its_name[flood]",
     "test_a_parameter_slip_in_one_node_is_refused_with_both_values",
     "test_a_spoofed_ready_heartbeat_does_not_open_the_interlock",
     "test_a_planner_killed_and_restarted_does_not_move_the_tool",
-]
+)] + [ROGUE + t for t in (
+    "test_spoofed_acknowledgements_with_the_monitor_frozen_hold_the_tool[huge]",
+    "test_spoofed_acknowledgements_with_the_monitor_frozen_hold_the_tool[mirror]",
+    "test_a_rogue_parameter_change_of_the_running_monitor_is_refused[F_break]",
+    "test_a_rogue_parameter_change_of_the_running_monitor_is_refused[ratio]",
+    "test_malformed_announcements_and_messages_crash_no_node",
+    "test_a_chain_from_the_domain_alone_does_not_tear",
+)]
 F_RE = re.compile(r"F_max ([0-9.]+) N \(threshold ([0-9.]+) N, allowed ([0-9.]+) N, "
                   r"F_break ([0-9.]+) N\)")
 TB_RE = re.compile(r"process tracebacks: ([0-9]+)")
@@ -66,7 +76,7 @@ def one_run(attack: str, rtf: float, seed: int, domain: int) -> dict:
                ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     t0 = time.monotonic()
     p = subprocess.run([sys.executable, "-m", "pytest", "-q", "-s", "-p", "no:cacheprovider",
-                        f"{TESTS}::{attack}"], cwd=REPO, env=env, capture_output=True,
+                        attack], cwd=REPO, env=env, capture_output=True,
                        text=True)
     out = p.stdout + p.stderr
     m = F_RE.search(out)
@@ -176,8 +186,8 @@ def main(argv=None) -> int:
             if "output" in res:
                 logs = (args.json or Path("attack_campaign.json")).with_suffix(".logs")
                 logs.mkdir(exist_ok=True)
-                (logs / f"{i:04d}_{res['attack'][:60]}_x{res['rtf']:g}.log").write_text(
-                    res.pop("output"))
+                name = res["attack"].split("::")[-1][:60]
+                (logs / f"{i:04d}_{name}_x{res['rtf']:g}.log").write_text(res.pop("output"))
             el = time.monotonic() - t0
             print(f"\r[{i}/{len(todo)}] {el:.0f} s, ETA {el / i * (len(todo) - i):.0f} s, "
                   f"failed {sum(not r['passed'] for r in results)}, "

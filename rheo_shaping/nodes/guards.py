@@ -123,7 +123,11 @@ class Presence:
     """Announces the node on ``/shaping/presence``; calls ``on_twin(reason)`` when an older
     node of the same name is up (this one must then yield)."""
 
-    def __init__(self, node: Node, on_twin: Callable[[str], None]):
+    def __init__(self, node: Node, on_twin: Callable[[str], None],
+                 acting: Callable[[], bool] | None = None):
+        """``acting``: whether the node has begun to act (default: once it has settled);
+        from then on an announcement never makes it quit."""
+        self._acting = acting or (lambda: self._settled)
         self.mine = Announcement(time.time_ns(), os.getpid(), socket.gethostname(),
                                  node.get_fully_qualified_name())
         self._node = node
@@ -204,7 +208,7 @@ class Presence:
         if other.node == self.mine.node and self.mine < other:
             self._younger.add(other)
         why = twin_reason(self.mine, other)
-        if why and self._settled:
+        if why and self._acting():
             # a running node never quits on an announcement: an older twin is found before
             # a node acts (the settle time), so an "older" one now is a forgery or a clock
             self._node.get_logger().error(f"ignored: {why} (announced after this node "

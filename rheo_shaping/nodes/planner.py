@@ -131,7 +131,8 @@ class PlannerNode(PlannerSupervision, Node):
                 f"{mv.process_time:g} s: the process figures are taken at {mv.process_time:g} s "
                 f"and the plan is finished after it")
         self._set_state("starting")       # idle / waiting once it knows it is the only one
-        self.presence = Presence(self, self._yield)     # last: a node that is fully up
+        # it acts once it has its /tool/command writer: a twin that has none yet yields
+        self.presence = Presence(self, self._yield, acting=lambda: self.pub_command is not None)
 
     # -- parameters and plan --------------------------------------------------------
     @property

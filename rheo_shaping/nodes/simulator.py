@@ -310,7 +310,9 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
             target = self._t_ns + self._dt_ns
             choice = next_step(
                 s.lockstep, s.start_on_command, self.run.started, self._t_ns > 0,
-                lambda: self._lead.behind(self._steady.now().nanoseconds),
+                # a held tool is the safe state: the sheet settles under it without waiting
+                # for a monitor that cannot judge (frozen, or refusing a rogue's samples)
+                lambda: not self.gate.held and self._lead.behind(self._steady.now().nanoseconds),
                 lambda: self.run.lacks_setpoint(target), bool(self.gate.held), self._stream_live)
             if choice == HOLD_FOR_START:
                 self._pending = False
@@ -324,11 +326,12 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
                 self._hold_camera()
                 self._publish_steady(self._t_ns)
                 return
-            if choice == WAIT_MONITOR:
-                return                              # re-tried on the next acknowledgement
-            if choice == WAIT_SETPOINT:
-                self._waits += 1
-                return                              # wait for the step's set-point
+            if choice in (WAIT_MONITOR, WAIT_SETPOINT):
+                # re-tried on the next acknowledgement or set-point; /diagnostics goes on
+                # meanwhile (a hold while the monitor refuses a rogue's samples is seen)
+                self._waits += choice == WAIT_SETPOINT
+                self._publish_steady(self._t_ns)
+                return
             if choice == LATE_STEP:
                 self._late_steps += 1               # the tool holds its last set-point
                 self.get_logger().warning(

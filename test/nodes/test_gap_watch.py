@@ -3,7 +3,8 @@
 The test node plays a cell in namespace /gw: the plan's start on tool/planned_trajectory,
 then a record the model makes of itself (the measurement model's noise) on tool/pose,
 sheet/measured_profile and tool/wrench at about 10x real time, with rogue and malformed
-messages among them: camera frames of 0, 1 and 20,000 points, NaN and infinite values, a
+messages among them: camera frames of 0, 1 and 20,000 points, NaN and infinite values,
+poses, points and forces at 1e300, a
 second publisher of tool/pose with zero, far-future and backward stamps, and a forged
 /clock that jumps back and forth.  The node must keep running without a traceback, refuse
 each bad sample with its reason (shaping/gap), keep stepping its model through the good
@@ -120,6 +121,12 @@ def test_gap_watch_survives_rogue_and_malformed_inputs(ros, procs, tmp_path):
                 w = WrenchStamped(header=m.header(ns(t) + int(1e6 * NS)))
                 rogue_wrench.publish(w)
                 rogue_sent += 1
+            else:                                   # finite but out of any cell: 1e300
+                rogue_pose.publish(m.pose_msg((1e300, 0.05), now + 1))
+                rogue_wrench.publish(m.wrench_msg((0.0, 1e300), now + 1))
+                far = m.profile_msg(np.array([[0.0, 0.01], [1e300, 0.02], [0.0, 0.03]]), now)
+                rogue_profile.publish(far)
+                rogue_sent += 3
         clock.publish(m.clock_msg(ns(t)))
         ros.spin_for(0.02)
         t += 0.1
@@ -141,7 +148,11 @@ def test_gap_watch_survives_rogue_and_malformed_inputs(ros, procs, tmp_path):
     assert sum(refused.values()) >= 5, refused
     for reason in ("profile: fewer than 3 or more than max_points points",
                    "pose: non-finite position", "wrench: non-finite force",
-                   "profile: non-finite point", "pose: stamp before the process start"):
+                   "profile: non-finite point", "pose: stamp before the process start",
+                   # one pose at 1e300 m sent the model into a loop it never left
+                   "pose: farther than 10 m from the origin",
+                   "profile: a point farther than 10 m from the origin",
+                   "wrench: a force beyond 10000 N"):
         assert refused.get(reason, 0) >= 1, (reason, json.dumps(g))
     # the good stream was judged: profile residuals over the run
     assert g["residuals"]["run"]["profile_m"]["n"] > 1000

@@ -130,6 +130,9 @@ def test_a_running_monitor_takes_a_tunable_setting(ros):
 
 @pytest.mark.parametrize("exe,arg,name", [
     ("monitor", "abort_ratio:=1.5", "abort_ratio"),
+    ("monitor", "abort_ratio:=1.0", "abort_ratio"),              # a threshold at F_break
+    ("monitor", "abort_ratio:=0.98", "expected at most 0.9"),    # beyond principle 4 here
+    ("simulator", "monitor_timeout:=0.0", "monitor_timeout"),    # never: tore the sheet
     ("simulator", "real_time_factor:=-1.0", "real_time_factor"),
     ("planner", "control_rate:=0.0", "control_rate"),
 ])
@@ -145,3 +148,17 @@ def test_simulator_settings_defaults_are_consistent():
     # lockstep waits never look stale
     assert s.command_timeout < MonitorNodeParams().max_data_age
     assert s.offered_deadline <= MonitorNodeParams().max_data_age    # QoS compatible
+
+
+@pytest.mark.parametrize("exe", ["simulator", "planner", "monitor", "lifecycle_manager",
+                                 "gap_watch", "monitor_managed"])
+def test_a_params_file_nested_5000_deep_is_refused_by_name(exe, tmp_path):
+    """Every executable exited with a RecursionError traceback on such a file."""
+    deep = tmp_path / "deep.yaml"
+    deep.write_text("/**:\n  ros__parameters:\n    x: " + "[" * 5000 + "]" * 5000 + "\n")
+    proc = subprocess.run([str(BIN / exe), "--ros-args", "--params-file", str(deep)],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          timeout=60)
+    assert proc.returncode == 2, proc.stdout
+    assert f"{deep}: nested too deep to read" in proc.stdout, proc.stdout
+    assert "Traceback" not in proc.stdout
