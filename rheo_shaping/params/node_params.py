@@ -100,8 +100,8 @@ class SimulatorNodeParams:
         0.5, "once the monitor has acknowledged samples (/shaping/checked), no acknowledgement "
         "for this wall-clock time is a lost (frozen) monitor: the tool holds, the reason goes "
         "out on /shaping/abort (on simulated time the sheet stands still meanwhile, "
-        "at most monitor_lead samples past the newest acknowledgement)", "s", 0.0, 2.0,
-        lo_open=True)
+        "at most monitor_lead samples past the newest acknowledgement; 0, never, tore the "
+        "sheet with the monitor frozen)", "s", 0.0, 10.0, lo_open=True)
     camera: bool = param(
         True, "publish sheet/measured_profile: a simulated camera with the measurement model of "
         "rheo-shaping record (rheo_shaping.records.measurement: points along the centreline, "

@@ -38,6 +38,10 @@ from .ros import Recorder  # noqa: E402
 _SEED = os.environ.get("RHEO_ATTACK_SEED")
 ATTACK_AT = random.Random(int(_SEED)).uniform(2.0, 14.0) if _SEED else 5.0
 RTF = float(os.environ.get("RHEO_ATTACK_RTF", "10"))
+#: process time [s] of an attack late in the run, close below the tear plan's threshold
+#: crossing (~16 s): the same draw mapped onto [13, 15.5] s (a monitor frozen at 15.6 s
+#: while a rogue acknowledged tore the sheet at x1 in 3 of 3 runs)
+LATE_ATTACK_AT = 13.0 + (ATTACK_AT - 2.0) / 12.0 * 2.5
 #: wall time per simulator step [s]: a step of simulated time no shorter than the planner's
 #: control period (20 ms), so lockstep finds each step's set-point streamed
 STEP = 0.01 if RTF >= 2 else 0.02

@@ -30,7 +30,7 @@ from rheo_shaping.nodes import topics as T  # noqa: E402
 from rheo_shaping.safety.one_of_each import Announcement  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
-from _support.attacks import ATTACK_AT, Attacked, publish_for  # noqa: E402
+from _support.attacks import ATTACK_AT, LATE_ATTACK_AT, Attacked, publish_for  # noqa: E402
 from _support.ros import wait_for_subscribers  # noqa: E402
 
 #: 100,000 '[': json.loads raised RecursionError in every node that read it.
@@ -58,7 +58,7 @@ def test_spoofed_acknowledgements_with_the_monitor_frozen_hold_the_tool(ros, pro
     the simulator waits for): the simulator stepped on unmonitored and tore the sheet (1 of
     4 at x10, 3 of 3 at x1).  It takes acknowledgements from its monitor only."""
     a = Attacked(ros, procs, tmp_path)
-    a.run_to(ATTACK_AT)
+    a.run_to(LATE_ATTACK_AT)
     pub, make = _acks(a, ros, kind)
     a.c.monitor.proc.send_signal(signal.SIGSTOP)
     try:
