@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import signal
-import time
 
 import pytest
 
@@ -77,8 +76,8 @@ def test_spoofed_acknowledgements_with_the_monitor_frozen_hold_the_tool(ros, pro
 @pytest.mark.parametrize("change", [
     {"check_cell": False, "material.F_break": 100.0, "abort_ratio": 0.9},
     {"abort_ratio": 0.99}], ids=["F_break", "ratio"])
-def test_a_rogue_parameter_change_of_the_running_monitor_is_refused(ros, procs, tmp_path,
-                                                                     change):
+def test_a_rogue_parameter_change_of_the_running_monitor_is_refused(
+        ros, procs, tmp_path, change):
     """A rogue called the monitor's set_parameters mid-run (F_break 100 with check_cell
     false, or abort_ratio at the schema's bound): 15 tears in 15 runs.  Every safety
     parameter is read-only while the monitor runs; the run goes on to the monitor's own

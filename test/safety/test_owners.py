@@ -30,7 +30,8 @@ def test_binds_to_the_owner_and_refuses_any_second_writer_by_name():
 
 def test_a_writer_without_a_name_yet_is_not_trusted_but_not_named():
     s = StreamOwner("/t", "/monitor")
-    t = s.judge([Publisher("/monitor", "aa"), Publisher(f"_NODE_NAMESPACE_UNKNOWN_/{UNNAMED}", "dd")])
+    nameless = Publisher(f"_NODE_NAMESPACE_UNKNOWN_/{UNNAMED}", "dd")
+    t = s.judge([Publisher("/monitor", "aa"), nameless])
     assert s.bound is not None and not t.trusted and t.foreign == ()
     assert "whose node the graph does not name yet" in t.reason
 
