@@ -6,6 +6,8 @@ import configparser
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from _support.packaging import setup_kwargs
+
 REPO = Path(__file__).resolve().parents[2]
 
 #: The rosdep key of every third-party module the package may import. Each key resolves
@@ -82,7 +84,7 @@ def test_license_file_is_the_license_package_xml_and_setup_py_name():
     assert "TERMS AND CONDITIONS FOR USE, REPRODUCTION, AND DISTRIBUTION" in text
     assert "END OF TERMS AND CONDITIONS" in text and len(text) > 10000, "the full text"
     assert _manifest().findtext("license") == "Apache-2.0"
-    kwargs = _setup_kwargs()
+    kwargs = setup_kwargs()
     assert ast.literal_eval(kwargs["license"]) == "Apache-2.0"
     classifiers = ast.literal_eval(kwargs["classifiers"])
     licenses = [c for c in classifiers if c.startswith("License ::")]
@@ -140,15 +142,8 @@ def test_package_xml_version_matches_setup_py_and_package():
     assert re.search(r"__version__\s*=\s*['\"]" + re.escape(version) + "['\"]", init_src)
 
 
-def _setup_kwargs() -> dict:
-    tree = ast.parse((REPO / "setup.py").read_text())
-    call = next(n for n in ast.walk(tree)
-                if isinstance(n, ast.Call) and getattr(n.func, "id", None) == "setup")
-    return {kw.arg: kw.value for kw in call.keywords}
-
-
 def test_setup_py_console_scripts():
-    entry_points = ast.literal_eval(_setup_kwargs()["entry_points"])
+    entry_points = ast.literal_eval(setup_kwargs()["entry_points"])
     scripts = {}
     for spec in entry_points["console_scripts"]:
         name, target = (part.strip() for part in spec.split("=", 1))
@@ -167,7 +162,7 @@ def test_each_node_executable_is_the_launcher_shell_and_python_at_once():
     consts = {t.id: n.value for n in tree.body if isinstance(n, ast.Assign)
               for t in n.targets if isinstance(t, ast.Name)}
     assert ast.literal_eval(consts["NODES"]) == NODES
-    kwargs = _setup_kwargs()
+    kwargs = setup_kwargs()
     assert ast.unparse(kwargs["scripts"]) == "[os.path.join('launchers', node) for node in NODES]"
     assert ast.unparse(kwargs["cmdclass"]) == \
         "{'build_scripts': BuildLaunchers, 'develop': DevelopLaunchers}"
