@@ -86,9 +86,19 @@ def _span_s(record: Path) -> float:
         return 0.0
 
 
+def _check_record(record: Path) -> None:
+    """A readable record, or a UserError naming what is wrong (before any progress bar)."""
+    from ..records.bag import RecordError, read_record
+    try:
+        read_record(record)
+    except RecordError as exc:
+        raise UserError(str(exc)) from None
+
+
 def run(args: argparse.Namespace) -> int:
     if not (0.0 < args.rate <= 1e4):
         raise UserError(f"--rate = {args.rate:g}: expected a value in (0, 10000]")
+    _check_record(Path(args.record))
     try:
         from ..nodes.replay import replay
     except ImportError as exc:

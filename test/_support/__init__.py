@@ -2,5 +2,5 @@
 
 ``stages`` splits the suite between the two virtualenvs (dev.py reads it too),
 ``domains`` claims a private ROS_DOMAIN_ID, ``cells`` builds the cells the tests run,
-``ros`` and ``rigs`` hold the ROS 2 helpers (they need rclpy).
+``packaging`` reads setup.py, ``ros`` and ``rigs`` hold the ROS 2 helpers (they need rclpy).
 """

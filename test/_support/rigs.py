@@ -3,6 +3,7 @@ that feeds an in-process monitor (they need rclpy)."""
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -195,3 +196,54 @@ def get_ready(ros, monitor, cell):
     wait_for_subscribers(ros, cell.profile)
     ros.spin_until(lambda: monitor.ready, 10.0, "monitor ready",
                    every=lambda: cell.publish())
+
+
+@dataclass
+class WatchdogTick:
+    """One check of an in-process monitor's watchdog, as the node made it."""
+
+    steady: int                       # the monitor's steady clock at the check [ns]
+    stalled: bool                     # the node stood still before it (StallGuard)
+    ages: dict[str, float]            # each tension stream's age at the check [s]
+    age_at_previous: float            # the oldest one's age at the previous check [s] (inf: none)
+    state_before: str
+    state_after: str
+
+    @property
+    def age(self) -> float:
+        """The oldest tension stream's age at the check [s]."""
+        return max(self.ages.values())
+
+
+@dataclass
+class WatchdogLog:
+    """The watchdog checks of an in-process monitor, and when it aborted."""
+
+    ticks: list[WatchdogTick]
+    abort_at: int | None = None       # the checks done before the abort (its tick's index)
+
+
+def record_watchdog(monitor: MonitorNode) -> WatchdogLog:
+    """Every later watchdog check of ``monitor`` (its core's ``tick``, wrapped) in order, and
+    the number of checks done when it aborted (an abort inside check i counts i)."""
+    core = monitor.core
+    tick, abort = core.tick, core.abort
+    log = WatchdogLog([])
+
+    def recorded_tick(steady: int, clock: int, stalled: bool = False,
+                      previous: int | None = None) -> bool:
+        ages = {t: core.age(t, steady) for t in core.tension_topics}
+        before = (max(core.age(t, previous) for t in core.tension_topics)
+                  if previous is not None else float("inf"))
+        state = core.state
+        ready = tick(steady, clock, stalled, previous)
+        log.ticks.append(WatchdogTick(steady, stalled, ages, before, state, core.state))
+        return ready
+
+    def recorded_abort(reason: str) -> bool:
+        if core.state != "aborted":
+            log.abort_at = len(log.ticks)
+        return abort(reason)
+
+    core.tick, core.abort = recorded_tick, recorded_abort
+    return log

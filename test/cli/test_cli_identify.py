@@ -121,6 +121,48 @@ def test_plot_is_written_and_never_overwritten_without_force(capsys, tmp_path):
     assert code == 2 and "no such directory" in err
 
 
+def _panels(fig) -> list[str]:
+    return [ax.get_title() for ax in fig.axes]
+
+
+def _title(fig) -> str:
+    """The figure's title on one line (matplotlib 3.6, noble's, has no get_suptitle)."""
+    (title,) = [t.get_text() for t in fig.texts]
+    return title.replace("\n", " ")
+
+
+def test_plot_draws_only_the_panels_it_has_data_for_under_a_title(capsys, tmp_path):
+    """The README's example (creep table only) draws the creep panel alone, not three empty
+    axes beside it, under a title that says what was identified and what is missing."""
+    from rheo_shaping.identification.identification_plots import plot_joint, plot_paper
+    from rheo_shaping.identification.material_data import (read_creep_residuals,
+                                                           read_tensile_curve)
+    from rheo_shaping.identification.model_choice import identify_joint
+    from rheo_shaping.identification.paper_method import identify_paper
+    png = tmp_path / "ident.png"
+    code, out, err = run(capsys, "--creep", TABLE1, "--plot", str(png))
+    assert code == 0, err
+    assert png.read_bytes().startswith(PNG_MAGIC) and f"plot: {png}" in out
+    creep = read_creep_residuals(TABLE1)
+    tensile = [read_tensile_curve(SYNTH, None, 1e-3)]
+    fig = plot_paper(identify_paper(creep), tmp_path / "p1.png")
+    assert _panels(fig) == ["creep tests: residual elongation (Eq. 10)"]
+    assert _title(fig) == (
+        "identify, the paper's method (Sec. 3.4): c2 = 1299 N s/m; model: not determined "
+        "no tensile curve: k1 and c1 (Eq. 5, Eq. 12-13) need one (--tensile FILE)")
+    fig = plot_paper(identify_paper(creep, tensile), tmp_path / "p2.png", tensile)
+    assert _panels(fig) == ["tensile curves (offset removed) and Eq. 5", "Eq. 12-13: Y + b X = 0",
+                            "residuals F - Eq. 5", "creep tests: residual elongation (Eq. 10)"]
+    assert _title(fig).startswith("identify, the paper's method (Sec. 3.4): c2 = 1299 "
+                                  "N s/m, c1 = 0 N s/m, k1 = ")
+    fig = plot_joint(identify_joint([], [creep], []), tmp_path / "j1.png")
+    assert _panels(fig) == ["creep tests (Eq. 10)"]
+    assert "no tensile curve: k1, c1 and the model need one (--tensile FILE)" in _title(fig)
+    fig = plot_joint(identify_joint(tensile, [creep], []), tmp_path / "j2.png", tensile)
+    assert len(_panels(fig)) == 5 and _panels(fig)[-1] == "creep tests (Eq. 10)"
+    assert _title(fig).startswith("identify, joint fit (model chosen by BIC): maxwell;")
+
+
 def test_as_a_module_in_a_subprocess():
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     proc = subprocess.run([sys.executable, "-m", "rheo_shaping.cli", "identify", "--creep", TABLE1,

@@ -1,5 +1,6 @@
-"""``replay``'s progress: a bar of the recorded seconds replayed with an ETA (issue 28).
-The replay itself needs ROS (test/nodes/test_record_cell.py runs it); the bar does not."""
+"""``replay``'s progress: a bar of the recorded seconds replayed with an ETA, drawn only for a
+readable record.  The replay itself needs ROS (test/nodes/test_record_cell.py runs it); the
+bar does not."""
 from __future__ import annotations
 
 import time
@@ -44,3 +45,15 @@ def test_span_of_a_record_and_of_a_broken_one(tmp_path):
     out = write_record(rec, tmp_path / "r", start_stamp=1.7e9)
     assert abs(_span_s(out) - 2.5) < 1e-6            # rosbags counts last - first + 1 ns
     assert _span_s(tmp_path / "missing") == 0.0   # the replay then says what is wrong
+
+
+def test_a_bad_record_is_said_before_any_bar(capsys, tmp_path):
+    """The error alone, on one line: no progress bar drawn first (and no ROS needed)."""
+    from rheo_shaping.cli import main
+    missing, empty = tmp_path / "missing", tmp_path / "empty"
+    empty.mkdir()
+    for record, why in ((missing, "not a directory"),
+                        (empty, "no metadata.yaml (not a rosbag2 directory)")):
+        assert main(["replay", str(record)]) == 2
+        err = capsys.readouterr().err
+        assert err == f"rheo-shaping replay: error: record {record}: {why}\n"

@@ -244,9 +244,12 @@ def _colcon_test(workspace: Path, results: str,
 
 
 def _test_result(workspace: Path, results: str) -> tuple[int, str]:
-    proc = subprocess.run([*_colcon_cmd(), "test-result", "--test-result-base",
-                           str(workspace / results)], stdout=subprocess.PIPE,
-                          stderr=subprocess.STDOUT, text=True, timeout=60, env=_clean_env())
+    # in the workspace, its log there too: colcon writes log/ into its working directory,
+    # which is the package's source folder when `colcon test` runs this test
+    proc = subprocess.run([*_colcon_cmd(), "--log-base", str(workspace / "log"), "test-result",
+                           "--test-result-base", str(workspace / results)], cwd=workspace,
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          timeout=60, env=_clean_env(COLCON_HOME=str(workspace / "colcon_home")))
     return proc.returncode, proc.stdout
 
 

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import yaml
 
+from _support.packaging import setup_kwargs
+
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH = REPO / "launch" / "cell.launch.py"
 RVIZ = REPO / "rviz" / "cell.rviz"
@@ -24,13 +26,6 @@ RVIZ = REPO / "rviz" / "cell.rviz"
 
 def _tree() -> ast.Module:
     return ast.parse(LAUNCH.read_text(), str(LAUNCH))
-
-
-def _setup_kwargs() -> dict:
-    tree = ast.parse((REPO / "setup.py").read_text())
-    call = next(n for n in ast.walk(tree)
-                if isinstance(n, ast.Call) and getattr(n.func, "id", None) == "setup")
-    return {kw.arg: kw.value for kw in call.keywords}
 
 
 def _kw(call: ast.Call, name: str):
@@ -46,7 +41,7 @@ def test_launch_file_compiles(tmp_path):
 
 def test_launch_file_starts_only_installed_executables():
     scripts = {spec.split("=", 1)[0].strip() for spec in
-               ast.literal_eval(_setup_kwargs()["entry_points"])["console_scripts"]}
+               ast.literal_eval(setup_kwargs()["entry_points"])["console_scripts"]}
     setup_tree = ast.parse((REPO / "setup.py").read_text())
     scripts |= set(next(ast.literal_eval(n.value) for n in setup_tree.body   # the launchers
                         if isinstance(n, ast.Assign)

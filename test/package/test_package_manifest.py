@@ -6,6 +6,8 @@ import configparser
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from _support.packaging import setup_kwargs
+
 REPO = Path(__file__).resolve().parents[2]
 
 #: The rosdep key of every third-party module the package may import. Each key resolves
@@ -28,9 +30,21 @@ PIP_ONLY = {"ruckig": "pip install ruckig",
             "distributed": "pip install 'dask[distributed]'"}
 #: Keys of rosdistro that the manifest may use (the ones above, and rviz2 for the
 #: RViz configuration): a misspelt key would make `rosdep install` fail.
-JAZZY_KEYS = set(MODULE_KEYS.values()) | {"rviz2", "python3-pytest"}
+#: The tests' own third-party modules (imported, or run as ``python -m``) and their keys
+#: (rosdep/python.yaml): pytest, the property tests' hypothesis, and the lint and type
+#: tests' flake8 (test/package/test_lint.py) and mypy (test/architecture/test_types.py).
+TEST_MODULE_KEYS = {"pytest": "python3-pytest", "hypothesis": "python3-hypothesis",
+                    "flake8": "python3-flake8", "mypy": "python3-mypy"}
+TEST_DEPENDS = set(TEST_MODULE_KEYS.values())
+JAZZY_KEYS = set(MODULE_KEYS.values()) | {"rviz2"} | TEST_DEPENDS
 EXEC_DEPENDS = set(MODULE_KEYS.values()) | {"rviz2"}
-TEST_DEPENDS = {"python3-pytest"}
+#: Modules some tests use that no rosdep key provides: colcon (test_colcon_layout.py skips
+#: without it) and mcap's readers (test_record_independent_reader.py; PyPI only, from
+#: requirements-ros.txt).
+TEST_WITHOUT_KEY = {"colcon_core", "mcap", "mcap_ros2"}
+#: Domains that can never be a maintainer's address (RFC 2606, RFC 6761).
+RESERVED_DOMAINS = (".invalid", ".example", ".test", ".localhost", "example.com", "example.net",
+                    "example.org")
 CONSOLE_SCRIPTS = {"rheo-shaping": "rheo_shaping.cli:main"}
 #: The nodes' executables: setup.py's LAUNCHER (``scripts``), not console_scripts wrappers.
 NODES = ("simulator", "planner", "monitor", "simulator_managed", "planner_managed",
@@ -48,7 +62,10 @@ def test_package_xml_identity():
     assert root.findtext("version") == "0.1.0"
     assert root.findtext("license") == "Apache-2.0"
     assert (root.findtext("description") or "").strip()
-    assert root.find("maintainer") is not None and root.find("maintainer").get("email")
+    maintainer = root.find("maintainer")
+    assert maintainer is not None
+    assert (maintainer.text, maintainer.get("email")) == ("rheo_shaping maintainers",
+                                                          "maintainers@rheo-shaping.org")
     assert root.findtext("export/build_type") == "ament_python"
 
 
@@ -59,6 +76,40 @@ def test_package_xml_lists_every_dependency():
     test_deps = {e.text.strip() for e in root.iter("test_depend")}
     assert EXEC_DEPENDS <= exec_deps, f"missing exec_depend: {sorted(EXEC_DEPENDS - exec_deps)}"
     assert TEST_DEPENDS <= test_deps, f"missing test_depend: {sorted(TEST_DEPENDS - test_deps)}"
+
+
+def test_maintainer_address_is_one_a_release_accepts():
+    """bloom refuses a placeholder: an address on a reserved domain is not one."""
+    import re
+    for maintainer in _manifest().iter("maintainer"):
+        email = maintainer.get("email") or ""
+        assert re.fullmatch(r"[\w.+-]+@[\w-]+(\.[\w-]+)+", email), email
+        assert not email.lower().endswith(RESERVED_DOMAINS), f"{email}: a reserved domain"
+
+
+def test_every_module_the_tests_use_is_a_test_dependency():
+    """colcon test needs them: each third-party module the tests import, or run with
+    ``python -m``, is a runtime dependency or has its <test_depend>."""
+    import re
+    import sys
+    declared = {e.text.strip() for e in _manifest().iter("test_depend")}
+    used: set[str] = set()
+    for path in (REPO / "test").rglob("*.py"):
+        text = path.read_text()
+        used |= set(re.findall(r'sys\.executable, "-m", "(\w+)"', text))
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.Import):
+                used |= {a.name.split(".")[0] for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                used.add(node.module.split(".")[0])
+    third_party = {m for m in used if m not in sys.stdlib_module_names
+                   and m not in ("rheo_shaping", "_support") and m not in MODULE_KEYS
+                   and m not in PIP_ONLY}
+    assert {"pytest", "hypothesis", "flake8", "mypy"} <= third_party, "the scan works"
+    for module in sorted(third_party - TEST_WITHOUT_KEY):
+        assert module in TEST_MODULE_KEYS, f"the tests use {module}: add its rosdep key"
+        assert TEST_MODULE_KEYS[module] in declared, \
+            f"package.xml: <test_depend>{TEST_MODULE_KEYS[module]}</test_depend> missing"
 
 
 def test_package_xml_declares_each_dependency_once():
@@ -82,7 +133,7 @@ def test_license_file_is_the_license_package_xml_and_setup_py_name():
     assert "TERMS AND CONDITIONS FOR USE, REPRODUCTION, AND DISTRIBUTION" in text
     assert "END OF TERMS AND CONDITIONS" in text and len(text) > 10000, "the full text"
     assert _manifest().findtext("license") == "Apache-2.0"
-    kwargs = _setup_kwargs()
+    kwargs = setup_kwargs()
     assert ast.literal_eval(kwargs["license"]) == "Apache-2.0"
     classifiers = ast.literal_eval(kwargs["classifiers"])
     licenses = [c for c in classifiers if c.startswith("License ::")]
@@ -140,15 +191,8 @@ def test_package_xml_version_matches_setup_py_and_package():
     assert re.search(r"__version__\s*=\s*['\"]" + re.escape(version) + "['\"]", init_src)
 
 
-def _setup_kwargs() -> dict:
-    tree = ast.parse((REPO / "setup.py").read_text())
-    call = next(n for n in ast.walk(tree)
-                if isinstance(n, ast.Call) and getattr(n.func, "id", None) == "setup")
-    return {kw.arg: kw.value for kw in call.keywords}
-
-
 def test_setup_py_console_scripts():
-    entry_points = ast.literal_eval(_setup_kwargs()["entry_points"])
+    entry_points = ast.literal_eval(setup_kwargs()["entry_points"])
     scripts = {}
     for spec in entry_points["console_scripts"]:
         name, target = (part.strip() for part in spec.split("=", 1))
@@ -167,7 +211,7 @@ def test_each_node_executable_is_the_launcher_shell_and_python_at_once():
     consts = {t.id: n.value for n in tree.body if isinstance(n, ast.Assign)
               for t in n.targets if isinstance(t, ast.Name)}
     assert ast.literal_eval(consts["NODES"]) == NODES
-    kwargs = _setup_kwargs()
+    kwargs = setup_kwargs()
     assert ast.unparse(kwargs["scripts"]) == "[os.path.join('launchers', node) for node in NODES]"
     assert ast.unparse(kwargs["cmdclass"]) == \
         "{'build_scripts': BuildLaunchers, 'develop': DevelopLaunchers}"

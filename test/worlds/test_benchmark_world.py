@@ -57,9 +57,19 @@ def test_one_dynamic_case_is_diagnosed_and_scored():
     # numerics floor; the initial state from the records as the dynamic world's default
     out = run_benchmark(n=1, seed=3, jobs=1, n_masses=15, process_time=40.0, kinds=("none",),
                         world="dynamic", floor="numerics", initial_state="auto")
-    assert out["world"] == "dynamic" and out["cases"] == 1
+    assert out["world"] == "dynamic" and out["cases"] == 1 and out["none_cases"] == 1
     row = out["case_results"][0]
-    assert row["verdict"] and row["kind"] == "none"
+    assert row["kind"] == "none" and row["truth"] == {}
+    # the numerics floor (effect-free records of a finer chain) is not the dynamic world's
+    # model-form gap: that gap lies beyond all of its null (p_gap 1/201, the smallest it
+    # gives), no effect explains it, so `unexplained`
+    assert row["verdict"] == "unexplained" and row["p_gap"] == pytest.approx(1 / 201)
+    # scored as an effect-free case must be: right, as it names no effect (score_case)
+    assert row["correct"] is True
+    assert out["no_effect_false_name_rate"] == 0.0
+    assert out["no_effect_library_name_rate"] == 0.0
+    assert out["no_effect_none_rate"] == 0.0          # `unexplained` is not `none`
+    assert out["top1_accuracy"] is None and out["single_cases"] == 0
 
 
 def test_the_world_runs_without_the_sheet_model():
