@@ -160,18 +160,19 @@ def _record(node: CellRecorder, executor, context, out: Path, scenario, namespac
             progress) -> tuple[Path, Record]:
     """The recording of :func:`record_cell` in its ROS session."""
     say = progress or (lambda _msg: None)
+    deadline = time.monotonic() + timeout        # one wall-clock budget for every phase
     cell = scenario if scenario is not None else scenario_from_simulator(
-        node, executor, f"{namespace.rstrip('/')}/simulator", 60.0)
+        node, executor, f"{namespace.rstrip('/')}/simulator", timeout)
     end_time = duration if duration is not None else cell.movement.process_time
     say(f"record-cell: waiting for the process start on "
         f"{T.TOOL_COMMAND.in_namespace(namespace or '/')}")
     if start:
-        _start_planner(node, executor, f"{namespace.rstrip('/')}/planner", timeout, say)
-    t_wall = time.monotonic()
+        _start_planner(node, executor, f"{namespace.rstrip('/')}/planner",
+                       deadline - time.monotonic(), say)
     t_first = None
     next_report = 0.0
     try:
-        while time.monotonic() - t_wall < timeout and context.ok():
+        while time.monotonic() < deadline and context.ok():
             executor.spin_once(timeout_sec=0.05)
             t = node.recorded_time()
             if node.buf.start_ns is not None and t >= next_report:

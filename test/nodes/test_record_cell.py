@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -192,3 +193,18 @@ def test_replay_publishes_the_record_on_its_own_stamps(recorded, ros):
         assert got == sorted(got), topic
     clocks = [m.stamp_ns(x.clock) for x in rec[T.CLOCK.in_namespace(ns)]]
     assert clocks and set(clocks) <= {t for ts_ in bag.values() for t in ts_}
+
+
+def test_record_cell_timeout_is_the_whole_wait_with_no_cell(tmp_path):
+    """`record-cell --timeout 3` with no cell running waited 62 s (a fixed 60 s for the
+    simulator's parameters): the timeout is one wall-clock budget for every phase."""
+    t0 = time.monotonic()
+    proc = subprocess.run([str(BIN / "rheo-shaping"), "record-cell", "--out",
+                           str(tmp_path / "rec"), "--namespace", "/nobody_here",
+                           "--timeout", "3"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True, timeout=120)
+    took = time.monotonic() - t0
+    assert proc.returncode == 2, proc.stderr
+    assert "no /nobody_here/simulator/get_parameters service within 3 s" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert took < 30.0, f"{took:.1f} s for --timeout 3 (the ROS start-up included)"
