@@ -57,7 +57,8 @@ def _nodes(context):
                  remappings=clock, **common),
             Node(executable='planner_managed', name='planner', ros_arguments=follow,
                  remappings=clock, **common),
-            Node(executable='lifecycle_manager', name='lifecycle_manager', **common),
+            Node(executable='lifecycle_manager', name='lifecycle_manager', ros_arguments=follow,
+                 remappings=clock, **common),    # the cell's clock: one stamp source
         ]
     else:
         cell = [

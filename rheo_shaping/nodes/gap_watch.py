@@ -352,7 +352,8 @@ class GapWatchNode(Node):
         values.update({"lag [s]": lag["last_s"], "max lag [s]": lag["max_s"],
                        "queued": waiting, "dropped": dropped,
                        "refused": sum(refused.values()) if refused else 0})
-        self.pub_diag.publish(m.diagnostics_msg(now, "rheo_shaping/gap_watch",
+        name = m.status_name(self.get_namespace(), "gap_watch")
+        self.pub_diag.publish(m.diagnostics_msg(now, name,
                                                 level if level in m.LEVELS else "ERROR",
                                                 message, values,
                                                 m.hardware_id(self.get_namespace())))

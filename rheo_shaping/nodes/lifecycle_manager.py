@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import sys
-import time
 
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
@@ -28,15 +27,20 @@ from std_srvs.srv import Trigger
 
 from ..params.node_params import LifecycleManagerParams
 from ..safety.lifecycle import CELL_ORDER, CellLifecycle, Step
+from ..safety.clock_guard import ClockGuard
 from ..safety.watchdog import StallGuard
 from ..params.wire import WireError, read_fields
 from ..units import NS
 from . import messages as m
 from . import topics as T
-from .guards import OwnedStream
+from .guards import OwnedStream, guard_clock
 from .managed import HEARTBEAT_FIELDS
 from .ros_params import SchemaParameters
 from .spin import build_or_destroy, run_node
+
+
+#: Largest forward jump [s] of /clock the manager applies (the nodes' max_clock_jump default).
+MANAGER_CLOCK_JUMP = 5.0
 
 
 class LifecycleManagerNode(Node):
@@ -74,6 +78,11 @@ class LifecycleManagerNode(Node):
         self.create_service(Trigger, '~/startup', self._on_startup)
         self.create_service(Trigger, '~/shutdown', self._on_shutdown)
         self._guard = StallGuard(0.5 * s.heartbeat_timeout)
+        # on the cell's clock (use_sim_time) its /diagnostics stamps are the cell's; a
+        # refused /clock (a forged jump, a negative time) is not applied, only logged: the
+        # manager's checks run on the steady clock
+        guard_clock(self, ClockGuard(MANAGER_CLOCK_JUMP), lambda why: self.get_logger().error(
+            f"/clock refused: {why}", throttle_duration_sec=5.0))
         self._status = ""
         self._last_diag = None
         if s.autostart:
@@ -197,9 +206,9 @@ class LifecycleManagerNode(Node):
                        "starting": f"starting: waiting for {waiting}" if waiting else "starting"
                        }.get(phase, phase)
             values = {n: s.state or "unseen" for n, s in self.core.seen.items()}
-            self.pub_diag.publish(m.diagnostics_msg(time.time_ns(),
-                                                    "rheo_shaping/lifecycle_manager", level,
-                                                    message, values,
+            name = m.status_name(self.get_namespace(), "lifecycle_manager")
+            self.pub_diag.publish(m.diagnostics_msg(self.get_clock().now().nanoseconds,
+                                                    name, level, message, values,
                                                     m.hardware_id(self.get_namespace())))
 
 

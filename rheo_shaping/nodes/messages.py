@@ -132,8 +132,25 @@ def hardware_id(namespace: str) -> str:
     return "shaping_cell" + (f"/{ns}" if ns else "")
 
 
+#: Each node's diagnostic task (the part of a status name after ``node: ``).
+TASKS = {"simulator": "sheet", "monitor": "tension", "lifecycle_manager": "cell lifecycle",
+         "gap_watch": "model gap"}
+
+
+def status_name(namespace: str, node: str) -> str:
+    """diagnostic_updater's ``node: task`` with the cell's namespace in front, so that two
+    cells on one /diagnostics stay apart under an aggregator: ``monitor: tension`` in the
+    root namespace, ``cellA/monitor: tension`` in ``/cellA``."""
+    ns = namespace.strip("/")
+    return f"{ns + '/' if ns else ''}{node}: {TASKS[node]}"
+
+
 def diagnostics_msg(ns: int, name: str, level: str, message: str, values: dict,
                     hardware_id: str = "shaping_cell") -> DiagnosticArray:
+    """One status on ``/diagnostics`` stamped ``ns`` [ns] (the node's clock: the cell's one
+    stamp source).  A node does not say STALE of itself (the aggregator says it of a status
+    that stops): a node still waiting reports WARN."""
+    level = "WARN" if level == "STALE" else level
     status = DiagnosticStatus(level=LEVELS[level], name=name, message=message,
                               hardware_id=hardware_id,
                               values=[KeyValue(key=str(k), value=_fmt(v)) for k,

@@ -312,8 +312,9 @@ class MonitorNode(Node):
 
     def _publish_diagnostics(self) -> None:
         level, message, values = self.core.diagnostics(self._steady.now().nanoseconds)
+        name = m.status_name(self.get_namespace(), "monitor")
         self.pub_diag.publish(m.diagnostics_msg(self.get_clock().now().nanoseconds,
-                                                "rheo_shaping/monitor", level, message, values,
+                                                name, level, message, values,
                                                 m.hardware_id(self.get_namespace())))
 
 

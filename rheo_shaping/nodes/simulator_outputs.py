@@ -124,5 +124,6 @@ class SimulatorOutputs:
         if self.summary is not None:
             values.update({"final_F_max": self.summary.F_max, "final_SF": self.summary.SF,
                            "final_delta": self.summary.delta})
-        return m.diagnostics_msg(t_ns, "rheo_shaping/simulator", level, message, values,
+        name = m.status_name(self.get_namespace(), "simulator")
+        return m.diagnostics_msg(t_ns, name, level, message, values,
                                  m.hardware_id(self.get_namespace()))

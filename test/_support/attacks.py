@@ -78,7 +78,7 @@ class Attacked:
         """The newest /diagnostics values of the simulator."""
         for msg in reversed(self.diag["/diagnostics"]):
             for st in msg.status:
-                if st.name == "rheo_shaping/simulator":
+                if st.name == "simulator: sheet":
                     return {kv.key: kv.value for kv in st.values} | {"_message": st.message}
         return {}
 

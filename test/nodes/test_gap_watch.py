@@ -158,7 +158,7 @@ def test_gap_watch_survives_rogue_and_malformed_inputs(ros, procs, tmp_path):
     assert g["residuals"]["run"]["profile_m"]["n"] > 1000
     # the node reports on the absolute /diagnostics with its cell's hardware id
     mine = [s for a in rx["/diagnostics"] for s in a.status
-            if s.name == "rheo_shaping/gap_watch"]
+            if s.name == "gw/gap_watch: model gap"]
     assert mine and all(s.hardware_id == "shaping_cell/gw" for s in mine)
     assert "refused" in mine[-1].message
     # ~/diagnose answers (the run so far is written and handed to the worker process)

@@ -21,6 +21,7 @@ import yaml
 
 pytest.importorskip("rclpy")
 
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from lifecycle_msgs.srv import GetState  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
@@ -31,6 +32,9 @@ from rheo_shaping.nodes.services import query  # noqa: E402
 from rheo_shaping.params.config import dump_cell  # noqa: E402
 from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.safety.lifecycle import CELL_ORDER  # noqa: E402
+
+from _support.aggregator import group  # noqa: E402
+from _support.cells import REPO  # noqa: E402
 
 CELLS = ("/cellA", "/cellB")
 MANAGED = {"simulator": "simulator_managed", "monitor": "monitor_managed",
@@ -131,7 +135,7 @@ def test_two_managed_cells_come_up_and_a_killed_monitor_brings_only_its_cell_dow
 
     def held() -> list[int]:
         return [i for i, msg in enumerate(rec[T.DIAGNOSTICS.name]) for st in msg.status
-                if st.name == "rheo_shaping/simulator" and st.hardware_id == "shaping_cell/cellA"
+                if st.name == "cellA/simulator: sheet" and st.hardware_id == "shaping_cell/cellA"
                 and st.message.startswith("the tool holds: ")]
     ros.spin_until(lambda: held(), 30.0, "cell A's simulator reporting the hold")
     first = held()[0]
@@ -165,6 +169,21 @@ def test_two_managed_cells_come_up_and_a_killed_monitor_brings_only_its_cell_dow
     order = [log.index(f"{t} {n}\n") for t in ("deactivate", "cleanup")
              for n in reversed(CELL_ORDER)]
     assert order == sorted(order), log
+    # Two groups under one aggregator (the shipped analyzers), each with its own states:
+    # cell A's manager failed (ERROR), cell B's was active (OK); no node says STALE itself.
+    statuses = [st for msg in rec[T.DIAGNOSTICS.name] for st in msg.status]
+    assert statuses and all(st.level != DiagnosticStatus.STALE for st in statuses)
+    groups = group({st.name for st in statuses}, REPO / "config" / "diagnostics_aggregator.yaml")
+    assert set(groups) == {"cellA", "cellB"}, groups
+    for ns, key in (("/cellA", "cellA"), ("/cellB", "cellB")):
+        assert {f"{key}/simulator: sheet", f"{key}/lifecycle_manager: cell lifecycle",
+                f"{key}/monitor: tension"} <= groups[key], groups
+        assert all(st.hardware_id == f"shaping_cell/{key}" for st in statuses
+                   if st.name in groups[key])
+    levels = {(st.name, st.level) for st in statuses}
+    assert ("cellA/lifecycle_manager: cell lifecycle", DiagnosticStatus.ERROR) in levels
+    assert ("cellB/lifecycle_manager: cell lifecycle", DiagnosticStatus.OK) in levels
+    assert ("cellB/lifecycle_manager: cell lifecycle", DiagnosticStatus.ERROR) not in levels
     print(f"\nmonitor of /cellA SIGKILLed: its manager failed the cell after {silence:.2f} s of "
           f"heartbeat silence (seen by the test {took:.2f} s after the kill); first abort "
           f"{aborts[0]!r}; /cellB ran to done and was brought down")

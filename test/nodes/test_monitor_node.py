@@ -35,7 +35,7 @@ def test_ready_heartbeat_and_diagnostics(ros, cell):
     get_ready(ros, monitor, cell)
     ros.spin_until(lambda: rec["/shaping/ready"] and rec.last("/shaping/ready").data, 5.0,
                    "ready heartbeat", every=lambda: cell.publish())
-    ros.spin_until(lambda: any(s.name == "rheo_shaping/monitor" and s.level == DiagnosticStatus.OK
+    ros.spin_until(lambda: any(s.name == "monitor: tension" and s.level == DiagnosticStatus.OK
                                for d in rec["/diagnostics"] for s in d.status), 5.0,
                    "OK diagnostics", every=lambda: cell.publish())
     status = [s for d in rec["/diagnostics"]
