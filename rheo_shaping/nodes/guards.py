@@ -62,10 +62,10 @@ class OwnedStream:
     core's :class:`~rheo_shaping.safety.owners.StreamOwner`, asked of the graph at each
     sample).  A foreign writer is logged once with its node name."""
 
-    def __init__(self, node: Node, topic: str, owner: str):
+    def __init__(self, node: Node, topic: str, owner: str, strict: bool = True):
         self._node = node
         self.topic = node.resolve_topic_name(topic)
-        self.core = StreamOwner(self.topic, owner_name(node.get_namespace(), owner))
+        self.core = StreamOwner(self.topic, owner_name(node.get_namespace(), owner), strict)
 
     def trust(self) -> Trust:
         trust = self.core.judge(publishers_of(self._node, self.topic))

@@ -10,8 +10,9 @@ silent for ``heartbeat_timeout``, a node that left ``active``, a failed transiti
 reason goes out on ``shaping/abort`` (the simulator holds the tool, the planner stops) and
 the planner is deactivated.  ``~/status`` (JSON, latched) and ``/diagnostics`` say the phase,
 the reason and what it waits for.  ``~/startup`` and ``~/shutdown`` (std_srvs/Trigger) bring
-the cell up again (after a failure: restart the lost node first; the nodes' latched holds
-need their ``~/reset``) or down (deactivate in reverse order, then clean up).
+the cell up again (after a failure or a hold: restart a lost node first; ``~/startup`` then
+configures and activates it and clears every node's latch in order, rheo_shaping.safety.
+lifecycle) or down (deactivate in reverse order, then clean up).
 """
 from __future__ import annotations
 
@@ -58,10 +59,12 @@ class LifecycleManagerNode(Node):
         self.core = CellLifecycle(heartbeat_timeout=s.heartbeat_timeout,
                                   ready_timeout=s.heartbeat_timeout)
         self._change_state = {}
+        self._reset: dict = {}              # each node's ~/reset (a recovery clears latches)
         self._calls: dict[str, tuple[str, object, int]] = {}   # node -> (transition, future, t)
         self._waiting: dict[str, tuple[str, int]] = {}         # asked, service not seen yet
         # each heartbeat only from its node, /shaping/ready only from the monitor
-        self._beat_src = {name: OwnedStream(self, f"{name}/heartbeat", name)
+        # (by name: a restarted node beats while the killed one's writer is in the graph)
+        self._beat_src = {name: OwnedStream(self, f"{name}/heartbeat", name, strict=False)
                           for name in CELL_ORDER}
         self._ready_src = OwnedStream(self, T.READY.name, "monitor")
         for name in CELL_ORDER:
@@ -69,6 +72,7 @@ class LifecycleManagerNode(Node):
                                      lambda msg, n=name: self._on_heartbeat(n, msg),
                                      T.HEARTBEAT.qos)
             self._change_state[name] = self.create_client(ChangeState, f"{name}/change_state")
+            self._reset[name] = self.create_client(Trigger, f"{name}/reset")
         self.create_subscription(T.READY.type, T.READY.name, self._on_ready, T.READY.qos)
         self.pub_abort = self.create_publisher(T.ABORT.type, T.ABORT.name, T.ABORT.qos)
         self.pub_status = self.create_publisher(T.MANAGER_STATUS.type, T.MANAGER_STATUS.name,
@@ -77,6 +81,7 @@ class LifecycleManagerNode(Node):
                                               T.DIAGNOSTICS.qos)
         self.create_service(Trigger, '~/startup', self._on_startup)
         self.create_service(Trigger, '~/shutdown', self._on_shutdown)
+        self.create_service(Trigger, '~/is_active', self._on_is_active)
         self._guard = StallGuard(0.5 * s.heartbeat_timeout)
         # on the cell's clock (use_sim_time) its /diagnostics stamps are the cell's; a
         # refused /clock (a forged jump, a negative time) is not applied, only logged: the
@@ -109,7 +114,7 @@ class LifecycleManagerNode(Node):
                                       f"{msg.data[:80]!r}", throttle_duration_sec=5.0)
             return
         self.core.heartbeat(name, beat["state"], self._steady.now().nanoseconds,
-                            beat["transitions"], beat["instance"])
+                            beat["transitions"], beat["instance"], beat["latch"])
 
     def _on_ready(self, msg: Bool) -> None:
         if self._ready_src.trust().trusted:
@@ -124,6 +129,13 @@ class LifecycleManagerNode(Node):
             self.pub_abort = self.create_publisher(T.ABORT.type, T.ABORT.name, T.ABORT.qos)
         response.success, response.message = not why, why or "bringing the cell up"
         self.get_logger().info(f"~/startup: {response.message}")
+        return response
+
+    def _on_is_active(self, request, response):
+        """Nav2's query: success only while the cell is active (the tool can move)."""
+        response.success = self.core.phase == "active"
+        response.message = self.core.phase + (f": {self.core.reason}" if self.core.reason
+                                              else "")
         return response
 
     def _on_shutdown(self, request, response):
@@ -161,11 +173,12 @@ class LifecycleManagerNode(Node):
     def _send(self, name: str, now: int) -> None:
         """Send a waiting transition once its service is seen (a request acts: sent once)."""
         transition, asked = self._waiting[name]
-        client = self._change_state[name]
+        client = (self._reset if transition == "reset" else self._change_state)[name]
         if not client.service_is_ready():
             return
         del self._waiting[name]
-        request = ChangeState.Request(transition=Transition(label=transition))
+        request = (Trigger.Request() if transition == "reset"
+                   else ChangeState.Request(transition=Transition(label=transition)))
         self._calls[name] = (transition, client.call_async(request), asked)
 
     def _collect(self, now: int) -> None:
@@ -182,12 +195,14 @@ class LifecycleManagerNode(Node):
         for name, (transition, future, asked) in list(self._calls.items()):
             if future.done():
                 del self._calls[name]
-                ok = bool(future.result() and future.result().success)
-                self.core.answered(name, transition, ok, "" if ok else "the node refused it "
-                                   "(its log says why)", steady_ns=now)
+                result = future.result()
+                ok = bool(result and result.success)
+                why = getattr(result, "message", "") or "the node refused it (its log says why)"
+                self.core.answered(name, transition, ok, "" if ok else why, steady_ns=now)
             elif now - asked > limit:
                 del self._calls[name]
-                self._change_state[name].remove_pending_request(future)
+                (self._reset if transition == "reset" else self._change_state)[
+                    name].remove_pending_request(future)
                 self.core.answered(name, transition, False,
                                    f"no reply within {self.settings.transition_timeout:g} s")
 
@@ -201,8 +216,9 @@ class LifecycleManagerNode(Node):
         if self._last_diag is None or now - self._last_diag >= NS:
             self._last_diag = now
             phase = self.core.phase
-            level = {"failed": "ERROR", "active": "OK", "starting": "WARN"}.get(phase, "STALE")
-            message = {"failed": f"failed: {self.core.reason}",
+            level = {"failed": "ERROR", "active": "OK", "starting": "WARN",
+                     "held": "ERROR"}.get(phase, "WARN")
+            message = {"failed": f"failed: {self.core.reason}", "held": self.core.reason,
                        "starting": f"starting: waiting for {waiting}" if waiting else "starting"
                        }.get(phase, phase)
             values = {n: s.state or "unseen" for n, s in self.core.seen.items()}

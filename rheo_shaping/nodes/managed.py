@@ -22,10 +22,11 @@ What each state means beyond that:
   executed pose, sent to its end at rest), and no set-point goes out while it is inactive
   (state ``inactive``).
 
-A heartbeat (``~/heartbeat``, std_msgs/String, JSON ``{"state", "transitions", "instance"}``)
-goes out every :data:`~rheo_shaping.safety.lifecycle.HEARTBEAT_PERIOD` on the steady clock in
-every state: the lifecycle manager tells a dead or frozen node by its silence (a killed process
-stays in the DDS graph for its lease).
+A heartbeat (``~/heartbeat``, std_msgs/String, JSON ``{"state", "transitions", "instance",
+"latch"}``: the latch is the node's latched hold or abort, "" none) goes out every
+:data:`~rheo_shaping.safety.lifecycle.HEARTBEAT_PERIOD` on the steady clock in every state:
+the lifecycle manager tells a dead or frozen node by its silence (a killed process stays in
+the DDS graph for its lease) and a held or aborted one by its latch.
 """
 from __future__ import annotations
 
@@ -51,9 +52,11 @@ from .spin import run_node
 
 SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
 
+#: Longest latch reason a heartbeat carries [characters] (longer ones are cut).
+LATCH_LEN = 400
 #: A heartbeat's JSON keys as the lifecycle manager reads them (rheo_shaping.params.wire).
 HEARTBEAT_FIELDS = {"state": Field(str, max_len=32), "transitions": Field(int, 0, 2**31),
-                    "instance": Field(str, max_len=64)}
+                    "instance": Field(str, max_len=64), "latch": Field(str, max_len=LATCH_LEN)}
 
 
 class Managed(LifecycleNodeMixin):
@@ -91,7 +94,11 @@ class Managed(LifecycleNodeMixin):
     def _beat(self) -> None:
         self._hb_pub.publish(String(data=json.dumps(
             {"state": self.lifecycle_state, "transitions": self._transitions,
-             "instance": self._instance})))
+             "instance": self._instance, "latch": self._latch()[:LATCH_LEN]})))
+
+    def _latch(self) -> str:
+        """The node's latched hold or abort ("" none, and before configure)."""
+        return ""
 
     # -- the plain node's timers run only while active ----------------------------
     def create_timer(self, *args, **kwargs):
@@ -218,6 +225,10 @@ class ManagedSimulatorNode(Managed, SimulatorNode):
     def _on_deactivating(self) -> None:
         self._hold("deactivated (lifecycle): the tool holds")
 
+    def _latch(self) -> str:
+        gate = getattr(self, "gate", None)
+        return gate.held if gate is not None else ""
+
 
 class ManagedMonitorNode(Managed, MonitorNode):
     """The monitor as a lifecycle node: ready only while active."""
@@ -232,6 +243,9 @@ class ManagedMonitorNode(Managed, MonitorNode):
     def _on_deactivating(self) -> None:
         self.pub_ready.publish(Bool(data=False))
 
+    def _latch(self) -> str:
+        return self.abort_reason if getattr(self, "core", None) is not None else ""
+
 
 class ManagedPlannerNode(Managed, PlannerNode):
     """The planner as a lifecycle node: activates only behind the monitor's interlock,
@@ -243,6 +257,9 @@ class ManagedPlannerNode(Managed, PlannerNode):
     def _may_activate(self) -> str:
         ok, why = self._monitor_ok()
         return "" if ok else f"the interlock: {why}"
+
+    def _latch(self) -> str:
+        return self.abort_reason if getattr(self, "aborted", False) else ""
 
     def _on_deactivating(self) -> None:
         if self.streamer is not None and self.streamer.state in MOVING:

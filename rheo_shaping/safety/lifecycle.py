@@ -23,7 +23,16 @@ is what tells), a node that leaves ``active`` without being asked, or a transiti
 brings the cell to its safe state at once: the tool holds (an abort with the reason on
 ``/shaping/abort``, which the simulator follows by holding the tool and the planner by
 stopping) and the planner is deactivated.  The failure latches with its reason until the
-next ``startup``.  Times are steady-clock nanoseconds.
+next ``startup``.
+
+The manager's ``active`` means the tool can move: a latched hold, abort or refusal that a
+node reports in its heartbeat (``latch``: the simulator's hold, the monitor's or the
+planner's abort) takes an active cell to ``held`` with that node's reason, and back to
+``active`` once every latch has cleared.  ``startup`` after a failure or a hold recovers the
+cell through the manager alone: a restarted (unconfigured) node is configured and activated,
+then every latch is cleared in :data:`RESET_ORDER` (each node's ``~/reset``: the monitor
+re-armed first, then the simulator's hold, then the planner), and the planner is activated
+behind the interlock.  Times are steady-clock nanoseconds.
 """
 from __future__ import annotations
 
@@ -35,6 +44,16 @@ from ..units import NS
 CELL_ORDER: tuple[str, ...] = ("simulator", "monitor", "planner")
 #: The node whose readiness the interlocked node waits for, and that node.
 INTERLOCK: tuple[str, str] = ("monitor", "planner")
+#: The order in which a recovery clears the nodes' latches (their ``~/reset``): the monitor
+#: first (the simulator refuses to release its hold while its monitor is lost), the planner
+#: last (it runs again only behind a ready monitor and a tool that follows).
+RESET_ORDER: tuple[str, ...] = ("monitor", "simulator", "planner")
+#: Refused resets of a recovery tried again, one every :data:`RESET_RETRY_S`, before the cell
+#: fails: a killed node's writers stay in the DDS graph for its lease (~20 s), and the
+#: simulator refuses to release its hold while a second writer of its monitor's
+#: acknowledgements is there.
+RESET_RETRIES = 40
+RESET_RETRY_S = 1.0
 #: A managed node's heartbeat period [s] (steady clock).
 HEARTBEAT_PERIOD = 0.1
 #: Refused activations of the interlocked node tried again before the cell fails (its view of
@@ -82,13 +101,15 @@ class NodeSeen:
     asked_at: int = 0                 # its transition count when the pending one was asked
     refused: int = 0                  # refused activations in a row
     activated: bool = False           # activated by this bring-up (expected active since)
+    latch: str = ""                   # its latched hold or abort ("" none), from its beat
 
 
 @dataclass
 class CellLifecycle:
     """The lifecycle manager's state machine: phases ``idle`` -> ``starting`` -> ``active``;
-    ``stopping`` -> ``down``; ``failed`` (latched with :attr:`reason`) from ``starting`` or
-    ``active``.  Feed it observations, ask :meth:`steps` what to do."""
+    ``active`` <-> ``held`` (a node's latch, :attr:`reason` names it); ``stopping`` ->
+    ``down``; ``failed`` (latched with :attr:`reason`) from ``starting``, ``active`` or
+    ``held``.  Feed it observations, ask :meth:`steps` what to do."""
 
     heartbeat_timeout: float                       # [s] silence that counts as a lost node
     ready_timeout: float = 1.0                     # [s] age beyond which /shaping/ready is old
@@ -98,6 +119,8 @@ class CellLifecycle:
     seen: dict[str, NodeSeen] = field(default_factory=dict)
     _ready: tuple[bool, int | None] = (False, None)
     _hold_due: bool = False                        # the failure's hold is still to be sent
+    _resets: list[str] = field(default_factory=list)   # latches a recovery still clears
+    _reset_refused: tuple[int, int, str] = (0, 0, "")  # refusals, retry time [ns], why
 
     def __post_init__(self) -> None:
         if self.heartbeat_timeout <= HEARTBEAT_PERIOD:
@@ -108,16 +131,18 @@ class CellLifecycle:
 
     # -- observations --------------------------------------------------------------
     def heartbeat(self, node: str, state: str, steady_ns: int, transitions: int = 0,
-                  instance: str = "") -> None:
+                  instance: str = "", latch: str = "") -> None:
         """``node`` (process ``instance``) reported its primary ``state`` after
-        ``transitions`` completed transitions.  A beat sent before the reply to a transition
-        asked of the same process (fewer transitions than the reply implies) is old news:
-        only its time counts."""
+        ``transitions`` completed transitions, and its latched hold or abort (``latch``, ""
+        none).  A beat sent before the reply to a transition asked of the same process
+        (fewer transitions than the reply implies) is old news: only its time counts."""
         seen = self.seen.get(node)
         if seen is None:
             return
         seen.beat_ns = steady_ns
-        if instance == seen.instance and seen.pending and transitions > seen.asked_at:
+        seen.latch = latch
+        if (instance == seen.instance and seen.pending in TRANSITIONS
+                and transitions > seen.asked_at):
             # the transition asked for is done, its reply not here (lost or late): the beat
             # tells its outcome
             self.answered(node, seen.pending, state == TRANSITIONS[seen.pending],
@@ -141,6 +166,19 @@ class CellLifecycle:
         seen.pending = ""
         if steady_ns is not None:
             seen.beat_ns = max(seen.beat_ns or steady_ns, steady_ns)
+        if transition == "reset":
+            why = f"the {node} refused its reset" + (f": {message}" if message else "")
+            refused = self._reset_refused[0] + 1
+            if success:
+                seen.latch = ""        # (its next beat says so too)
+                self._resets.remove(node)
+                self._reset_refused = (0, 0, "")
+            elif self.phase == "starting" and refused < RESET_RETRIES:
+                retry = (steady_ns or 0) + int(RESET_RETRY_S * NS)
+                self._reset_refused = (refused, retry, why)
+            elif self.phase == "starting":
+                self._fail(f"{why} ({refused} times)")
+            return
         if success:
             seen.state, seen.refused = TRANSITIONS[transition], 0
             seen.transitions = seen.asked_at + 1
@@ -155,14 +193,26 @@ class CellLifecycle:
             self.reason = why           # noted; the bring-down goes on with the others
 
     def startup(self) -> str:
-        """Bring the cell up (again after a failure or a bring-down); "" or why not now."""
+        """Bring the cell up (again after a failure, a hold or a bring-down: every node's
+        latch is cleared in :data:`RESET_ORDER` on the way); "" or why not now."""
         if self.phase in ("starting", "active"):
             return f"already {self.phase}"
         if any(s.pending for s in self.seen.values()):
             return "a transition is still under way"
+        recover = self.phase in ("failed", "held")
         self.phase, self.reason, self._hold_due = "starting", "", False
+        self._resets = [n for n in RESET_ORDER if n in self.nodes] if recover else []
+        self._reset_refused = (0, 0, "")
         for seen in self.seen.values():
             seen.refused, seen.activated = 0, False
+        return ""
+
+    def latched(self) -> str:
+        """The first latch an active node reports ("node: reason"), "" when none."""
+        for name in self.nodes:
+            seen = self.seen[name]
+            if seen.latch and seen.state == ACTIVE:
+                return f"{name}: {seen.latch}"
         return ""
 
     def shutdown(self) -> str:
@@ -202,6 +252,10 @@ class CellLifecycle:
                 return f"the {name}'s heartbeat (is it started, as a managed node?)"
             if seen.pending:
                 return f"the {name}'s reply to {seen.pending}"
+        if self._resets:
+            refused, _, why = self._reset_refused
+            return (f"the {self._resets[0]}'s reset (clearing the latches in order)"
+                    + (f"; {why}, tried again every {RESET_RETRY_S:g} s" if refused else ""))
         monitor, planner = INTERLOCK
         others = all(self.seen[n].state == ACTIVE for n in self.nodes if n != planner)
         why = interlock_refusal(self.seen[monitor].state, self.ready(steady_ns))
@@ -215,7 +269,7 @@ class CellLifecycle:
         ``previous_ns``: the manager itself stood still since its check at that time (a busy
         machine; :class:`~rheo_shaping.safety.watchdog.StallGuard`), so beats may wait unread:
         a node whose beat was fresh at that check is judged at the next one, not now."""
-        if self.phase in ("starting", "active"):
+        if self.phase in ("starting", "active", "held"):
             # (a lost node has a beat: lost() judges only nodes seen once)
             lost = [(n, age) for n, age in self.lost(steady_ns) if previous_ns is None
                     or (previous_ns - (self.seen[n].beat_ns or 0)) / NS
@@ -229,6 +283,9 @@ class CellLifecycle:
             elif left:
                 self._fail(f"{left[0]} left the active state unasked (now "
                            f"{self.seen[left[0]].state})")
+        if self.phase in ("active", "held"):
+            latch = self.latched()
+            self.phase, self.reason = ("held", f"holds: {latch}") if latch else ("active", "")
         if self.phase == "starting":
             steps = self._bring_up(steady_ns)
             if self.phase != "failed":
@@ -270,10 +327,16 @@ class CellLifecycle:
             if self.seen[name].state == ACTIVE:
                 self.seen[name].activated = True
                 continue
+            if name == planner and self._resets:
+                break                                  # the latches first (a recovery)
             if name == planner and interlock_refusal(self.seen[monitor].state,
                                                      self.ready(steady_ns)):
                 return []                              # waits for the monitor (waiting_for)
             return self._ask(name, "activate")
+        if self._resets:
+            if steady_ns < self._reset_refused[1]:
+                return []                              # tried again in a moment
+            return self._ask(self._resets[0], "reset")
         self.phase = "active"
         return []
 
@@ -281,6 +344,7 @@ class CellLifecycle:
         """The cell fails: the hold and the planner's deactivation follow (:meth:`steps`)."""
         if self.phase != "failed":
             self.phase, self.reason, self._hold_due = "failed", reason, True
+        self._resets = []
         for seen in self.seen.values():
             seen.activated = False
 

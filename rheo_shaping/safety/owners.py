@@ -48,8 +48,11 @@ def owner_name(namespace: str, node: str) -> str:
 class StreamOwner:
     """One stream (``topic``) bound to the writer of the node ``owner`` (fully qualified)."""
 
-    def __init__(self, topic: str, owner: str):
-        self.topic, self.owner = topic, owner
+    def __init__(self, topic: str, owner: str, strict: bool = True):
+        """``strict`` False: any writer of the owner's name is taken, none of another name
+        (a restarted node's writer while the killed one's stays in the graph for its DDS
+        lease, ~20 s; for a stream that only reports, such as a heartbeat)."""
+        self.topic, self.owner, self.strict = topic, owner, strict
         self.bound: Publisher | None = None
         self._seq = 0
         self._reported: set[str] = set()
@@ -59,6 +62,14 @@ class StreamOwner:
         Binds to the owner's writer when it is the only writer of the owner's name; lets a
         bound writer go when the graph no longer shows it (the owner was restarted)."""
         writers = list(writers)
+        if not self.strict:
+            foreign = tuple(w for w in writers if not unnamed(w) and w.node != self.owner)
+            if foreign:
+                return Trust(False, self.describe(foreign), foreign)
+            if not any(w.node == self.owner for w in writers):
+                return Trust(False, f"no writer of {self.topic} named {self.owner} in the "
+                             f"graph", ())
+            return Trust(True, "", ())
         if self.bound is not None and all(w.gid != self.bound.gid for w in writers):
             self.bound, self._seq = None, 0
         if self.bound is None:

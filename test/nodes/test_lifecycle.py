@@ -191,3 +191,82 @@ def test_two_managed_cells_come_up_and_a_killed_monitor_brings_only_its_cell_dow
         for name, p in started.items():
             if p is not monitor:
                 assert p.stop() == 0, f"{ns} {name}:\n{p.text()[-3000:]}"
+
+
+def test_a_killed_monitor_restarted_is_recovered_by_one_startup_of_the_manager(
+        ros, procs, tmp_path):
+    """The documented recovery (docs/ros.md, "Managed start-up"): the monitor of a managed
+    cell SIGKILLed mid-run, a new monitor process started, one ~/startup of the manager.
+    The manager configures and activates the newcomer, clears the latches in order (monitor,
+    simulator, planner: the simulator refuses while the killed monitor's writer is still in
+    the graph, and the manager tries again), then activates the planner behind the
+    interlock: the cell runs again.  Before, the cell wedged (the newcomer unconfigured, the
+    simulator's hold latched again, the manager `active` over a planner that never moved).
+    Throughout, the manager says `active` only while the tool can move."""
+    from _support.ros import Recorder
+    data = yaml.safe_load(dump_cell(replace(CellParams(), sheet=replace(CellParams().sheet,
+                                                                        n_masses=15))))
+    data["/**/simulator"] = {"ros__parameters": {"real_time_factor": REAL_TIME_FACTOR}}
+    for name in ("planner", "monitor"):
+        data[f"/**/{name}"] = {"ros__parameters": {"use_sim_time": True}}
+    params = tmp_path / "cell.yaml"
+    params.write_text(yaml.safe_dump(data, sort_keys=False))
+    ns = "/rc"
+    cell = _start_cell(procs, params, ns)
+    node = ros.node("recovery_observer")
+    rec = Recorder(node, {f"{ns}/lifecycle_manager/status": (T.MANAGER_STATUS.type, True),
+                          T.PLANNER_STATE.in_namespace(ns): (T.PLANNER_STATE.type, True)})
+    rec.add(T.DIAGNOSTICS.name, T.DIAGNOSTICS.type,
+            QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+
+    def planner_state() -> str:
+        last = rec.last(T.PLANNER_STATE.in_namespace(ns))
+        return last.data if last is not None else ""
+
+    def sim_message() -> str:
+        for msg in reversed(rec[T.DIAGNOSTICS.name]):
+            for st in msg.status:
+                if st.name == "rc/simulator: sheet":
+                    return st.message
+        return ""
+
+    ros.spin_until(lambda: _status(rec, ns).get("phase") == "active"
+                   and planner_state() == "running", UP_TIMEOUT_S, "the cell running")
+    monitor = cell["monitor"]
+    monitor.proc.send_signal(signal.SIGKILL)
+    monitor.proc.wait()
+    procs.all.remove(monitor)
+    ros.spin_until(lambda: _status(rec, ns).get("phase") == "failed", 30.0, "the failure")
+    ros.spin_until(lambda: sim_message().startswith("the tool holds"), 30.0, "the hold")
+    assert _status(rec, ns)["phase"] != "active"
+    again = procs(MANAGED["monitor"], "--ros-args", "--params-file", str(params),
+                  "-r", f"__ns:={ns}", *T.CLOCK_REMAP)
+    # the user restarts the node, waits for it to come up (its heartbeat), then asks
+    ros.spin_until(lambda: _status(rec, ns).get("nodes", {}).get("monitor") == "unconfigured",
+                   60.0, "the manager to see the restarted monitor")
+    startup = node.create_client(Trigger, f"{ns}/lifecycle_manager/startup")
+    ros.spin_until(startup.service_is_ready, 30.0, "the manager's ~/startup")
+    future = startup.call_async(Trigger.Request())         # one call: acts (sent once)
+    ros.spin_until(lambda: _status(rec, ns).get("phase") == "active", 120.0,
+                   "the manager to bring the cell back")
+    # Nav2's query: the manager says active only now
+    is_active = node.create_client(Trigger, f"{ns}/lifecycle_manager/is_active")
+    ros.spin_until(is_active.service_is_ready, 30.0, "the manager's ~/is_active")
+    answer = query(is_active, Trigger.Request(), ros.spin_for, 30.0)
+    assert answer is not None and answer.success, answer
+    ros.spin_until(lambda: planner_state() == "running", 60.0, "the planner running again")
+    if future.done():                # (a reply can be lost to discovery; the effect cannot)
+        assert future.result().success, future.result().message
+    assert _status(rec, ns)["nodes"] == {n: "active" for n in CELL_ORDER}
+    # the tool moves again: the simulator follows set-points, it does not hold
+    ros.spin_until(lambda: not sim_message().startswith("the tool holds"), 30.0,
+                   "the simulator following again")
+    log = cell["lifecycle_manager"].text()
+    order = [log.index(f"reset {n}\n") for n in ("monitor", "simulator", "planner")]
+    assert order == sorted(order), log[-3000:]
+    # every status the manager published: `active` never while the planner held or waited
+    phases = [json.loads(msg.data)["phase"] for msg in rec[f"{ns}/lifecycle_manager/status"]]
+    assert phases.count("failed") >= 1 and phases[-1] == "active", phases
+    for p in (*cell.values(), again):
+        if p is not monitor:
+            assert "Traceback" not in p.text(), p.text()[-3000:]

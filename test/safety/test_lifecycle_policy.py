@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from rheo_shaping.safety.lifecycle import (ACTIVATE_RETRIES, CELL_ORDER, CellLifecycle, Step,
-                                           interlock_refusal)
+from rheo_shaping.safety.lifecycle import (ACTIVATE_RETRIES, CELL_ORDER, RESET_RETRIES,
+                                           CellLifecycle, Step, interlock_refusal)
 
 S = 1_000_000_000          # ns per s
 
@@ -238,3 +238,101 @@ def test_a_node_in_a_long_transition_is_not_lost_and_its_reply_is_a_sign_of_life
     c.answered("simulator", "configure", True, steady_ns=5 * S)
     assert c.steps(5 * S + S // 10) == [Step("configure", "monitor")]
     assert c.phase == "starting"
+
+
+def _beat(c: CellLifecycle, t: int, latches: dict[str, str] | None = None,
+          instances: dict[str, str] | None = None) -> None:
+    for name in CELL_ORDER:
+        seen = c.seen[name]
+        c.heartbeat(name, seen.state, t, seen.transitions,
+                    (instances or {}).get(name, seen.instance or "p-" + name),
+                    (latches or {}).get(name, ""))
+
+
+def test_a_latch_in_an_active_node_takes_the_cell_to_held_and_back():
+    """The manager's `active` means the tool can move: a simulator that holds its tool (a
+    rogue's acknowledgements, a tool limit) makes the cell `held`, named; it is active again
+    once the latch has cleared."""
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    _, t = bring_up(c)
+    _beat(c, t + 1, {"simulator": "monitor lost: no /shaping/checked for over 0.5 s"})
+    assert c.steps(t + 1) == []                     # the node's own latch stops the tool
+    assert (c.phase, c.reason) == ("held", "holds: simulator: monitor lost: no "
+                                           "/shaping/checked for over 0.5 s")
+    _beat(c, t + 2)
+    c.steps(t + 2)
+    assert (c.phase, c.reason) == ("active", "")
+
+
+def test_a_latch_of_an_inactive_node_does_not_hold_the_cell():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    _, t = bring_up(c)
+    c.seen["planner"].state = "inactive"
+    c.seen["planner"].activated = False
+    c.phase = "held"
+    _beat(c, t + 1, {"planner": "planner: deactivated (lifecycle)"})
+    assert c.latched() == ""
+
+
+def test_startup_after_a_failure_recovers_a_restarted_node_and_clears_the_latches_in_order():
+    """The monitor killed and restarted: one startup configures and activates the newcomer,
+    resets monitor, simulator and planner in that order (the simulator refuses to release its
+    hold while its monitor is lost), then activates the planner behind the interlock."""
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    _, t = bring_up(c)
+    t += 2 * S                                      # the monitor dies: its beats stop
+    for name in ("simulator", "planner"):
+        seen = c.seen[name]
+        c.heartbeat(name, seen.state, t, seen.transitions, seen.instance,
+                    "abort: lifecycle_manager: monitor lost")
+    steps = c.steps(t)
+    assert c.phase == "failed" and c.reason.startswith("monitor lost: no heartbeat")
+    assert steps == [Step("hold", reason=c.reason), Step("deactivate", "planner")]
+    answer(c, steps)
+    # the restarted monitor: another process, unconfigured
+    c.heartbeat("monitor", "unconfigured", t, 0, "p-monitor-2")
+    assert c.startup() == ""
+    asked = []
+    for _ in range(30):
+        t += S // 10
+        _beat(c, t, {n: c.seen[n].latch for n in CELL_ORDER},
+              {"monitor": "p-monitor-2"})
+        c.monitor_ready(c.seen["monitor"].state == "active", t)
+        steps = c.steps(t)
+        asked += [(s.action, s.node) for s in steps]
+        answer(c, steps)
+        if c.phase == "active":
+            break
+    assert asked == [("configure", "monitor"), ("activate", "monitor"), ("reset", "monitor"),
+                     ("reset", "simulator"), ("reset", "planner"), ("activate", "planner")]
+    assert c.phase == "active" and c.latched() == ""
+
+
+def test_a_refused_reset_fails_the_recovery_with_the_nodes_reason():
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    _, t = bring_up(c)
+    _beat(c, t + 1, {"simulator": "a second writer of /shaping/checked: /rogue"})
+    c.steps(t + 1)
+    assert c.phase == "held" and c.startup() == ""
+    steps = c.steps(t + 2)
+    assert [(s.action, s.node) for s in steps] == [("reset", "monitor")]
+    answer(c, steps)
+    steps = c.steps(t + 3)
+    assert [(s.action, s.node) for s in steps] == [("reset", "simulator")]
+    # refused: tried again every second (a killed monitor's writer stays in the graph for
+    # its DDS lease), RESET_RETRIES times, then the cell fails with the node's reason
+    t = t + 3
+    for k in range(1, RESET_RETRIES):
+        c.answered("simulator", "reset", False, "not reset: a second writer of /shaping/checked",
+                   steady_ns=t)
+        assert c.phase == "starting" and "tried again every 1 s" in c.waiting_for(t)
+        _beat(c, t + S - 1, {"simulator": "a second writer of /shaping/checked: /rogue"})
+        assert c.steps(t + S - 1) == []
+        t += S
+        _beat(c, t, {"simulator": "a second writer of /shaping/checked: /rogue"})
+        assert [(s.action, s.node) for s in c.steps(t)] == [("reset", "simulator")]
+    c.answered("simulator", "reset", False, "not reset: a second writer of /shaping/checked",
+               steady_ns=t)
+    assert c.phase == "failed"
+    assert c.reason == (f"the simulator refused its reset: not reset: a second writer of "
+                        f"/shaping/checked ({RESET_RETRIES} times)")

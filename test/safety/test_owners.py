@@ -57,3 +57,14 @@ def test_a_restarted_owner_is_bound_again_and_its_count_starts_afresh():
     assert s2.judge([again]).trusted and s2.bound == again      # the old writer left
     assert s2.accept(1)                                         # its own count from 1
     assert s.accept(0)                                          # no number: not judged
+
+
+def test_by_name_only_a_restarted_owner_beats_beside_the_killed_ones_writer():
+    """A heartbeat is taken from any writer of the node's name (a restarted node's writer
+    while the killed one's stays in the graph for its lease), never from another name."""
+    s = StreamOwner("/monitor/heartbeat", "/monitor", strict=False)
+    old, new = Publisher("/monitor", "aa"), Publisher("/monitor", "bb")
+    assert s.judge([old, new]).trusted and s.judge([new]).trusted
+    t = s.judge([new, ROGUE])
+    assert not t.trusted and t.foreign == (ROGUE,)
+    assert not s.judge([]).trusted
