@@ -9,4 +9,5 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'floor': ['Floor', 'FloorError', 'DEFAULT_FLOOR'],
     'watch': ['GapWatch', 'Status', 'signed_distance'],
     'feed': ['watch_record', 'Verdict', 'diagnose_record', 'DiagnosisJobs'],
+    'queue': ['SampleQueue'],
 })

@@ -10,4 +10,5 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'schema': ['ParameterError', 'param'],
     'config': ['ConfigError', 'load_cell', 'dump_cell'],
     'node_params': ['SimulatorNodeParams', 'PlannerNodeParams', 'MonitorNodeParams'],
+    'wire': ['WireError', 'load_json', 'read_fields', 'Field'],
 })

@@ -10,4 +10,5 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'clock_guard': ['ClockGuard'],
     'command_gate': ['CommandGate', 'Publisher', 'ToolLimits'],
     'monitor': ['TensionMonitor'],
+    'owners': ['StreamOwner', 'Trust'],
 })
