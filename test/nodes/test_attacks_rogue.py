@@ -68,9 +68,11 @@ def test_spoofed_acknowledgements_with_the_monitor_frozen_hold_the_tool(ros, pro
     message = a.sim_values().get("_message", "")
     # the rogue named, or (its writer not yet named in the graph) the frozen monitor lost;
     # on a busy machine the tear plan may meet the monitor's threshold before the freeze
-    # (the run to the attack's time overshoots): that stop must hold, checked below
+    # (the run to the attack's time overshoots), or its stale-data rule may stop it (seen
+    # at x10, load 11, in the campaign): that stop must hold, checked below
     assert ("a second writer of /shaping/checked: /rogue_ack" in message
-            or "monitor lost" in message or "reached the abort threshold" in message), message
+            or "monitor lost" in message or "reached the abort threshold" in message
+            or "abort: stale data" in message), message
     a.check(F_max)
     a.stop()
 
