@@ -229,7 +229,7 @@ class LifecycleManagerNode(Node):
 
 
 def main(args=None):
-    return run_node(LifecycleManagerNode, 'lifecycle_manager', args)
+    return run_node(LifecycleManagerNode, 'lifecycle_manager', args, warm=False)  # no sheet
 
 
 if __name__ == '__main__':

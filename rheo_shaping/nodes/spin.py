@@ -126,7 +126,9 @@ def _fatal(name: str, message: str) -> int:
     return 2
 
 
-def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
+def run_node(factory: Callable[[], Node], name: str, args=None, warm: bool = True) -> int:
+    """Run one node executable to its end; its exit code.  ``warm``: load the compiled
+    sheet step first (:func:`warm_up`), for a node that steps or plans the sheet."""
     argv = sys.argv if args is None else args
     user = list(argv[1:])
     if "--ros-args" in user:
@@ -148,7 +150,8 @@ def run_node(factory: Callable[[], Node], name: str, args=None) -> int:
     set_command_line(args)            # -p NAME:=VALUE beats the params file (ros_params)
     # the compiled sheet step, loaded (or compiled on a user's first run) while a signal
     # still ends the process at once (nodes/entry.py): nothing of ROS exists yet
-    warm_up()
+    if warm:
+        warm_up()
     stop = _StopSignal()
     try:
         # from here on rclpy's handlers (installed by init, chaining to these) stop the node
