@@ -13,7 +13,6 @@ from typing import Callable
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.time_source import TimeSource
 from std_msgs.msg import String
 
 from ..params.fingerprint import cell_mismatch
@@ -24,6 +23,7 @@ from ..safety.one_of_each import Announcement, settle_refusal, settle_time, twin
 from ..safety.owners import StreamOwner, Trust, owner_name
 from ..units import NS
 from . import topics as T
+from .rclpy_private import clock_subscription, wrap_clock_callback
 
 
 def guard_clock(node: Node, guard: ClockGuard, on_fault: Callable[[str], None]) -> None:
@@ -33,21 +33,17 @@ def guard_clock(node: Node, guard: ClockGuard, on_fault: Callable[[str], None]) 
     rclpy's TimeSource subscribes its bound ``clock_callback``; the subscription is made
     again with the guarded one (same topic, so remaps such as ``/clock:=clock`` hold).  A
     negative time never reaches rclpy (whose ``Time`` would raise in the executor)."""
-    ts = node._time_source                              # rclpy keeps it private
+    def wrap(apply: Callable) -> Callable:
+        def callback(msg) -> None:
+            t_ns = int(msg.clock.sec) * NS + int(msg.clock.nanosec)
+            why = guard.check(t_ns)
+            if why:
+                on_fault(why)
+                return
+            apply(msg)
+        return callback
 
-    def callback(msg) -> None:
-        t_ns = int(msg.clock.sec) * NS + int(msg.clock.nanosec)
-        why = guard.check(t_ns)
-        if why:
-            on_fault(why)
-            return
-        TimeSource.clock_callback(ts, msg)
-
-    ts.clock_callback = callback
-    if ts._clock_sub is not None:
-        node.destroy_subscription(ts._clock_sub)
-        ts._clock_sub = None
-        ts._subscribe_to_clock_topic()
+    wrap_clock_callback(node, wrap)
 
 
 def publishers_of(node: Node, topic: str) -> list[Publisher]:
@@ -101,7 +97,7 @@ class OwnedStream:
 
 def clock_publishers(node: Node) -> int:
     """Publishers of the topic the node's time source follows (0 on wall time)."""
-    sub = node._time_source._clock_sub
+    sub = clock_subscription(node)
     return node.count_publishers(sub.topic_name) if sub is not None else 0
 
 

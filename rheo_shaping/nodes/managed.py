@@ -45,6 +45,7 @@ from ..safety.lifecycle import HEARTBEAT_PERIOD
 from ..params.wire import Field
 from ..units import NS
 from .monitor import MonitorNode
+from .rclpy_private import clock_subscription, lifecycle_label, release_state_machine
 from .planner import MOVING, PlannerNode
 from .simulator import SimulatorNode
 from . import topics as T
@@ -83,13 +84,13 @@ class Managed(LifecycleNodeMixin):
         (rclpy leaves it: the node would stay in the graph, where a new node of its name
         waits for it to leave, nodes.guards.Presence)."""
         Node.destroy_node(self)
-        self._state_machine.destroy_when_not_in_use()
+        release_state_machine(self)
 
     # -- heartbeat ----------------------------------------------------------------
     @property
     def lifecycle_state(self) -> str:
         """The primary state's label (unconfigured, inactive, active, finalized)."""
-        return self._state_machine.current_state[1]
+        return lifecycle_label(self)
 
     def _beat(self) -> None:
         self._hb_pub.publish(String(data=json.dumps(
@@ -120,20 +121,20 @@ class Managed(LifecycleNodeMixin):
 
     # -- entities made by configure -----------------------------------------------
     def _entities(self) -> dict[str, set[int]]:
-        return {kind: {id(e) for e in getattr(self, f"_{kind}")}
+        return {kind: {id(e) for e in getattr(self, kind)}
                 for kind in ("publishers", "subscriptions", "services", "clients", "timers",
                              "guards")}
 
     def _destroy_built(self) -> None:
         """Destroy every entity made since the lifecycle's own (the plain node's), but the
         time source's /clock subscription (guard_clock made it again; the node keeps it)."""
-        keep = self._time_source._clock_sub
+        keep = clock_subscription(self)
         destroy = {"publishers": self.destroy_publisher,
                    "subscriptions": self.destroy_subscription,
                    "services": self.destroy_service, "clients": self.destroy_client,
                    "timers": self.destroy_timer, "guards": self.destroy_guard_condition}
         for kind, method in destroy.items():
-            for entity in list(getattr(self, f"_{kind}")):
+            for entity in list(getattr(self, kind)):
                 if id(entity) not in self._base[kind] and entity is not keep:
                     method(entity)
         params = getattr(self, "params", None)

@@ -52,6 +52,7 @@ from ..safety.monitor import TensionMonitor
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
+from .rclpy_private import clock_subscription
 from .guards import CellCheck, OwnedStream, Presence, clock_publishers, guard_clock
 from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
@@ -298,7 +299,7 @@ class MonitorNode(Node):
             self.get_logger().info("ready: fresh tension data")
         elif self.state == "waiting":
             lacks = self.core.waiting_for(now, self.get_clock().now().nanoseconds)
-            clock = self._time_source._clock_sub
+            clock = clock_subscription(self)
             hint = (f"; the simulator's clock: {clock.topic_name} (in a namespace: -r "
                     f"/clock:=clock)" if clock is not None and "clock" in lacks else "")
             self.get_logger().info(

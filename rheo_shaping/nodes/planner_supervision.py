@@ -16,6 +16,7 @@ from ..safety.watchdog import StallGuard
 from ..units import NS
 from . import messages as m
 from . import topics as T
+from .rclpy_private import clock_subscription
 
 
 class PlannerSupervision:
@@ -78,7 +79,7 @@ class PlannerSupervision:
 
     def _say_wait(self, state: str, monitor_why: str) -> None:
         """What a wait waits for: the full topic name and the likely fix, every 5 s."""
-        clock = self._time_source._clock_sub
+        clock = clock_subscription(self)
         what = {
             "waiting_for_monitor": (
                 f"the monitor's ready heartbeat on {self._ready_topic} ({monitor_why}): the "

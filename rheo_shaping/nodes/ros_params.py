@@ -44,6 +44,7 @@ from rclpy.parameter import Parameter
 
 from ..params.config import CELL_SECTIONS
 from ..params.node_params import ROS_BUILTIN_PARAMETERS
+from .rclpy_private import parameter_overrides
 from ..params.schema import FieldInfo, ParameterError, from_flat, iter_fields, validate_value
 
 
@@ -174,7 +175,7 @@ class SchemaParameters:
         """``-p`` beats the params file (the process's arguments, then the node's own)."""
         given = command_line_parameters(_COMMAND_LINE)
         given.update(command_line_parameters(["--ros-args", *cli_args] if cli_args else []))
-        overrides = self.node._parameter_overrides
+        overrides = parameter_overrides(self.node)
         for name, value in given.items():
             try:
                 param = Parameter(name, value=value)
@@ -190,7 +191,7 @@ class SchemaParameters:
 
     def _check_overrides(self) -> None:
         """Refuse invalid or unknown start-up values with the schema's message."""
-        overrides = getattr(self.node, "_parameter_overrides", {}) or {}
+        overrides = parameter_overrides(self.node)
         flat: dict[str, Any] = {}
         for name, p in overrides.items():
             value = plain_value(p.value)
