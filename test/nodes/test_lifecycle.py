@@ -50,6 +50,19 @@ def _status(rec, ns: str) -> dict:
     return json.loads(last.data) if last is not None else {}
 
 
+def _params(tmp_path):
+    """A 15-mass cell at 10x, planner and monitor on its clock (node sections keyed
+    /**/<node> apply in any namespace, docs/ros.md)."""
+    data = yaml.safe_load(dump_cell(replace(CellParams(), sheet=replace(CellParams().sheet,
+                                                                        n_masses=15))))
+    data["/**/simulator"] = {"ros__parameters": {"real_time_factor": REAL_TIME_FACTOR}}
+    for name in ("planner", "monitor"):
+        data[f"/**/{name}"] = {"ros__parameters": {"use_sim_time": True}}
+    params = tmp_path / "cell.yaml"
+    params.write_text(yaml.safe_dump(data, sort_keys=False))
+    return params
+
+
 def _start_cell(procs, params, ns: str) -> dict:
     ros_args = ["--ros-args", "--params-file", str(params), "-r", f"__ns:={ns}",
                 *T.CLOCK_REMAP]
@@ -61,14 +74,7 @@ def _start_cell(procs, params, ns: str) -> dict:
 def test_two_managed_cells_come_up_and_a_killed_monitor_brings_only_its_cell_down(
         ros, procs, tmp_path):
     from _support.ros import Recorder
-    # (the node sections keyed /**/<node> apply in any namespace, docs/ros.md)
-    data = yaml.safe_load(dump_cell(replace(CellParams(), sheet=replace(CellParams().sheet,
-                                                                        n_masses=15))))
-    data["/**/simulator"] = {"ros__parameters": {"real_time_factor": REAL_TIME_FACTOR}}
-    for name in ("planner", "monitor"):
-        data[f"/**/{name}"] = {"ros__parameters": {"use_sim_time": True}}
-    params = tmp_path / "cell.yaml"
-    params.write_text(yaml.safe_dump(data, sort_keys=False))
+    params = _params(tmp_path)
     cells = {ns: _start_cell(procs, params, ns) for ns in CELLS}
 
     node = ros.node("lifecycle_observer")
@@ -204,13 +210,7 @@ def test_a_killed_monitor_restarted_is_recovered_by_one_startup_of_the_manager(
     simulator's hold latched again, the manager `active` over a planner that never moved).
     Throughout, the manager says `active` only while the tool can move."""
     from _support.ros import Recorder
-    data = yaml.safe_load(dump_cell(replace(CellParams(), sheet=replace(CellParams().sheet,
-                                                                        n_masses=15))))
-    data["/**/simulator"] = {"ros__parameters": {"real_time_factor": REAL_TIME_FACTOR}}
-    for name in ("planner", "monitor"):
-        data[f"/**/{name}"] = {"ros__parameters": {"use_sim_time": True}}
-    params = tmp_path / "cell.yaml"
-    params.write_text(yaml.safe_dump(data, sort_keys=False))
+    params = _params(tmp_path)
     ns = "/rc"
     cell = _start_cell(procs, params, ns)
     node = ros.node("recovery_observer")
