@@ -162,11 +162,10 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         return ToolLimits(s.max_tool_speed, s.max_tool_accel, s.max_tool_jump)
 
     def _monitor_lead(self) -> MonitorLead:
-        """Steps wait for the monitor's acknowledgements; with monitor_timeout, a monitor
-        silent for that long is lost (the tool holds), else after command_timeout it is gone
-        and steps no longer wait."""
+        """Steps wait for the monitor's acknowledgements; a monitor silent for
+        monitor_timeout is lost (the tool holds)."""
         s = self.settings
-        return MonitorLead(s.monitor_lead, s.monitor_timeout or s.command_timeout)
+        return MonitorLead(s.monitor_lead, s.monitor_timeout)
 
     def _yield(self, reason: str) -> None:
         raise Yielded(reason)
@@ -280,7 +279,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         trust = self._checked.trust()
         if trust.foreign:
             return trust.reason
-        if self.settings.monitor_timeout > 0 and self._lead.lost(self._steady.now().nanoseconds):
+        if self._lead.lost(self._steady.now().nanoseconds):
             return (f"the monitor is lost (no {T.CHECKED.contract} for over "
                     f"{self.settings.monitor_timeout:g} s): restart it first")
         return ""
@@ -295,8 +294,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
             self._say_commander()
         self._bind_waiting()
         s = self.settings
-        if (s.monitor_timeout > 0 and not self.gate.held
-                and self._lead.lost(self._steady.now().nanoseconds)):
+        if not self.gate.held and self._lead.lost(self._steady.now().nanoseconds):
             self._hold(f"monitor lost: no {T.CHECKED.contract} for over {s.monitor_timeout:g} s"
                        f" (monitor_timeout)")
         self._pending = True
