@@ -23,7 +23,7 @@ import numpy as np
 
 from rheo_shaping.diagnosis.baseline import BASELINE_MODES
 from rheo_shaping.gapwatch.campaign import Case, default_shared, run_case
-from rheo_shaping.gapwatch.floor import Floor
+from rheo_shaping.gapwatch.floor import ResidualFloor
 from rheo_shaping.params.config import load_cell
 from rheo_shaping.params.node_params import GapWatchNodeParams
 from rheo_shaping.parallel import executor_from_spec, run_tasks
@@ -54,7 +54,7 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     cell = load_cell(a.params)
-    floor = Floor.load(a.floor)
+    floor = ResidualFloor.load(a.floor)
     shared = default_shared(cell, floor, replace(GapWatchNodeParams(),
                                                  diagnosis_baseline=a.diagnosis_baseline),
                             commissioning_error=a.commissioning_error)

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from rheo_shaping.gapwatch.campaign import Case, default_shared
-from rheo_shaping.gapwatch.floor import DEFAULT_FLOOR, Floor
+from rheo_shaping.gapwatch.floor import DEFAULT_FLOOR, ResidualFloor
 from rheo_shaping.params.config import load_cell
 from rheo_shaping.params.node_params import GapWatchNodeParams
 from rheo_shaping.parallel import executor_from_spec, run_tasks
@@ -41,7 +41,7 @@ def main() -> None:
     cell = load_cell(a.params)
     settings = GapWatchNodeParams()
     # a provisional floor nobody crosses: the calibration reads the statistics, not states
-    big = Floor(1e9, 1e9, 1e9, 1e9, settings.window)
+    big = ResidualFloor(1e9, 1e9, 1e9, 1e9, settings.window)
     shared = default_shared(cell, big, settings)
     t0 = time.monotonic()
     cases = [Case("", a.seed0 + i) for i in range(a.runs)]
@@ -51,11 +51,12 @@ def main() -> None:
     z = np.array([r["max_z"] for r in res])
     largest = dict(zip(KEYS, (float(v) for v in np.nanmax(z, axis=0))))
     bias = float(np.median(np.concatenate([r["delta_diffs"] for r in res])))
-    floor = Floor(**{k: 1.0 + a.margin * (v - 1.0) for k, v in largest.items()},
-                  window_s=settings.window, delta_bias_m=bias,
-                  source=f"benchmarks/gapwatch_floor.py --runs {a.runs} --seed0 {a.seed0} "
-                         f"--margin {a.margin}: nominal runs of {os.path.basename(a.params)}, "
-                         f"default measurement model", runs=a.runs)
+    floor = ResidualFloor(**{k: 1.0 + a.margin * (v - 1.0) for k, v in largest.items()},
+                          window_s=settings.window, delta_bias_m=bias,
+                          source=f"benchmarks/gapwatch_floor.py --runs {a.runs} --seed0 "
+                                 f"{a.seed0} --margin {a.margin}: nominal runs of "
+                                 f"{os.path.basename(a.params)}, default measurement model",
+                          runs=a.runs)
     extra = {"largest": largest, "cpu_s_per_run": float(np.mean([r["cpu_s"] for r in res])),
              "wall_s": wall}
     floor.dump(a.out, extra)

@@ -6,7 +6,7 @@ Imports :mod:`rheo_shaping.params`, :mod:`rheo_shaping.sheet`, :mod:`rheo_shapin
 from .._lazy import lazy_api
 
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
-    'floor': ['Floor', 'FloorError', 'DEFAULT_FLOOR'],
+    'floor': ['ResidualFloor', 'ResidualFloorError', 'DEFAULT_FLOOR'],
     'watch': ['GapWatch', 'Status', 'signed_distance'],
     'feed': ['watch_record', 'Verdict', 'diagnose_record', 'DiagnosisJobs'],
     'queue': ['SampleQueue'],

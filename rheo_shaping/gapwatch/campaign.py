@@ -29,7 +29,7 @@ from ..records.bag import read_record, write_record
 from ..sheet.effects import EFFECTS, nominal
 from ..sheet.simulation import RunResult, run_scenario
 from .feed import diagnose_record, watch_record
-from .floor import Floor
+from .floor import ResidualFloor
 from .residuals import signed_distance
 
 
@@ -120,12 +120,12 @@ def _max_z(gw) -> list:
     return [float(x) for x in np.nanmax(tr, axis=0)] if tr.size else []
 
 
-def default_shared(cell: CellParams, floor: Floor | None = None,
+def default_shared(cell: CellParams, floor: ResidualFloor | None = None,
                    settings: GapWatchNodeParams = GapWatchNodeParams(),
                    ms: MeasurementParams = MeasurementParams(),
                    commissioning_error: float = 0.0) -> tuple:
     """What every case shares: the model cell, the floor, the watch's settings, the
     measurement model and the commissioning error (the true cell's sheet knobs off the
     model's by U(-e, e) tolerances each; 0: the model is the cell)."""
-    return (nominal(cell), floor if floor is not None else Floor.load(), settings,
+    return (nominal(cell), floor if floor is not None else ResidualFloor.load(), settings,
             replace(ms), float(commissioning_error))

@@ -22,7 +22,7 @@ import numpy as np
 from ..params.node_params import GapWatchNodeParams
 from ..params.cell import CellParams
 from ..records.record import Record
-from .floor import Floor
+from .floor import ResidualFloor
 from .watch import GapWatch
 
 #: A baseline knob is reported with a verdict when it moved this share of its tolerance.
@@ -31,7 +31,8 @@ BASELINE_SHOWN = 0.5
 FEED_STEP_S = 0.1
 
 
-def watch_record(record: Record, model: CellParams | None = None, floor: Floor | None = None,
+def watch_record(record: Record, model: CellParams | None = None,
+                 floor: ResidualFloor | None = None,
                  settings: GapWatchNodeParams = GapWatchNodeParams(),
                  step: float = FEED_STEP_S,
                  on_warn: Callable[[Record], None] | None = None) -> GapWatch:
@@ -39,7 +40,7 @@ def watch_record(record: Record, model: CellParams | None = None, floor: Floor |
     order, updated every ``step`` [s] of process time and once more at the end; ``on_warn``
     gets the watch's record of the run so far at the first WARN (what the node diagnoses)."""
     gw = GapWatch(model if model is not None else record.scenario,
-                  floor if floor is not None else Floor.load(), settings)
+                  floor if floor is not None else ResidualFloor.load(), settings)
     gw.start(0.0)
     pose = (record.pose_t, record.pose_xz)
     wt: np.ndarray = np.zeros(0)

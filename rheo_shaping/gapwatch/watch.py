@@ -21,7 +21,7 @@ run so far and per phase (``approach``, ``forced deformation``, ``dwell``,
 measured tool's motion: a move in contact after a dwell counts as release).
 
 States: ``OK``; ``WARN`` when a residual (window or run, profile or force)
-stays above its :class:`~.floor.Floor` for ``sustain`` seconds of process time;
+stays above its :class:`~.floor.ResidualFloor` for ``sustain`` seconds of process time;
 ``ERROR`` when, for as long, the gap is large enough to change the process
 figures by more than ``error_share``: the systematic tool-force residual over
 the window against the model's peak tool force so far (the tool force is the
@@ -49,7 +49,7 @@ from ..records.record import Record
 from ..sheet.metrics import residual_gap
 from ..sheet.chain import ConvergenceError
 from ..sheet.simulation import TOOL, Simulation
-from .floor import Floor
+from .floor import ResidualFloor
 from .intake import NOISE_SAMPLES, StreamIntake, _Frame
 from .residuals import Status, _Sums, mad_sigma, signed_distance
 
@@ -73,7 +73,7 @@ class GapWatch(StreamIntake):
     """The model of ``model`` beside a running cell; see the module docstring."""
 
     model: CellParams
-    floor: Floor
+    floor: ResidualFloor
     settings: GapWatchNodeParams = field(default_factory=GapWatchNodeParams)
 
     def __post_init__(self) -> None:

@@ -40,7 +40,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from ..gapwatch.feed import DiagnosisJobs
-from ..gapwatch.floor import Floor, FloorError
+from ..gapwatch.floor import ResidualFloor, ResidualFloorError
 from ..gapwatch.queue import SampleQueue
 from ..gapwatch.watch import GapWatch
 from ..jsonable import json_safe
@@ -88,8 +88,8 @@ class GapWatchNode(Node):
         except ConfigError as exc:
             raise ParameterError(f"parameter 'model_file' = {s.model_file!r}: {exc}") from None
         try:
-            self.floor = Floor.load(s.floor_file or None)
-        except FloorError as exc:
+            self.floor = ResidualFloor.load(s.floor_file or None)
+        except ResidualFloorError as exc:
             raise ParameterError(f"parameter 'floor_file' = {s.floor_file!r}: {exc}") from None
         self.report_dir = Path(s.report_dir or os.path.join(tempfile.gettempdir(),
                                                             "rheo_shaping_gapwatch"))

@@ -280,8 +280,8 @@ class GapWatchNodeParams:
         "", "params file of the model cell to watch the cell with (a params file or a "
         "'rheo-shaping diagnose --write-scenario' output); empty: the node's own cell (/**)")
     floor_file: str = param(
-        "", "JSON floor of the residuals (rheo_shaping.gapwatch.floor.Floor: largest residual "
-        "in noise units of runs the model fits); empty: the one shipped in the package")
+        "", "JSON floor of the residuals (rheo_shaping.gapwatch.floor.ResidualFloor: largest "
+        "residual in noise units of runs the model fits); empty: the one shipped in the package")
     wait_for_plan: bool = param(
         True, "the process starts at the stamp of the planner's tool/planned_trajectory (a "
         "later plan starts a new run); false: at the first tool/pose (a replayed record)")

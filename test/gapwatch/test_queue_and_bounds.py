@@ -63,10 +63,10 @@ def test_at_its_limit_the_oldest_sample_goes_first():
 def test_the_intake_refuses_poses_points_and_forces_out_of_any_cell():
     """One /tool/pose at 1e300 m sent the model into a loop it never left."""
     from rheo_shaping.gapwatch.watch import GapWatch
-    from rheo_shaping.gapwatch.floor import Floor
+    from rheo_shaping.gapwatch.floor import ResidualFloor
     from rheo_shaping.params.cell import CellParams
     from rheo_shaping.params.node_params import GapWatchNodeParams
-    w = GapWatch(CellParams(), Floor.load(), GapWatchNodeParams())
+    w = GapWatch(CellParams(), ResidualFloor.load(), GapWatchNodeParams())
     w.start(0.0)
     assert "farther than 10 m" in w.pose(0.1, 1e300, 0.0)
     assert "farther than 10 m" in w.pose(0.1, 0.0, -(MAX_POSITION * (1 + 1e-12)))

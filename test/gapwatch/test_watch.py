@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from rheo_shaping.gapwatch.feed import watch_record
-from rheo_shaping.gapwatch.floor import DEFAULT_FLOOR, Floor, FloorError
+from rheo_shaping.gapwatch.floor import DEFAULT_FLOOR, ResidualFloor, ResidualFloorError
 from rheo_shaping.gapwatch.residuals import signed_distance
 from rheo_shaping.gapwatch.watch import GapWatch
 from rheo_shaping.params.config import load_cell
@@ -107,7 +107,7 @@ def test_a_tool_offset_gives_the_models_own_force_change(cell):
 
 
 def test_rogue_samples_are_refused_with_a_reason(cell):
-    gw = GapWatch(cell, Floor.load(), GapWatchNodeParams())
+    gw = GapWatch(cell, ResidualFloor.load(), GapWatchNodeParams())
     gw.start(100.0)
     assert gw.pose(100.0, 0.03, 0.07) is None
     assert gw.pose(100.02, math.nan, 0.07) == "pose: non-finite position"
@@ -136,23 +136,23 @@ def test_the_run_so_far_is_a_record_the_diagnosis_reads(own, tmp_path):
 
 
 def test_the_shipped_floor_loads_and_bad_floors_are_one_line_errors(tmp_path):
-    fl = Floor.load()
+    fl = ResidualFloor.load()
     assert fl.runs >= 1 and fl.profile_window_z >= 1.0
-    assert Floor.load(DEFAULT_FLOOR) == fl
+    assert ResidualFloor.load(DEFAULT_FLOOR) == fl
     p = tmp_path / "f.json"
     p.write_text("{")
-    with pytest.raises(FloorError, match="not JSON"):
-        Floor.load(p)
+    with pytest.raises(ResidualFloorError, match="not JSON"):
+        ResidualFloor.load(p)
     p.write_text(json.dumps({"profile_window_z": 0.5, "force_window_z": 1.2,
                              "profile_run_z": 1.1, "force_run_z": 1.1, "window_s": 10.0}))
-    with pytest.raises(FloorError, match=r"'profile_window_z' = 0.5 is invalid: expected a "
-                                         r"finite number >= 1"):
-        Floor.load(p)
+    with pytest.raises(ResidualFloorError, match=r"'profile_window_z' = 0.5 is invalid: "
+                                                 r"expected a finite number >= 1"):
+        ResidualFloor.load(p)
     p.write_text(json.dumps({"profile_window_z": 1.5}))
-    with pytest.raises(FloorError, match="field 'force_run_z' missing"):
-        Floor.load(p)
-    with pytest.raises(FloorError, match="cannot read it"):
-        Floor.load(tmp_path / "missing.json")
+    with pytest.raises(ResidualFloorError, match="field 'force_run_z' missing"):
+        ResidualFloor.load(p)
+    with pytest.raises(ResidualFloorError, match="cannot read it"):
+        ResidualFloor.load(tmp_path / "missing.json")
 
 
 def test_a_stream_that_resumes_after_a_gap_is_taken_up_and_the_run_no_longer_judged(own):

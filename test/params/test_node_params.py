@@ -40,11 +40,17 @@ def test_load_cell_reads_the_wildcard_section_and_node_sections_hold_node_settin
     assert load_cell(ros) == want
 
 
+#: Shipped YAML files that are not a cell's params file (diagnostic_aggregator's analyzers).
+NOT_CELLS = {"diagnostics_aggregator.yaml"}
+
+
 def test_shipped_params_files_load_in_the_core_and_their_node_sections_are_valid():
     from rheo_shaping.params.config import read_yaml, flatten
     from rheo_shaping.params.node_params import ROS_BUILTIN_PARAMETERS
     from rheo_shaping.params.schema import from_flat
-    for path in sorted((REPO / "config").glob("*.yaml")):
+    cells = [p for p in sorted((REPO / "config").glob("*.yaml")) if p.name not in NOT_CELLS]
+    assert cells
+    for path in cells:
         load_cell(path)
         data = read_yaml(path)
         for node, cls in NODE_PARAMS.items():
