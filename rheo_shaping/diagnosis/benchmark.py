@@ -299,6 +299,8 @@ def score_case(case: dict, diag) -> dict:
                                            if k in {s.name for s in SHEET})
     fl = diag.floor or {}
     row["floor_source"] = fl.get("source")
+    row["floor_q95"], row["naming"] = fl.get("q95_fit"), fl.get("naming")
+    row["form"] = case.get("form")
     # what the verdict leaves against the floor (fit or holdout records beyond it), for a
     # named effect or pair and for the measurement chain's hypothesis alike: the chain's
     # knobs beyond their tolerances are a name too (the report flags their remainder the
