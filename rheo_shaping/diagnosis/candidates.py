@@ -41,6 +41,7 @@ class Search:
     prev: tuple | None = None               # (z_raw, u_sheet, values) of the point before
     damp: float = 1.0                       # step factor (halved on a miss)
     converged: bool = False                 # :func:`converge.converge` refined it to the end
+    first_J: float = math.nan               # J of its linearised first fit (before any run)
 
     @property
     def simulated_z(self) -> np.ndarray:

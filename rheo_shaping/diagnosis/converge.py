@@ -48,15 +48,19 @@ def to_check(effects: Sequence[Explanation], J_base: float) -> list[Explanation]
     return [c for c in effects if id(c) in want]
 
 
-def converge(checked: Sequence[Explanation], first_J: dict, ctx: FitContext, base: Baseline,
+def strong(c: Explanation, J_base: float) -> bool:
+    """``c``'s first fit (``search.first_J``) or its simulated J explains at least
+    ``CHECK_SHARE`` of the baseline's excess."""
+    return max(share(c.search.first_J, J_base), share(c.J, J_base)) >= CHECK_SHARE
+
+
+def converge(checked: Sequence[Explanation], ctx: FitContext, base: Baseline,
              m: int, responses: dict) -> list[Explanation]:
-    """Refine every strong checked effect (its first fit ``first_J[id(c)]`` or its simulated
-    J explains at least ``CHECK_SHARE``) to convergence; returns them (each marked
+    """Refine every :func:`strong` checked effect to convergence; returns them (each marked
     ``search.converged``)."""
-    strong = [c for c in checked if c.checked and math.isfinite(c.J) and not c.chain_free
-              and max(share(first_J.get(id(c), math.inf), base.J), share(c.J, base.J))
-              >= CHECK_SHARE]
-    todo = list(strong)
+    strong_ = [c for c in checked if c.checked and math.isfinite(c.J) and not c.chain_free
+               and strong(c, base.J)]
+    todo = list(strong_)
     tol = CONVERGED * max(base.J - 1.0, 0.0)
     for _ in range(ROUNDS):
         if not todo:
@@ -66,6 +70,6 @@ def converge(checked: Sequence[Explanation], first_J: dict, ctx: FitContext, bas
             relinearise(todo, ctx)
         refine_points(todo, ctx, base, m=m, responses=responses)
         todo = [c for c in todo if math.isfinite(c.J) and before[id(c)] - c.J > tol]
-    for c in strong:
+    for c in strong_:
         c.search.converged = True
-    return strong
+    return strong_

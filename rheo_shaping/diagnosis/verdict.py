@@ -73,10 +73,11 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
     effects.sort(key=lambda c: (c.p, c.J))
     chain_c.p = stats.bonferroni_p(chain_c.LR, chain_c.k, m + 1)
     run.stage("candidate checks")
+    for c in effects:
+        c.search.first_J = c.J
     checked = to_check(effects, base.J)
-    first_J = {id(c): c.J for c in checked}
     check(checked + [chain_c], ctx, base, m=m, responses=responses)
-    converge(checked, first_J, ctx, base, m, responses)
+    converge(checked, ctx, base, m, responses)
     base_c = Explanation((), {}, base.J, checked=True, baseline_u=np.r_[base.u_s, base.u_c])
     base_c.search.z_raw = base.z_raw
     base_c.search.zh_raw = ctx.H.z(base.outs[nf:]) if ctx.H else None
