@@ -105,3 +105,39 @@ def test_every_first_fit_that_explains_much_is_checked_whatever_its_p():
     assert chosen[:CHECKED] == ["kelvin_c1", "thinning"]
     assert "friction_tool" in chosen and "tool_offset" not in chosen
     assert len(chosen) == 3
+
+
+def _thresholds_script():
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "naming_thresholds.py"
+    spec = importlib.util.spec_from_file_location("naming_thresholds", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _row(verdict, cands, J_b=2.0, J_bh=2.0, q=0.2):
+    return {"index": 0, "kind": "single", "verdict": verdict, "J_baseline": J_b,
+            "J_baseline_holdout": J_bh, "floor_q95": q,
+            "candidates": [{"name": n, "J": J, "J_holdout": Jh, "checked": True,
+                            "values": {n: list(v)}} for n, J, Jh, v in cands]}
+
+
+def test_the_threshold_check_rejudges_a_benchmarks_cases():
+    """benchmarks/naming_thresholds.py: a clear name holds at every threshold +-20 %; a lead
+    whose remainders' ratio sits at 2.0 flips with the ratio moved; `none` flips when the
+    excess lies within 20 % of the floor's bound; a verdict the rule does not give again
+    (a pair) is not judged."""
+    nt = _thresholds_script()
+    clear = _row("power_law", [("power_law", 1.01, 1.02, (0.72,)),
+                               ("mass_error", 1.21, 1.3, (-0.4,))])
+    assert nt.check_row(clear) == {"index": 0, "kind": "single", "verdict": "power_law",
+                                   "judged": True, "flips": []}
+    # ratio (0.6 + 0.2) / (0.2 + 0.2) = 2.0 exactly: x1.2 refuses it
+    edge = _row("friction_tool", [("friction_tool", 1.2, 1.2, (0.3,)),
+                                  ("bending", 1.6, 1.6, (5e-6,))])
+    assert nt.check_row(edge)["flips"] == ["ratio x1.2"]
+    none = dict(_row("none", []), J_baseline=1.18)
+    assert nt.check_row(none)["flips"] == ["floor q95 x0.8"]
+    assert nt.check_row(_row("bending+thinning", []))["judged"] is False
