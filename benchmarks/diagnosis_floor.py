@@ -23,7 +23,11 @@ tool-force RMS [N], and the noise, in ``rheo_shaping/data/diagnosis_floor.json``
         [--out FILE] [--json]
 
 Each finished case is appended to ``FILE.partial.jsonl`` first; ``--assemble`` builds
-the data file from that (an interrupted run keeps its cases).
+the data file from that (an interrupted run keeps its cases).  ``--variations all`` draws
+the world's form per case (issue 46, :mod:`rheo_shaping.worlds.forms`), and
+``--assemble --without V --out FILE_V`` (with ``FILE``'s partial file copied to
+``FILE_V.partial.jsonl``) keeps only the cases with V off: the floor a held-out V is
+judged against.
 """
 from __future__ import annotations
 
@@ -55,7 +59,8 @@ def one_case(shared: dict, index: int) -> list[dict]:
     T = shared["process_time"]
     t0 = time.monotonic()
     case = make_case(index, "none", shared["seed"], base_cell(31, T), world="dynamic",
-                     n_records=max(nf + nh for nf, nh in shared["groupings"]))
+                     n_records=max(nf + nh for nf, nh in shared["groupings"]),
+                     variations=tuple(shared.get("variations", ())))
     t_world = time.monotonic() - t0
     rows = []
     for n in shared["n_masses"]:
@@ -73,14 +78,27 @@ def one_case(shared: dict, index: int) -> list[dict]:
                 "force_sys_N": gb.get("fit", {}).get("force_systematic_N"),
                 "profile_sys_holdout_m": gb.get("holdout", {}).get("profile_systematic_m"),
                 "force_sys_holdout_N": gb.get("holdout", {}).get("force_systematic_N"),
-                "noise": diag.noise, "initial": diag.initial_state,
+                "noise": diag.noise, "initial": diag.initial_state, "form": case["form"],
                 "diagnosis_s": time.monotonic() - t1, "world_s": t_world})
     return rows
 
 
-def assemble(rows: list[dict], how: dict) -> dict:
-    """The data file: per configuration the sorted excesses and the physical remainders."""
+def off(row: dict, variation: str) -> bool:
+    """The case of ``row`` was drawn with ``variation`` off (rows of a run without
+    variations have every one off)."""
+    from rheo_shaping.worlds.forms import FormParams
+    form = row.get("form") or {}
+    return form.get(variation, getattr(FormParams(), variation)) == getattr(FormParams(), variation)
+
+
+def assemble(rows: list[dict], how: dict, without: str | None = None) -> dict:
+    """The data file: per configuration the sorted excesses and the physical remainders;
+    ``without``: only the cases drawn with that form variation off (a leave-one-world-out
+    floor, issue 46)."""
     groups: dict = {}
+    if without:
+        rows = [r for r in rows if off(r, without)]
+        how = {**how, "without_variation": without}
     for r in rows:
         key = (r["n_masses"], r["process_time_s"], r["n_fit"], r["n_holdout"])
         groups.setdefault(key, []).append(r)
@@ -113,12 +131,24 @@ def main(argv=None) -> int:
     ap.add_argument("--assemble", action="store_true",
                     help="only build the data file from FILE.partial.jsonl")
     ap.add_argument("--json", action="store_true", help="print the data file")
+    ap.add_argument("--variations", default="",
+                    help="the dynamic world's form variations drawn per case (issue 46): 'all' "
+                         "or names separated by commas (default none)")
+    ap.add_argument("--without", default=None, metavar="VARIATION",
+                    help="build the data file from the cases with this variation off only (a "
+                         "leave-one-world-out floor)")
     a = ap.parse_args(argv)
     from rheo_shaping.parallel import executor_from_spec
     partial = a.out.with_suffix(".partial.jsonl")
     times = [float(x) for x in a.process_times.split(",")]
     ns = [int(x) for x in a.n_masses.split(",")]
     groupings = [tuple(int(v) for v in g.split("+")) for g in a.groupings.split(",")]
+    from rheo_shaping.worlds.forms import Variation, check_variations
+    variations = [v.value for v in check_variations(
+        [v.value for v in Variation] if a.variations == "all"
+        else [x for x in a.variations.split(",") if x])]
+    if a.without:
+        check_variations([a.without])
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                                 text=True, cwd=Path(__file__).parent).stdout.strip()
@@ -126,7 +156,7 @@ def main(argv=None) -> int:
         commit = ""
     how = {"script": "benchmarks/diagnosis_floor.py", "args": sys.argv[1:] if argv is None
            else list(argv), "seed": a.seed, "cases_per_length": a.cases, "world": "dynamic",
-           "commit": commit,
+           "commit": commit, "variations": variations,
            "what": "baseline excess J - 1 (fit, holdout) on effect-free dynamic-world records, "
                    "initial state read from the records (auto), written scenario and chain "
                    "off within +-0.8 tolerance, a drawn laying, movements 1-4 in a drawn "
@@ -143,7 +173,8 @@ def main(argv=None) -> int:
         t0 = time.monotonic()
         with executor_from_spec(a.executor or f"local:{a.jobs}", a.jobs) as ex:
             futs = {ex.submit(one_case, {"seed": a.seed, "process_time": T, "n_masses": ns,
-                                         "groupings": groupings}, i): (T, i) for T, i in todo}
+                                         "groupings": groupings, "variations": variations},
+                             i): (T, i) for T, i in todo}
             for k, f in enumerate(as_completed(futs)):
                 rows = f.result()
                 with partial.open("a") as fh:
@@ -155,7 +186,7 @@ def main(argv=None) -> int:
                                   f"{r['J_fit']:.3f}/{r['J_holdout']:.3f}" for r in rows)
                       + f" ({time.monotonic() - t0:.0f} s)", file=sys.stderr, flush=True)
     rows = [json.loads(line) for line in partial.read_text().splitlines()]
-    data = assemble(rows, how)
+    data = assemble(rows, how, a.without)
     a.out.write_text(json.dumps(data, indent=1, default=float) + "\n")
     if a.json:
         json.dump(data, sys.stdout, indent=1, default=float)

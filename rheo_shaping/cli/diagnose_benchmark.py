@@ -38,6 +38,12 @@ def add_parser(sub) -> None:
                         "dynamic world, numerics on the finer chain)")
     p.add_argument("--initial-state", default=None, choices=("auto", "laid", "settled"),
                    help="default: auto on the dynamic world, settled on the finer chain")
+    p.add_argument("--variations", default="", metavar="LIST",
+                   help="the dynamic world's form variations drawn per case, each on with "
+                        "probability 1/2: 'all' or names separated by commas (default none: "
+                        "issue 26's world; docs/diagnosis.md, 'A family of worlds')")
+    p.add_argument("--always-on", default="", metavar="LIST",
+                   help="variations switched on in every case (a held-out variation)")
     add_executor_arguments(p)
     p.add_argument("--save", metavar="FILE",
                    help="also write the summary with every case to FILE (JSON); each finished "
@@ -68,12 +74,27 @@ def run(args: argparse.Namespace) -> int:
     if not args.process_time > 10.0:
         raise UserError(f"--process-time = {args.process_time} s is invalid: expected > 10 s")
     partial = None if save is None else str(save) + ".partial.jsonl"
+    from ..worlds.forms import Variation, check_variations
+
+    def listed(text: str, option: str) -> tuple:
+        names = [v.value for v in Variation] if text == "all" else \
+            [x for x in text.split(",") if x]
+        try:
+            return check_variations(names)
+        except ValueError as exc:
+            raise UserError(f"{option}: {exc}") from None
+    variations, always_on = listed(args.variations, "--variations"), \
+        listed(args.always_on, "--always-on")
+    if (variations or always_on) and args.world != "dynamic":
+        raise UserError("--variations / --always-on vary the dynamic world: expected "
+                        "--world dynamic")
     with executor_from_args(args) as executor:
         try:
             out = run_benchmark(args.n, args.seed, args.jobs, bar.update,
                                 n_masses=args.n_masses, process_time=args.process_time,
                                 executor=executor, world=args.world, floor=args.floor,
-                                initial_state=args.initial_state, partial=partial)
+                                initial_state=args.initial_state, partial=partial,
+                                variations=variations, always_on=always_on)
         except ValueError as exc:
             if partial and str(exc).startswith(partial):
                 raise UserError(str(exc)) from None

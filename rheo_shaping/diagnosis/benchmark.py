@@ -56,6 +56,7 @@ from ..worlds.dynamic import WorldRun, run_world
 from ..worlds.params import (WORLD_EFFECTS, WORLD_EFFECT_NAMES, WorldEffects, WorldNumerics,
                              draw_lay)
 from ..worlds.sensors import SensorParams, measure_world
+from ..worlds.forms import FormParams, case_form, check_variations
 
 #: The worlds that make a benchmark's records (``diagnose-benchmark --world``).
 WORLDS = ("finer-chain", "dynamic")
@@ -164,10 +165,14 @@ def check_world(world: str) -> str:
 
 def make_case(index: int, kind: str, seed: int, base: CellParams,
               measurement: MeasurementParams = MeasurementParams(),
-              world: str = "finer-chain", n_records: int = 3) -> dict:
+              world: str = "finer-chain", n_records: int = 3,
+              variations: tuple = (), always_on: tuple = ()) -> dict:
     """Draw a case (its own seed) and record its ``n_records`` runs (movements drawn from 1-4
-    without repeats) in ``world`` (:data:`WORLDS`)."""
+    without repeats) in ``world`` (:data:`WORLDS`); on the dynamic world, in a form with
+    ``variations`` drawn (:func:`~rheo_shaping.worlds.forms.case_form`, a random stream of
+    its own: none drawn, the world of issue 26)."""
     dynamic = check_world(world) == "dynamic"
+    form = case_form(seed, index, variations, always_on) if dynamic else FormParams()
     rng = random.Random(seed * 1000 + index)
     why = {"tore": 0, "failed": 0, "outside": 0}
     for _attempt in range(DRAWS):
@@ -214,7 +219,7 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
             try:
                 path = movement_plan(t_cell)
                 # a lay is drawn exactly for the dynamic world
-                run = (run_world(t_cell, path, lay=lay, extra=extra) if lay is not None
+                run = (run_world(t_cell, path, lay=lay, extra=extra, form=form) if lay is not None
                        else run_scenario(t_cell, path))
             except (RuntimeError, ValueError):
                 why["failed"] += 1
@@ -225,7 +230,7 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
                 ok = False
                 break
             label = f"case{index}-m{mv}"
-            rec = (measure_world(run, path, SensorParams(), nrng, chain, extra, label)
+            rec = (measure_world(run, path, SensorParams(), nrng, chain, extra, label, form)
                    if isinstance(run, WorldRun)
                    else measure_chain(run, path, t_cell, measurement, nrng, chain, label))
             records.append(replace(rec, scenario=w_cell))
@@ -234,7 +239,7 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
             true_u.update({k.name: chain[k.name] / k.tolerance for k in CHAIN})
             return {"index": index, "kind": kind, "truth": truth_effects, "movements": movements,
                     "records": records, "true_u": true_u, "sensor": sensor, "world": world,
-                    "lay": None if lay is None else vars(lay)}
+                    "lay": None if lay is None else vars(lay), "form": form.as_dict()}
     raise NoCase(f"case {index} of seed {seed}: no valid {kind} case in {DRAWS} draws "
                  f"({why['tore']} tore the sheet in a record, {why['failed']} failed to run, "
                  f"{why['outside']} put the cell outside its parameters' bounds)")
@@ -294,6 +299,8 @@ def score_case(case: dict, diag) -> dict:
                                            if k in {s.name for s in SHEET})
     fl = diag.floor or {}
     row["floor_source"] = fl.get("source")
+    row["floor_q95"], row["naming"] = fl.get("q95_fit"), fl.get("naming")
+    row["form"] = case.get("form")
     # what the verdict leaves against the floor (fit or holdout records beyond it), for a
     # named effect or pair and for the measurement chain's hypothesis alike: the chain's
     # knobs beyond their tolerances are a name too (the report flags their remainder the
@@ -395,8 +402,11 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
                   process_time: float = 70.0, kinds: tuple[str, ...] | None = None,
                   executor: Executor | None = None, world: str = "finer-chain",
                   floor: str | None = None, initial_state: str | None = None,
-                  partial: str | None = None) -> dict:
+                  partial: str | None = None, variations: tuple = (),
+                  always_on: tuple = ()) -> dict:
     """Run ``n`` cases; returns the summary with every case under ``case_results``.
+    ``variations`` / ``always_on``: the dynamic world's form variations drawn per case /
+    switched on in every case (:func:`~rheo_shaping.worlds.forms.case_form`).
 
     The cases go to ``executor`` (:mod:`rheo_shaping.parallel`: a local pool, a Dask
     cluster), each with its own seed (case i of seed s is the same wherever it runs);
@@ -406,14 +416,18 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
     whose cases of the same benchmark (seed, world, chain, record length, floor, initial
     state) are not run again (an interrupted benchmark goes on where it stopped)."""
     check_world(world)
+    variations, always_on = check_variations(variations), check_variations(always_on)
     base = base_cell(n_masses, process_time)
     t0 = time.monotonic()
     pattern = tuple(kinds or KINDS_PATTERN)
     shared = {"seed": seed, "base": base, "pattern": pattern,
               "jobs": jobs if executor is None else 1, "world": world,
               "floor": floor or ("model-form" if world == "dynamic" else "numerics"),
-              "initial_state": initial_state or ("auto" if world == "dynamic" else "settled")}
+              "initial_state": initial_state or ("auto" if world == "dynamic" else "settled"),
+              "variations": tuple(variations), "always_on": tuple(always_on)}
     key = {"seed": seed, "world": world, "n_masses": n_masses, "process_time_s": process_time,
+           **({"variations": [v.value for v in variations],
+               "always_on": [v.value for v in always_on]} if variations or always_on else {}),
            "floor": shared["floor"], "initial_state": shared["initial_state"],
            "pattern": list(pattern)}
     done = read_partial(partial, key) if partial else {}
@@ -432,6 +446,8 @@ def run_benchmark(n: int = 60, seed: int = 1, jobs: int | None = None,
     out["resumed_cases"] = len([i for i in done if i < n])
     true_n = WorldNumerics().n_masses if world == "dynamic" else 2 * n_masses + 1
     out.update({"seed": seed, "world": world, "floor": shared["floor"],
+                "variations": [v.value for v in variations],
+                "always_on": [v.value for v in always_on],
                 "initial_state": shared["initial_state"], "n_masses": n_masses,
                 "true_n_masses": true_n,
                 "process_time_s": process_time, "case_results": rows})
@@ -454,7 +470,9 @@ def _case_task(shared: dict, i: int) -> dict:
     kind = pattern[i % len(pattern)]
     try:
         case = make_case(i, kind, shared["seed"], shared["base"],
-                         world=shared.get("world", "finer-chain"))
+                         world=shared.get("world", "finer-chain"),
+                         variations=shared.get("variations", ()),
+                         always_on=shared.get("always_on", ()))
     except NoCase as exc:                   # counted apart, never a case nor a crash
         row = {"index": i, "kind": kind, "no_case": str(exc)}
         if shared.get("partial"):

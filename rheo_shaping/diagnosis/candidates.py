@@ -40,6 +40,8 @@ class Search:
     jacobian: np.ndarray | None = None      # own sheet-knob Jacobian (:func:`check.relinearise`)
     prev: tuple | None = None               # (z_raw, u_sheet, values) of the point before
     damp: float = 1.0                       # step factor (halved on a miss)
+    converged: bool = False                 # :func:`converge.converge` refined it to the end
+    first_J: float = math.nan               # J of its linearised first fit (before any run)
 
     @property
     def simulated_z(self) -> np.ndarray:

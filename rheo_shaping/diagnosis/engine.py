@@ -54,7 +54,7 @@ import numpy as np
 
 from ..records.record import Record
 from ..sheet.effects import EFFECT_NAMES
-from . import floor as fl_mod, stats
+from . import floor as fl_mod, naming as naming_mod, stats
 from .baseline import BASELINE_MODES
 from .compare import RecordData, residuals
 from .context import Baseline, FitContext
@@ -134,12 +134,13 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         chain_c = sensor_stage(ctx, base)
         cands = candidates_stage(ctx, base, gap, chain_c, library)
 
-        judged: dict[int, dict] = {}                 # id(explanation) -> its clear_name
+        judged: dict[int, dict] = {}                 # id(explanation) -> naming.judge's
+        q95 = fl.quantile()
 
         def naming_of(c) -> dict:
             if id(c) not in judged:
-                judged[id(c)] = fl_mod.clear_name(c, cands.effects, base.J, base.J_h,
-                                                  bool(ctx.hold_d))
+                judged[id(c)] = naming_mod.judge(c, cands.effects, base.J, base.J_h,
+                                                 bool(ctx.hold_d), q95)
             return judged[id(c)]
 
         def clear(c) -> bool:

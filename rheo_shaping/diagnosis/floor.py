@@ -25,10 +25,10 @@ record length, fit and holdout record counts).
   observable (the world gives the spread, the cell its level).
 * **The decision** (:func:`judge`): ``none`` when the baseline's excess is within the
   floor (its conformal p-value > 0.05) or below the user's practical tolerance
-  (systematic profile RMS [m] and tool-force RMS [N]); an effect is named when, beyond
-  what the engine asks (significant, adequate against the floor), it explains at least
-  ``MOST`` of the baseline's excess on the fit and on the holdout records and beats the
-  best other single effect by ``CLEAR_MARGIN`` of that excess; else ``unexplained``.
+  (systematic profile RMS [m] and tool-force RMS [N]); an effect is named by the rule of
+  :mod:`.naming` (with a prior on its size, most of the baseline's excess on the fit and
+  the holdout records, a remainder clearly below the best other effect's); else
+  ``unexplained``.
 * **Intervals** (:func:`model_form_interval`): an effect's value is widened by the
   largest shift a discrepancy as large as the floor's 95 % quantile, or as what the named
   effect leaves when that is larger, could cause (the discrepancy along the effect's
@@ -47,10 +47,6 @@ import numpy as np
 from . import stats
 
 FLOOR_FILE = Path(__file__).resolve().parent.parent / "data" / "diagnosis_floor.json"
-#: Share of the baseline's excess a named effect must explain (fit and holdout records).
-MOST = 0.5
-#: Share of the baseline's excess by which the named effect must beat the best other one.
-CLEAR_MARGIN = 0.2
 #: The floors a diagnosis can be judged against (``diagnose --floor``).
 KINDS = ("model-form", "numerics")
 CALIBRATE = ("python benchmarks/diagnosis_floor.py --n-masses {n} --process-times {T:g} "
@@ -213,25 +209,6 @@ def within_tolerance(parts: dict, sp: float, sf: float,
     sys_p = sp * math.sqrt(max(parts.get("profile", 1.0) - 1.0, 0.0))
     sys_f = sf * math.sqrt(max(parts.get("tool force", 1.0) - 1.0, 0.0))
     return sys_p <= tp and sys_f <= tf
-
-
-def clear_name(lead, effects, J_base: float, J_base_h: float, has_holdout: bool) -> dict:
-    """Does ``lead`` explain most of the baseline's excess (fit and holdout) and beat the best
-    other single effect clearly?  Returns the shares and the verdict of the rule."""
-    def share(J, Jb):
-        return (Jb - J) / (Jb - 1.0) if math.isfinite(J) and Jb > 1.0 else math.nan
-    fit = share(lead.J, J_base)
-    hold = share(lead.J_holdout, J_base_h) if has_holdout else math.nan
-    others = [c for c in effects if c is not lead and math.isfinite(c.J)
-              and not set(c.names) & set(lead.names)]
-    runner = min(others, key=lambda c: c.J) if others else None
-    r_share = share(runner.J, J_base) if runner is not None else -math.inf
-    most = fit >= MOST and (not has_holdout or not math.isfinite(J_base_h) or hold >= MOST)
-    clear = fit - r_share >= CLEAR_MARGIN
-    return {"explained_fit": fit, "explained_holdout": hold,
-            "runner_up": "+".join(runner.names) if runner is not None else None,
-            "runner_up_explained_fit": r_share if runner is not None else None,
-            "most": bool(most), "clear": bool(clear)}
 
 
 def remainder(J: float, parts: dict, sp: float, sf: float, floor: Floor,

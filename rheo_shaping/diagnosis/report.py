@@ -249,7 +249,9 @@ def markdown(diag, figures: dict, process: dict | None = None) -> str:
             lines.append(f"Naming rule: explains {_fmt(n['explained_fit'], 100, 0)} % of the "
                          f"baseline's excess (fit), {_fmt(n['explained_holdout'], 100, 0)} % "
                          f"(holdout); best other effect {n['runner_up']}: "
-                         f"{_fmt(n['runner_up_explained_fit'], 100, 0)} %.")
+                         f"{_fmt(n['runner_up_explained_fit'], 100, 0)} %; its remainder over "
+                         f"the named one's {_fmt(n.get('remainder_ratio'), 1, 1)} (asked "
+                         f">= {n.get('rule', {}).get('ratio', math.nan):g}).")
     if diag.J_replay[0] is not None:
         y = np.asarray(diag.J_replay[0])
         lines.append(f"The written cell has a Kelvin dashpot (c1 > 0), whose force follows the "

@@ -10,11 +10,12 @@ import numpy as np
 
 from . import stats
 from .baseline import CHAIN
-from .candidates import (CHECKED, PAIRED, PROBES, Explanation, fit_pair, fit_single,
-                         rank_key)
+from .candidates import PAIRED, PROBES, Explanation, fit_pair, fit_single, rank_key
 from .check import (adequate, check, holdout_lengths, needs_numerics, numerics, refine_points,
                     relinearise)
+from .converge import converge, to_check
 from .context import Baseline, FitContext
+from .naming import lead_key
 from .evaluate import Outcome, Task, all_ok, apply
 from .result import num
 from .stages import GapTest, outside
@@ -24,7 +25,8 @@ from .timing import lag_check
 @dataclass(frozen=True)
 class Candidates:
     """Stage 5: the single effects fitted on the linearised model (best first by p, J; the
-    ``CHECKED`` best checked by simulation and refined), their probe ``responses``, the
+    ones :func:`converge.to_check` picks checked by simulation and refined), their probe
+    ``responses``, the
     Bonferroni count ``m`` and the baseline's own numerics candidate ``base_c``."""
 
     effects: list[Explanation]
@@ -71,22 +73,28 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
     effects.sort(key=lambda c: (c.p, c.J))
     chain_c.p = stats.bonferroni_p(chain_c.LR, chain_c.k, m + 1)
     run.stage("candidate checks")
-    check(effects[:CHECKED] + [chain_c], ctx, base, m=m, responses=responses)
+    for c in effects:
+        c.search.first_J = c.J
+    checked = to_check(effects, base.J)
+    check(checked + [chain_c], ctx, base, m=m, responses=responses)
+    converge(checked, ctx, base, m, responses)
     base_c = Explanation((), {}, base.J, checked=True, baseline_u=np.r_[base.u_s, base.u_c])
     base_c.search.z_raw = base.z_raw
     base_c.search.zh_raw = ctx.H.z(base.outs[nf:]) if ctx.H else None
     has_h = bool(ctx.hold_d)
-    need = [c for c in effects[:CHECKED] if needs_numerics(c, base.J_h, has_h, gap.replay)]
-    if need:
+    need = [c for c in checked if needs_numerics(c, base.J_h, has_h, gap.replay)]
+    again = [c for c in need if not c.search.converged]
+    if again:
         # a strong effect changes how the knobs act: refit from its own Jacobian (knobs
-        # held as written have none to refit)
+        # held as written have none to refit); those :func:`converge` refined are done
         if ctx.sheet_lim > 0:
-            relinearise(need, ctx)
-        refine_points(need, ctx, base, m=m, responses=responses)
+            relinearise(again, ctx)
+        refine_points(again, ctx, base, m=m, responses=responses)
+    if need:
         need = [c for c in need if needs_numerics(c, base.J_h, has_h, gap.replay)]
     if need:
         numerics(need + [base_c], ctx, base, responses)
-    holdout_lengths(effects[:CHECKED], ctx)
+    holdout_lengths(checked, ctx)
     return Candidates(effects, responses, m, base_c)
 
 
@@ -115,11 +123,6 @@ def pairs_stage(ctx: FitContext, base: Baseline, gap: GapTest,
     return pairs
 
 
-def by_misfit(c: Explanation) -> tuple:
-    """The lead against a model-form floor: checked first, then the least misfit J."""
-    return (not c.checked, c.J if math.isfinite(c.J) else math.inf)
-
-
 @dataclass(frozen=True)
 class Verdict:
     """Stage 7: what the diagnosis says and the explanation it rests on."""
@@ -141,9 +144,10 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
     "Explains the gap": with the numerics floor (``rule`` None) significant (likelihood
     ratio, p <= ALPHA) and adequate (within the null plus the numerics allowance,
     :func:`check.adequate`), the lead the best by (p, J).  With a model-form floor,
-    ``rule(explanation) -> bool`` (:func:`floor.clear_name`: most of the baseline's excess
-    on the fit and holdout records, clearly more than the best other explanation) decides
-    alone, the lead the checked effect of least J (:func:`by_misfit`); what the named one
+    ``rule(explanation) -> bool`` (:func:`naming.judge`: with its prior, most of the
+    baseline's excess on the fit and holdout records, and a remainder clearly below the best
+    other explanation's) decides alone, the lead the checked effect of least effective
+    remainder (:func:`naming.lead_key`: J plus the prior's cost); what the named one
     leaves is reported against the floor (flagged when beyond it), never a reason to refuse
     a cause that explains most.  The likelihood ratio is reported there, not asked: it
     counts each observable's residuals as independent noise, while against a model-form
@@ -173,7 +177,7 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
         # too puts the lag on the tool (or the camera's clock), which no knob holds
         timing = lag_check(ctx.fit_d, base.outs[:ctx.nf], chain_c.fitted_u[n_s:])
         chain_ok = not timing["tool_lags"]
-    ranked = sorted(effects, key=rank_key if rule is None else by_misfit)
+    ranked = sorted(effects, key=rank_key if rule is None else lead_key(base.J))
     if gap.left and ranked:
         lead = ranked[0]
         if explains(lead) and not (chain_ok and chain_c.J < lead.J):

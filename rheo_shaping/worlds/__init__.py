@@ -1,7 +1,8 @@
 """Benchmark worlds of another form than the sheet model (issue 26): independent simulators
 of the same cell whose records the diagnosis is scored on.  ``dynamic``: a chain of masses
 with inertia, soft contact with Coulomb friction, the sheet laid and released at t = 0, the
-library's effects and effects of its own, and its own measurement model.
+library's effects and effects of its own, and its own measurement model; ``forms``: the
+variations of its form (issue 46), a family of worlds drawn per case.
 Imports :mod:`rheo_shaping.params`, :mod:`rheo_shaping.records` (the ``Record`` type) and
 :mod:`rheo_shaping.units`; nothing of :mod:`rheo_shaping.sheet`.
 """
@@ -13,4 +14,6 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'dynamic': ['WorldRun', 'run_world', 'laid_shape', 'scenario_length'],
     'sensors': ['SensorParams', 'measure_world', 'world_record'],
     'verify': ['RunGap', 'run_gap'],
+    'forms': ['Variation', 'FormParams', 'VariationRange', 'VARIATIONS', 'draw_form',
+              'check_variations', 'thickness_profile'],
 })

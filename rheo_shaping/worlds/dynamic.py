@@ -11,18 +11,21 @@ onto the mould while the tool approaches.  The compiled step is
 
 Effects: the library's (``CellParams.effects``: friction_mould, friction_tool,
 bending, kelvin_c1, power_law, thinning, tool_offset, mass_error) and the
-world's own (:class:`~rheo_shaping.worlds.params.WorldEffects`).
+world's own (:class:`~rheo_shaping.worlds.params.WorldEffects`).  Its form's variations
+(:class:`~rheo_shaping.worlds.forms.FormParams`, all off by default): the release swept
+along the sheet, a soft mould and a soft tool pad, a hand-rolled thickness, the damping.
 """
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..params.cell import CellParams
 from . import kernel as K
+from .forms import FormParams, thickness_profile
 from .params import LayParams, WorldEffects, WorldNumerics
 
 
@@ -178,13 +181,18 @@ def step_schedule(nm: WorldNumerics, t_end: float, pitch: float) -> tuple[np.nda
 
 def run_world(params: CellParams, path, t_end: float | None = None,
               lay: LayParams = LayParams(), extra: WorldEffects = WorldEffects(),
-              numerics: WorldNumerics = WorldNumerics()) -> WorldRun:
+              numerics: WorldNumerics = WorldNumerics(),
+              form: FormParams = FormParams()) -> WorldRun:
     """Release the laid sheet at t = 0 and run the tool on ``path`` (``position(t)`` [m],
-    the commanded reference point) to ``t_end`` [s] (default the process time).
+    the commanded reference point) to ``t_end`` [s] (default the process time), in the
+    world's ``form`` (its variations, :mod:`~rheo_shaping.worlds.forms`; default: none).
 
     Raises RuntimeError when the step fails (not positive definite, non-finite)."""
     t_end = params.movement.process_time if t_end is None else float(t_end)
     nm = numerics
+    if form.damping_scale != 1.0:
+        nm = replace(nm, air_damping=nm.air_damping * form.damping_scale,
+                     contact_damping=nm.contact_damping * form.damping_scale)
     s, mat, eff = params.sheet, params.material, params.effects
     line = laid_shape(params, lay, np.asarray(path.position(0.0), float)
                       + np.asarray(eff.tool_offset, float), extra.tool_tilt)
@@ -199,6 +207,13 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     c1 = (mat.c1 + eff.kelvin_c1) * scale
     c2 = c2 * scale
     mass = s.mass_per_length * (1.0 + eff.mass_error) * 0.5 * (L0[:-1] + L0[1:])
+    if form.thickness_variation != 0.0:
+        # a hand-rolled sheet: each link's cross-section, hence its k1, c1, c2 and mass,
+        # scale with its relative thickness (mean 1)
+        tau = thickness_profile(form, L0.size)
+        k1, c1, c2 = k1 * tau, c1 * tau, c2 * tau
+        mass = s.mass_per_length * (1.0 + eff.mass_error) * 0.5 * (tau[:-1] * L0[:-1]
+                                                                    + tau[1:] * L0[1:])
     pitch = float(L0.mean())
     kc = nm.contact_modulus * pitch
     cn = 2.0 * nm.contact_damping * math.sqrt(kc * float(mass.mean()))
@@ -224,6 +239,9 @@ def run_world(params: CellParams, path, t_end: float | None = None,
     par[K.I_ADH] = extra.adhesion
     par[K.I_ADH_RANGE] = extra.adhesion_range
     par[K.I_LET_GO] = lay.let_go
+    par[K.I_SOFT_MOULD] = form.mould_softness
+    par[K.I_SOFT_TOOL] = form.tool_softness
+    par[K.I_SWEEP] = form.release_sweep
     # the tool path sampled at 100 Hz; the real tool is off the commanded by tool_offset
     span = float(hs.sum())
     tool_t = np.linspace(0.0, span, int(math.ceil(span * 100.0)) + 1)

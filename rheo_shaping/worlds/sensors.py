@@ -7,7 +7,8 @@ random start, noise ``profile_noise``, lost frames and points), and a load cell
 gives the sheet's force on the tool (``wrench_rate``, noise ``wrench_noise``),
 each through its chain errors (the diagnosis's ``CHAIN`` knobs: vision offset,
 load-cell bias, gain and lag) and the world's sensor effects (camera scale,
-load-cell drift).  The result is the :class:`~rheo_shaping.records.record.Record`
+load-cell drift) and the form's sensor variations (the load cell's own low-pass, the
+sheet hidden by the tool, :mod:`~rheo_shaping.worlds.forms`).  The result is the :class:`~rheo_shaping.records.record.Record`
 the diagnosis reads.  Written apart from :mod:`rheo_shaping.records.measurement`.
 """
 from __future__ import annotations
@@ -18,7 +19,8 @@ import numpy as np
 
 from ..params.cell import CellParams, EffectsParams
 from ..records.record import Record
-from .dynamic import WorldRun
+from .dynamic import WorldRun, tool_vertices
+from .forms import FormParams, low_pass
 from .params import WorldEffects
 
 
@@ -51,13 +53,27 @@ def _centreline(run: WorldRun, t: float) -> np.ndarray:
     return (1.0 - w) * run.nodes(k - 1) + w * run.nodes(k)
 
 
+def _visible(run: WorldRun, pts: np.ndarray, t: float, blind: float, tilt: float) -> np.ndarray:
+    """(M,) bool: centreline points ``pts`` [m] whose sheet surface is farther than ``blind``
+    [m] from the tool's surface at time ``t`` [s] (the commanded pose plus the cell's tool
+    offset): the tool hides the sheet it touches, and ``blind`` beyond, from the camera."""
+    from .kernel import polygon_gap
+    tx = float(np.interp(t, run.t, run.tool[:, 0])) + float(run.params.effects.tool_offset[0])
+    tz = float(np.interp(t, run.t, run.tool[:, 1])) + float(run.params.effects.tool_offset[1])
+    verts, rad = tool_vertices(run.params, tilt)
+    r = 0.5 * run.params.sheet.thickness
+    return np.array([polygon_gap(px - tx, pz - tz, verts, rad)[0] - r > blind
+                     for px, pz in pts], dtype=bool)
+
+
 def measure_world(run: WorldRun, path, sensors: SensorParams, rng: np.random.Generator,
                   chain: dict | None = None, extra: WorldEffects = WorldEffects(),
-                  name: str = "") -> Record:
+                  name: str = "", form: FormParams = FormParams()) -> Record:
     """The record of ``run`` (tool commanded on ``path``) through chain errors ``chain``
     (knob name -> value in its unit: ``vision.dx``, ``vision.dz`` [m], ``load_cell.bias_x``,
     ``load_cell.bias_z`` [N], ``load_cell.gain`` [-], ``load_cell.lag`` [s]) and the sensor
-    effects of ``extra``.  The record's scenario is the run's cell with every effect off."""
+    effects of ``extra`` and ``form``'s sensor variations.  The record's scenario is the
+    run's cell with every effect off."""
     ch = chain or {}
     sp = sensors
     t_end = float(run.t[-1])
@@ -72,13 +88,19 @@ def measure_world(run: WorldRun, path, sensors: SensorParams, rng: np.random.Gen
     for t in frame_t:
         pts = _points_along(_centreline(run, t), sp.profile_spacing,
                             rng.uniform(0.0, sp.profile_spacing))
+        seen = (_visible(run, pts, t, form.tool_occlusion, extra.tool_tilt)
+                if form.tool_occlusion > 0.0 else None)
         pts = centre + (1.0 + extra.camera_scale) * (pts - centre)     # camera scale error
         pts = pts + shift + rng.normal(0.0, sp.profile_noise, pts.shape)
-        profiles.append(pts[rng.random(len(pts)) >= sp.point_dropout])
+        kept = rng.random(len(pts)) >= sp.point_dropout
+        if seen is not None:
+            kept &= seen
+        profiles.append(pts[kept])
     wrench_t = np.arange(0.0, t_end + 1e-9, 1.0 / sp.wrench_rate)
     lagged = wrench_t - ch.get("load_cell.lag", 0.0)
-    force = np.c_[np.interp(lagged, run.t, run.tool_force[:, 0]),
-                  np.interp(lagged, run.t, run.tool_force[:, 1])]
+    sensed = low_pass(run.t, run.tool_force, form.load_cell_filter)   # the cell's own filter
+    force = np.c_[np.interp(lagged, run.t, sensed[:, 0]),
+                  np.interp(lagged, run.t, sensed[:, 1])]
     bias = np.array([ch.get("load_cell.bias_x", 0.0), ch.get("load_cell.bias_z", 0.0)])
     drift = extra.load_cell_drift * np.asarray(extra.drift_direction, float)
     wrench = ((1.0 + ch.get("load_cell.gain", 0.0)) * force + bias + wrench_t[:, None] * drift
@@ -91,11 +113,12 @@ def measure_world(run: WorldRun, path, sensors: SensorParams, rng: np.random.Gen
 def world_record(params: CellParams, path, rng: np.random.Generator, **kw) -> tuple:
     """Convenience: :func:`~rheo_shaping.worlds.dynamic.run_world` then
     :func:`measure_world`; keyword arguments ``lay``, ``extra``, ``numerics``, ``sensors``,
-    ``chain``, ``name``.  Returns (record, run)."""
+    ``chain``, ``name``, ``form``.  Returns (record, run)."""
     from .dynamic import run_world
     extra = kw.get("extra", WorldEffects())
+    form = kw.get("form", FormParams())
     run_kw = {k: kw[k] for k in ("lay", "numerics") if k in kw}
-    run = run_world(params, path, extra=extra, **run_kw)
+    run = run_world(params, path, extra=extra, form=form, **run_kw)
     rec = measure_world(run, path, kw.get("sensors", SensorParams()), rng, kw.get("chain"),
-                        extra, kw.get("name", ""))
+                        extra, kw.get("name", ""), form)
     return rec, run

@@ -10,6 +10,7 @@ import pytest
 
 from rheo_shaping.diagnosis import floor as fl
 from rheo_shaping.diagnosis.candidates import Explanation
+from rheo_shaping.diagnosis.naming import judge
 from rheo_shaping.cli import main
 
 
@@ -119,17 +120,6 @@ def test_the_discrepancy_an_interval_is_widened_for_is_at_least_what_the_named_e
     assert fl.discrepancy_size(0.23, math.inf) == pytest.approx(0.23)
 
 
-def test_naming_needs_most_of_the_excess_and_a_clear_margin():
-    lead = Explanation(("friction_tool",), {}, 1.1, J_holdout=1.3)
-    other = Explanation(("bending",), {}, 1.6)
-    r = fl.clear_name(lead, [lead, other], 2.0, 2.0, True)
-    assert r["most"] and r["clear"] and r["explained_fit"] == pytest.approx(0.9)
-    close = Explanation(("bending",), {}, 1.2)
-    assert not fl.clear_name(lead, [lead, close], 2.0, 2.0, True)["clear"]
-    weak = Explanation(("friction_tool",), {}, 1.1, J_holdout=1.6)
-    assert not fl.clear_name(weak, [weak, other], 2.0, 2.0, True)["most"]
-
-
 def _verdict(lead: Explanation, chain: Explanation, model_form: bool, others=()):
     """The verdict stage on one effect (and ``others``) and the chain's hypothesis, the
     baseline at J = 3 on the fit and holdout records (stand-ins for the context: nothing is
@@ -147,7 +137,7 @@ def _verdict(lead: Explanation, chain: Explanation, model_form: bool, others=())
     cands = Candidates(effects, {}, 1, base_c)
 
     def clear(c):
-        n = fl.clear_name(c, effects, base.J, base.J_h, True)
+        n = judge(c, effects, base.J, base.J_h, True, 0.05)
         return n["most"] and n["clear"]
     return verdict_stage(ctx, base, GapTest(0.01, (None, None)), chain, cands, ["x"],
                          clear if model_form else None)

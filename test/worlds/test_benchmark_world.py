@@ -13,6 +13,7 @@ from rheo_shaping.diagnosis.benchmark import (WORLDS, against_target, base_cell,
                                               run_benchmark)
 from rheo_shaping.params.cell import EffectsParams
 from rheo_shaping.sheet.effects import EFFECTS
+from rheo_shaping.worlds.forms import FormParams
 from rheo_shaping.worlds.params import WORLD_EFFECTS
 
 
@@ -127,3 +128,26 @@ def test_the_dynamic_world_prints_issue_26s_targets_and_whether_each_is_met(tmp_
     assert against_target("finer-chain", "top1_accuracy", 0.84) == ""
     assert against_target("finer-chain", "top1_accuracy_beyond_noise", 0.89) == ">= 0.90 short"
     assert against_target("dynamic", "interval_coverage", None) == ">= 0.80 n/a"
+
+
+def test_a_case_of_the_family_keeps_its_draws_and_varies_its_form():
+    """Issue 46: a case drawn with the form's variations has the same truth, laying, movements
+    and chain as without them when neither redraws (the form has a random stream of its own;
+    a form that tears the sheet in a draw redraws it), its form recorded,
+    and its records differ; none drawn is the world of issue 26."""
+    plain = make_case(1, "single", 4, base_cell(31, 20.0), world="dynamic")
+    fam = make_case(1, "single", 4, base_cell(31, 20.0), world="dynamic",
+                    always_on=("mould_softness", "load_cell_filter"))
+    assert plain["form"] == FormParams().as_dict()
+    assert fam["form"]["mould_softness"] > 1.0 and fam["form"]["load_cell_filter"] > 0.0
+    for k in ("truth", "lay", "movements", "true_u"):
+        assert plain[k] == fam[k], k
+    assert not np.array_equal(plain["records"][0].wrench_xz, fam["records"][0].wrench_xz)
+    with pytest.raises(ValueError, match="unknown world variation"):
+        make_case(2, "single", 4, base_cell(31, 20.0), world="dynamic", variations=("jam",))
+
+
+def test_the_command_refuses_an_unknown_variation(capsys):
+    assert main(["diagnose-benchmark", "--world", "dynamic", "--variations", "jam", "--n", "1",
+                 "--quiet"]) == 2
+    assert "--variations: unknown world variation 'jam'" in capsys.readouterr().err

@@ -19,7 +19,7 @@ N = 40
 PRESS = 5e-6             # m, how far the disc's path goes into the strip's top
 
 
-def slide(mu_tool: float, mu_mould: float = 1.2):
+def slide(mu_tool: float, mu_mould: float = 1.2, soft_tool: float = 0.0, soft_mould: float = 0.0):
     x = np.c_[PITCH * np.arange(1, N + 1), np.full(N, R_SPHERE)]
     anchors = np.array([[0.0, R_SPHERE], [PITCH * (N + 1), R_SPHERE]])
     L0 = np.full(N + 1, PITCH)
@@ -36,6 +36,7 @@ def slide(mu_tool: float, mu_mould: float = 1.2):
     par[K.I_CAKE_H], par[K.I_FILLET] = -1.0, 0.01          # the cake out of the way
     par[K.I_RADIUS], par[K.I_TOOL_R] = R_SPHERE, CORNER
     par[K.I_PL_N], par[K.I_PL_REF] = 1.0, 0.5
+    par[K.I_SOFT_TOOL], par[K.I_SOFT_MOULD] = soft_tool, soft_mould    # 0: not softened
     a, b = HALF_W - CORNER, HALF_H - CORNER
     verts = np.array([[-a, -b], [a, -b], [a, b], [-a, b]])
     t = np.linspace(0.0, 20.0, 2001)
@@ -78,3 +79,19 @@ def test_no_friction_no_drag_and_the_penetration_is_the_penalty_law():
     per_mass = f[k, 1] / n_under
     assert per_mass == pytest.approx(par[K.I_KC] * PRESS / 2, rel=0.05)
     assert under.any()
+
+
+@pytest.mark.parametrize("soft_tool, soft_mould", [(3.0, 0.0), (1.0, 4.0), (2.5, 1.5)])
+def test_a_soft_tool_or_mould_is_the_penalty_law_over_its_factor(soft_tool, soft_mould):
+    """Issue 46's soft contacts: the tool's and the workplane's penalty springs divided by
+    their factors (0 reads as 1) in series take PRESS, the workplane's the mass's weight W
+    besides: (PRESS - W f_mould / kc) kc / (f_tool + f_mould) per mass under the flat face."""
+    t, x, f, par, unconverged = slide(0.0, soft_tool=soft_tool, soft_mould=soft_mould)
+    assert unconverged <= 20
+    k = int(np.searchsorted(t, 10.0))
+    n_under = int(np.sum(np.abs(x[k, :, 0] - (0.02 + (t[k] - 3.0) * 1e-3)) < HALF_W - CORNER))
+    fm = soft_mould if soft_mould > 0 else 1.0
+    w = 0.3125 * PITCH * par[K.I_GRAV]
+    kc = par[K.I_KC]
+    assert f[k, 1] / n_under == pytest.approx((PRESS - w * fm / kc) * kc / (soft_tool + fm),
+                                              rel=0.02)

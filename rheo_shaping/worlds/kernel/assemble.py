@@ -7,6 +7,7 @@ from numba import njit
 
 from .consts import (I_AIR, I_CN, I_EI, I_KC, I_KT, I_MU_MOULD, I_MU_TOOL, JIT, TOOL)
 from .links import add_block
+from .obstacles import contact_scale
 
 
 @njit(**JIT)
@@ -18,8 +19,9 @@ def add_contact(ab, rhs, i, o, xk, dlt, x, g0, n0, ovel, opos, anc, has, par, h,
     anchor fixed on the obstacle while kt |s| <= mu F_n + fad, else the slip force
     mu F_n + fad (``fad`` [N]: a sticky mould's shear strength at this mass, 0 on the
     tool)."""
-    kc = par[I_KC]
-    cn = par[I_CN]
+    soft = contact_scale(par, o)
+    kc = par[I_KC] / soft
+    cn = par[I_CN] / math.sqrt(soft)
     nx = n0[i, o, 0]
     nz = n0[i, o, 1]
     gap = g0[i, o]
@@ -37,7 +39,7 @@ def add_contact(ab, rhs, i, o, xk, dlt, x, g0, n0, ovel, opos, anc, has, par, h,
         anc[i, o, 0] = x[i, 0] - opos[o, 0]
         anc[i, o, 1] = x[i, 1] - opos[o, 1]
         has[i, o] = True
-    kt = par[I_KT]
+    kt = par[I_KT] / soft
     sx = -nz
     sz = nx
     s = sx * (xk[i, 0] - opos[o, 0] - anc[i, o, 0]) + sz * (xk[i, 1] - opos[o, 1] - anc[i, o, 1])
@@ -58,7 +60,7 @@ def assemble(ab, rhs, xk, dlt, v, mass, nodes, L0, consts, free, A, S, taut, ben
     """The step's Newton system at the iterate ``xk`` (= x + ``dlt``) without the contacts:
     rhs = -R with R = M (dlt - h v)/h^2 + air M dlt/h - f(xk) (gravity ``grav``, links at their
     end-of-step law F = A + S (l - free), bending on the step-start normals ``bend_n``,
-    adhesion ``fadh``), ``ab`` = dR/d(dlt) in band form.  On the ``first`` iterate a link
+    adhesion ``fadh``; ``grav`` (N,) [m/s^2] per mass), ``ab`` = dR/d(dlt) in band form.  On the ``first`` iterate a link
     is taut if it is now or would be at the predicted length, later if it is now."""
     n = xk.shape[0]
     m = n + 1
@@ -72,7 +74,7 @@ def assemble(ab, rhs, xk, dlt, v, mass, nodes, L0, consts, free, A, S, taut, ben
         for c in range(2):
             rhs[2 * i + c] = -mi * (dlt[i, c] - h * v[i, c]) / (h * h) - air * mi * dlt[i, c] / h \
                 + fadh[i, c]
-        rhs[2 * i + 1] -= mi * grav
+        rhs[2 * i + 1] -= mi * grav[i]
     nodes[1:n + 1] = xk
     for i in range(m):
         a, b = i - 1, i                          # mass indices of the link's ends

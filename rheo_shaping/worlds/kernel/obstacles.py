@@ -6,7 +6,8 @@ import math
 
 from numba import njit
 
-from .consts import CAKE, FLOOR, I_CAKE_H, I_FILLET, I_RADIUS, I_TOOL_R, JIT
+from .consts import (CAKE, FLOOR, I_CAKE_H, I_FILLET, I_RADIUS, I_SOFT_MOULD, I_SOFT_TOOL,
+                     I_TOOL_R, JIT, TOOL)
 
 
 # ---------------------------------------------------------------- obstacles
@@ -103,3 +104,11 @@ def push_out(pts, par, verts, tx, tz, with_tool):
                     pts[j, 0] -= g * nx
                     pts[j, 1] -= g * nz
     return pts
+
+
+@njit(**JIT)
+def contact_scale(par, o):
+    """The factor (>= 1) obstacle ``o``'s contact is softer than the penalty ``I_KC`` by (its
+    stiffness / f, damping / sqrt(f)); a packed 0 reads as 1 (not softened)."""
+    f = par[I_SOFT_TOOL] if o == TOOL else par[I_SOFT_MOULD]
+    return f if f > 0.0 else 1.0

@@ -7,8 +7,8 @@ import numpy as np
 from numba import njit
 
 from .consts import (FORCE_TOL, I_ADH, I_ADH_RANGE, I_CN, I_EI, I_GRAV, I_KC, I_KT, I_LET_GO,
-                     I_MU_MOULD, I_MU_TOOL, JIT, MAX_NEWTON, TOOL)
-from .obstacles import obstacle_gap
+                     I_MU_MOULD, I_MU_TOOL, I_SWEEP, JIT, MAX_NEWTON, TOOL)
+from .obstacles import contact_scale, obstacle_gap
 from .links import link_affine, link_constants, link_update, pb_factor, pb_solve
 from .assemble import add_contact, assemble
 
@@ -72,6 +72,7 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
     xk = np.zeros((n, 2))
     fadh = np.zeros((n, 2))
     bend_n = np.zeros((n, 2))
+    grav = np.zeros(n)
     kc = par[I_KC]
     cn = par[I_CN]
     kt = par[I_KT]
@@ -102,7 +103,12 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
         opos[TOOL, 0] = tx
         opos[TOOL, 1] = tz
         # the hands let go: the sheet's weight comes on over par[I_LET_GO] seconds
-        grav = par[I_GRAV] * (min(1.0, t1 / par[I_LET_GO]) if par[I_LET_GO] > 0.0 else 1.0)
+        # (along the sheet from |I_SWEEP| i / (N - 1) on when the hands sweep off it)
+        for i in range(n):
+            frac = (i if par[I_SWEEP] > 0.0 else n - 1 - i) / max(n - 1, 1)
+            since = t1 - abs(par[I_SWEEP]) * frac
+            grav[i] = par[I_GRAV] * (min(1.0, max(since, 0.0) / par[I_LET_GO])
+                                     if par[I_LET_GO] > 0.0 else (1.0 if since >= 0.0 else 0.0))
         # the links' law over this step (constants lagged on the state), bending normals,
         # adhesion: all from the step's start
         link_constants(L0, k1, c1, c2, e1, p, tension, par, consts)
@@ -164,7 +170,8 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                         if act[i, o]:
                             vn = (nx * (dlt[i, 0] + rhs[2 * i]) + nz * (dlt[i, 1] + rhs[2 * i + 1])
                                   ) / h - (nx * ovel[o, 0] + nz * ovel[o, 1])
-                            if -kc * (g0[i, o] + dn) - cn * vn < 0.0:
+                            soft = contact_scale(par, o)
+                            if -kc / soft * (g0[i, o] + dn) - cn / math.sqrt(soft) * vn < 0.0:
                                 act[i, o] = False           # it would pull: let go
                                 changed = True
                         elif g0[i, o] + dn < 0.0:
@@ -228,7 +235,10 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                 if gap >= 0.0:
                     has[i, o] = False
                     continue
-                fn = -kc * gap - cn * (nx * (v[i, 0] - ovel[o, 0]) + nz * (v[i, 1] - ovel[o, 1]))
+                soft = contact_scale(par, o)
+                kt_o = kt / soft
+                fn = -kc / soft * gap - cn / math.sqrt(soft) * (nx * (v[i, 0] - ovel[o, 0])
+                                                                + nz * (v[i, 1] - ovel[o, 1]))
                 fn = max(fn, 0.0)
                 fx = fn * nx
                 fz = fn * nz
@@ -239,14 +249,14 @@ def run_chain(x, v, anchors, L0, k1, c1, c2, mass, par, verts, tool_t, tool_xz, 
                     s = sx * (x[i, 0] - opos[o, 0] - anc[i, o, 0]) + \
                         sz * (x[i, 1] - opos[o, 1] - anc[i, o, 1])
                     cap = mu * fn + (0.0 if o == TOOL else adh * 0.5 * (L0[i] + L0[i + 1]))
-                    if kt * abs(s) > cap:              # slip: the anchor follows
+                    if kt_o * abs(s) > cap:            # slip: the anchor follows
                         sg = 1.0 if s > 0.0 else -1.0
-                        shift = s - sg * cap / kt
+                        shift = s - sg * cap / kt_o
                         anc[i, o, 0] += shift * sx
                         anc[i, o, 1] += shift * sz
-                        s = sg * cap / kt
-                    fx -= kt * s * sx
-                    fz -= kt * s * sz
+                        s = sg * cap / kt_o
+                    fx -= kt_o * s * sx
+                    fz -= kt_o * s * sz
                 if o == TOOL:
                     fsum_tool[0] -= fx * h
                     fsum_tool[1] -= fz * h
