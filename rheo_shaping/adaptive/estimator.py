@@ -5,7 +5,7 @@ The unknowns are the logarithms of the three knobs relative to the params file,
 theta = (ln k1/k1_0, ln c2/c2_0, ln m/m_0), with a Gaussian prior theta ~ N(0, P^-1),
 P = diag(1/s_k1^2, 1/s_c2^2, 1/s_m^2) (the batch-to-batch spread).  The model is the
 core's own sheet (:func:`~rheo_shaping.sheet.simulation.run_scenario`, paper Sec. 4.1,
-the three-element links of Eq. 2) driven by the executed tool poses from t = 0 to the newest
+the three-element links of Eq. 1) driven by the executed tool poses from t = 0 to the newest
 sample; its observables (:mod:`.observe`) against the measured ones give the whitened
 residual r(theta) = (h(theta) - y) / sigma.  Each refresh takes at most ``max_iterations``
 Levenberg-Marquardt steps from the previous estimate,

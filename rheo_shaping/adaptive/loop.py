@@ -60,8 +60,8 @@ class LoopEvent:
 class LoopResult:
     """A closed-loop run: aborted, torn (a tension reached F_break), the true largest
     tension [N], the true gap at the cycle's end [m] (inf when aborted), the cycle time [s]
-    (inf when aborted), the monitor's threshold [N], the refreshes, and the history of the
-    largest link tension (t [s], F [N])."""
+    (inf when aborted), the monitor's threshold [N], the refreshes, the history of the
+    largest link tension (t [s], F [N]) and of the true gap (t [s], Delta [m])."""
 
     adaptive: bool
     aborted: bool
@@ -72,6 +72,7 @@ class LoopResult:
     F_abort: float
     events: tuple[LoopEvent, ...] = field(repr=False)
     history: tuple[np.ndarray, np.ndarray] = field(repr=False)
+    gaps: tuple[np.ndarray, np.ndarray] = field(repr=False, default=(np.zeros(0), np.zeros(0)))
     choice: Choice | None = None
 
     @property
@@ -129,6 +130,7 @@ def run_closed_loop(true_cell: CellParams, cell: CellParams,
     t, dt = 0.0, config.control_period
     t_sample = t_refresh = 0.0
     aborted = False
+    gaps: list[tuple[float, float]] = []
     while t < sched.cycle_time - 1e-9:
         t_next = min(t + dt, sched.cycle_time)
         seg_before = sched.move_at(t)[:2]
@@ -141,7 +143,9 @@ def run_closed_loop(true_cell: CellParams, cell: CellParams,
             break
         t = t_next
         if t >= t_sample + config.sample_period - 1e-9:
-            pending.append(noisy(sample_of(run.sim), config.noise, rng))
+            exact = sample_of(run.sim)
+            gaps.append((t, exact.gap if exact.gap is not None else math.inf))
+            pending.append(noisy(exact, config.noise, rng))
             t_sample = t
         boundary = sched.move_at(t)[:2] != seg_before
         if config.adaptive and (t >= t_refresh + config.refresh_period - 1e-9 or boundary):
@@ -163,7 +167,9 @@ def run_closed_loop(true_cell: CellParams, cell: CellParams,
     return LoopResult(adaptive=config.adaptive, aborted=aborted, torn=torn, F_max=F_max,
                       delta=math.inf if aborted else float(run.sim.delta()),
                       cycle_time=math.inf if aborted else sched.cycle_time, F_abort=F_abort,
-                      events=tuple(events), history=(hist_t, hist_f), choice=sched.choice)
+                      events=tuple(events), history=(hist_t, hist_f),
+                      gaps=(np.array([g[0] for g in gaps]), np.array([g[1] for g in gaps])),
+                      choice=sched.choice)
 
 
 def _largest(run: SetpointRun) -> float:

@@ -105,4 +105,15 @@ def run_world_loop(true_cell: CellParams, cell: CellParams, config: LoopConfig =
                       torn=F_max >= true_cell.material.F_break, F_max=F_max, delta=delta,
                       cycle_time=math.inf if aborted else sched.cycle_time, F_abort=F_abort,
                       events=tuple(events), history=(world.t[end], F_hist[end]),
-                      choice=sched.choice)
+                      gaps=_gaps(world, end), choice=sched.choice)
+
+
+Series = tuple[np.ndarray, np.ndarray]
+
+
+def _gaps(world: WorldRun, keep: np.ndarray, spacing: float = 0.5) -> Series:
+    """The world's gap Delta [m] every ``spacing`` [s] of the samples ``keep``."""
+    ks = np.nonzero(keep)[0]
+    ks = ks[np.r_[True, np.diff(np.floor(world.t[ks] / spacing)) > 0]]
+    return world.t[ks], np.array([residual_gap(world.nodes(int(k)),
+                                               world.params.sheet.thickness) for k in ks])
