@@ -100,9 +100,11 @@ class Prediction:
     cycle_time: float
 
     def feasible(self, limits: ReplanLimits) -> bool:
+        """Both limits met."""
         return self.F_max <= limits.F_limit and self.delta <= limits.delta_max
 
     def whole(self, limits: ReplanLimits) -> bool:
+        """The tension limit met (the sheet stays whole; the gap may not close)."""
         return self.F_max <= limits.F_limit
 
 
@@ -123,6 +125,7 @@ class Replan:
 
     @property
     def changed(self) -> bool:
+        """The schedule to follow is a new one (REPLANNED or INFEASIBLE)."""
         return self.status in (ReplanStatus.REPLANNED, ReplanStatus.INFEASIBLE)
 
 

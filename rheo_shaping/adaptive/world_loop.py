@@ -86,7 +86,7 @@ def run_world_loop(true_cell: CellParams, cell: CellParams, config: LoopConfig =
         tool = world.tool[max(k_read - 1, 0)]
         rp = replan(cell, estimate, sched, t, limits,
                     executed_xz=(float(tool[0]), float(tool[1])))
-        changed = rp.changed
+        changed = rp.changed and rp.schedule is not sched       # a new plan: run it
         if changed:
             sched = rp.schedule
         elif rp.status is ReplanStatus.NO_ESTIMATE and sched.choice != fixed_choice:
