@@ -63,6 +63,8 @@ def run_world_loop(true_cell: CellParams, cell: CellParams, config: LoopConfig =
         t_next = min(t + config.refresh_period, sched.cycle_time)
         bounds = [s.t_start for s in sched.plan.segments if t + 1e-9 < s.t_start < t_next]
         t_next = min(bounds) if bounds else t_next
+        if not config.adaptive:            # the monitor watches the whole fixed run
+            t_next = sched.cycle_time
         if over.size and world.t[over[0]] <= t_next:
             aborted = True
             t_a = float(world.t[over[0]])
