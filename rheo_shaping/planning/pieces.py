@@ -87,10 +87,20 @@ def line_trajectory(p0: np.ndarray, p1: np.ndarray, limits: MotionLimits) -> Tra
     """Straight rest-to-rest ruckig trajectory from ``p0`` to ``p1`` [m]."""
     d = p1 - p0
     u = d / np.linalg.norm(d)
+    traj = calculate(line_input(p0, np.zeros(2), np.zeros(2), p1, u, limits))
+    check_phase_synchronised(traj, d)
+    return traj
+
+
+def line_input(p0: np.ndarray, v0: np.ndarray, a0: np.ndarray, p1: np.ndarray,
+               u: np.ndarray, limits: MotionLimits) -> InputParameter:
+    """Ruckig input from position ``p0`` [m], velocity ``v0`` [m/s], acceleration ``a0``
+    [m/s^2] to rest at ``p1`` [m], phase-synchronised along direction ``u`` (the path
+    limits scaled by its direction cosines)."""
     inp = InputParameter(2)
     inp.current_position = p0.tolist()
-    inp.current_velocity = [0.0, 0.0]
-    inp.current_acceleration = [0.0, 0.0]
+    inp.current_velocity = v0.tolist()
+    inp.current_acceleration = a0.tolist()
     inp.target_position = p1.tolist()
     inp.target_velocity = [0.0, 0.0]
     inp.target_acceleration = [0.0, 0.0]
@@ -99,9 +109,7 @@ def line_trajectory(p0: np.ndarray, p1: np.ndarray, limits: MotionLimits) -> Tra
     inp.max_acceleration = (limits.a_max * c).tolist()
     inp.max_jerk = (limits.j_max * c).tolist()
     inp.synchronization = Synchronization.Phase
-    traj = calculate(inp)
-    check_phase_synchronised(traj, d)
-    return traj
+    return inp
 
 
 def axis_scale(u: np.ndarray) -> np.ndarray:

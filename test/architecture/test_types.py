@@ -21,8 +21,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 #: What is checked, under rheo_shaping/: the core but nodes/ and cli/ (the ROS side).
 CHECKED = ("params", "material", "identification", "sheet", "planning", "safety", "records",
-           "study", "diagnosis", "worlds", "gapwatch", "parallel.py", "units.py", "jsonable.py",
-           "_lazy.py")
+           "study", "diagnosis", "worlds", "gapwatch", "adaptive", "parallel.py", "units.py",
+           "jsonable.py", "_lazy.py")
 
 
 def test_core_subpackages_type_check():
