@@ -88,7 +88,8 @@ def off(row: dict, variation: str) -> bool:
     variations have every one off)."""
     from rheo_shaping.worlds.forms import FormParams
     form = row.get("form") or {}
-    return form.get(variation, getattr(FormParams(), variation)) == getattr(FormParams(), variation)
+    default = getattr(FormParams(), variation)
+    return form.get(variation, default) == default
 
 
 def assemble(rows: list[dict], how: dict, without: str | None = None) -> dict:
@@ -174,7 +175,7 @@ def main(argv=None) -> int:
         with executor_from_spec(a.executor or f"local:{a.jobs}", a.jobs) as ex:
             futs = {ex.submit(one_case, {"seed": a.seed, "process_time": T, "n_masses": ns,
                                          "groupings": groupings, "variations": variations},
-                             i): (T, i) for T, i in todo}
+                              i): (T, i) for T, i in todo}
             for k, f in enumerate(as_completed(futs)):
                 rows = f.result()
                 with partial.open("a") as fh:

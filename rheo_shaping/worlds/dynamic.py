@@ -212,8 +212,8 @@ def run_world(params: CellParams, path, t_end: float | None = None,
         # scale with its relative thickness (mean 1)
         tau = thickness_profile(form, L0.size)
         k1, c1, c2 = k1 * tau, c1 * tau, c2 * tau
-        mass = s.mass_per_length * (1.0 + eff.mass_error) * 0.5 * (tau[:-1] * L0[:-1]
-                                                                    + tau[1:] * L0[1:])
+        mass = (s.mass_per_length * (1.0 + eff.mass_error) * 0.5
+                * (tau[:-1] * L0[:-1] + tau[1:] * L0[1:]))
     pitch = float(L0.mean())
     kc = nm.contact_modulus * pitch
     cn = 2.0 * nm.contact_damping * math.sqrt(kc * float(mass.mean()))

@@ -103,7 +103,8 @@ def test_the_load_cells_filter_is_the_first_order_step_response(default_run):
     a = measure_world(ref, path, SensorParams(), np.random.default_rng(2))
     b = measure_world(ref, path, SensorParams(), np.random.default_rng(2), form=form)
     filt = low_pass(ref.t, ref.tool_force, 0.15) - ref.tool_force
-    want = np.c_[np.interp(a.wrench_t, ref.t, filt[:, 0]), np.interp(a.wrench_t, ref.t, filt[:, 1])]
+    want = np.c_[np.interp(a.wrench_t, ref.t, filt[:, 0]),
+                 np.interp(a.wrench_t, ref.t, filt[:, 1])]
     assert np.allclose(b.wrench_xz - a.wrench_xz, want, rtol=0.0, atol=1e-12)
     # its size: docs' 3.6 mN RMS at 0.15 s
     assert 1e3 * np.sqrt(np.mean(np.sum(filt ** 2, axis=1))) == pytest.approx(3.6, rel=0.5)

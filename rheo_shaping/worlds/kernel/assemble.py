@@ -60,8 +60,9 @@ def assemble(ab, rhs, xk, dlt, v, mass, nodes, L0, consts, free, A, S, taut, ben
     """The step's Newton system at the iterate ``xk`` (= x + ``dlt``) without the contacts:
     rhs = -R with R = M (dlt - h v)/h^2 + air M dlt/h - f(xk) (gravity ``grav``, links at their
     end-of-step law F = A + S (l - free), bending on the step-start normals ``bend_n``,
-    adhesion ``fadh``; ``grav`` (N,) [m/s^2] per mass), ``ab`` = dR/d(dlt) in band form.  On the ``first`` iterate a link
-    is taut if it is now or would be at the predicted length, later if it is now."""
+    adhesion ``fadh``; ``grav`` (N,) [m/s^2] per mass), ``ab`` = dR/d(dlt) in band form.  On
+    the ``first`` iterate a link is taut if it is now or would be at the predicted length,
+    later if it is now."""
     n = xk.shape[0]
     m = n + 1
     air = par[I_AIR]
