@@ -9,7 +9,8 @@ each through its chain errors (the diagnosis's ``CHAIN`` knobs: vision offset,
 load-cell bias, gain and lag) and the world's sensor effects (camera scale,
 load-cell drift) and the form's sensor variations (the load cell's own low-pass, the
 sheet hidden by the tool, :mod:`~rheo_shaping.worlds.forms`).  The result is the
-:class:`~rheo_shaping.records.record.Record` the diagnosis reads.  Written apart from :mod:`rheo_shaping.records.measurement`.
+:class:`~rheo_shaping.records.record.Record` the diagnosis reads.  Written apart from
+:mod:`rheo_shaping.records.measurement`.
 """
 from __future__ import annotations
 
