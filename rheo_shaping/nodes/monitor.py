@@ -79,7 +79,6 @@ class MonitorNode(Node):
         s = self.settings
         self.pub_abort = self._publisher(T.ABORT)
         self.pub_ready = self._publisher(T.READY)
-        self._beat_ns = 0                 # the node clock's time of the last ready beat [ns]
         self.pub_checked = self._publisher(T.CHECKED)
         self.acks = Acknowledgements(s.abort_hold)   # what /shaping/checked says
         self.pub_diag = self._publisher(T.DIAGNOSTICS)
@@ -232,13 +231,6 @@ class MonitorNode(Node):
         # judged: the simulator may run on (monitor_lead), unless an abort is on its way
         seq = (info or {}).get("publication_sequence_number", 0)
         self._acknowledge(self.acks.on_judged(seq))
-        # the ready heartbeat every period of the cell's clock too (the planner judges its
-        # age on both clocks: at x50 a wall period is 2.5 s of the cell's)
-        now = self.get_clock().now().nanoseconds
-        if (self.ready and now - self._beat_ns >= self.settings.period * NS
-                and not self._watchdog.is_canceled()):          # (an inactive monitor: none)
-            self._beat_ns = now
-            self.pub_ready.publish(Bool(data=True))
 
     def _on_planner_state(self, msg: String) -> None:
         if not self._planner_src.trust().trusted:
@@ -308,7 +300,6 @@ class MonitorNode(Node):
                 f"{self.resolve_topic_name(T.CONTACT_TENSION.name)}",
                 throttle_duration_sec=5.0)
         self.pub_ready.publish(Bool(data=ready))
-        self._beat_ns = self.get_clock().now().nanoseconds
         self._acknowledge(self.acks.tick(self._steady.now().nanoseconds))   # a lost one too
 
     def _publish_diagnostics(self) -> None:
