@@ -182,7 +182,7 @@ def monitor_abort_ratio(cell: CellParams, abort_ratio: float, horizon: float,
                              f"({exc})") from None
     Fb = cell.material.F_break
     if abort_ratio > 0:
-        if abort_ratio * Fb > F_abort:
+        if abort_ratio > F_abort / Fb:            # (the ratio as the bound states it)
             raise ParameterError(
                 f"parameter 'abort_ratio' = {abort_ratio:g} is invalid: expected at most "
                 f"{F_abort / Fb:.4f}, safety principle 4 at movement.speed "
