@@ -110,6 +110,7 @@ class PlannerNode(PlannerSupervision, Node):
         self.aborted = False
         self.abort_reason = ""
         self._hold: np.ndarray | None = None        # where the tool holds after a run (known)
+        self._hold_ns: int | None = None            # the last run's newest set-point [ns]
         self._start_requested = False
         self.grid: SetpointGrid | None = None       # the run's set-point times (core)
         self._ready = False
@@ -315,6 +316,7 @@ class PlannerNode(PlannerSupervision, Node):
         if self.streamer is not None and self.streamer.plan is not None:
             t = (self._last_cmd_ns or self._now_ns()) / NS
             self._hold = self.streamer.setpoint(t)[0]      # at rest: done or holding
+            self._hold_ns = self._last_cmd_ns
         self.streamer = None
         self.aborted, self.abort_reason = False, ""
         self.grid = None

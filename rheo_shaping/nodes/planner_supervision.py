@@ -58,7 +58,9 @@ class PlannerSupervision:
                 tool_away=self._tool_away() if active else "", monitor_ok=ok,
                 refusal=self._refusal() if active and ok else "",
                 lead=self._start_lead(now) if active and ok and now > 0 else "", now_ns=now,
-                subscribers=self.pub_command.get_subscription_count() if active else 0))
+                subscribers=self.pub_command.get_subscription_count() if active else 0,
+                arriving=(active and self._hold_ns is not None
+                          and (self._pose_ns is None or self._pose_ns < self._hold_ns))))
             if state == "start":
                 self._start(now)
             elif state in ("idle", "holding"):
@@ -90,7 +92,10 @@ class PlannerSupervision:
                 f"its clock relative to its namespace; in a namespace add -r /clock:=clock"),
             "waiting_for_subscriber": (
                 f"a subscriber of {self.pub_command.topic_name} (the simulator or the robot)"),
-            "waiting_for_pose": f"the tool pose on {self.resolve_topic_name(T.TOOL_POSE.name)}",
+            "waiting_for_pose": (f"the tool pose on {self.resolve_topic_name(T.TOOL_POSE.name)}"
+                                 + ("" if self._hold_ns is None else
+                                    f" stamped at or after the last run's newest set-point "
+                                    f"({self._hold_ns / NS:.3f} s)")),
         }.get(state)
         if what:
             self.get_logger().info(f"waiting for {what}", throttle_duration_sec=5.0)

@@ -33,18 +33,25 @@ class StartInputs:
     lead: str                      # why the stream could not keep within max_lead ("")
     now_ns: int                    # the node's clock (0: no /clock yet)
     subscribers: int               # matched subscribers of /tool/command
+    arriving: bool = False         # after a run: the executed pose is stamped before the
+    #                                last run's newest set-point (the tool still moves)
 
 
 def start_decision(i: StartInputs) -> tuple[str, str]:
     """(state, reason) before the start: the state to report, ``"start"`` to start now.
 
     In order: nothing wanted (``idle``/``holding`` after an abort), the tool's pose
-    unknown, the tool away from home and start (autostart only), the interlock, the
+    unknown or still arriving at the last run's set-points, the tool away from home and
+    start (autostart only), the interlock, the
     node's checks, the lead against the executed pose, the clock, a subscriber."""
     if i.aborted or not i.wants_start:
         return ("holding" if i.aborted else "idle"), ""
     if not i.start_requested and i.pose_unknown:
         return "waiting_for_pose", "know where the tool is before moving it"
+    if i.arriving:
+        # a later run starts from the measured pose: one the tool is still leaving would
+        # make the approach's first set-point jump
+        return "waiting_for_pose", ""
     if not i.start_requested and i.tool_away:
         return "tool_away", i.tool_away
     if not i.monitor_ok:

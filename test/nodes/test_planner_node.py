@@ -47,6 +47,7 @@ class Bench:
         overrides += [Parameter(k, value=v) for k, v in settings.items()]
         self.planner = ros.add(PlannerNode(context=ros.context, parameter_overrides=overrides))
         self.heartbeat = True
+        self.hold_at = None         # [m] (x, z): the tool held there, as a simulator holds it
         # the executed tool pose: a tool that follows the newest set-point at once
         self.pose = self.node.create_publisher(PoseStamped, "/tool/pose", 10)
         self.cell = self.node.create_publisher(String, "/shaping/cell", LATCHED)
@@ -66,6 +67,7 @@ class Bench:
         # the tool at the newest set-point, executed one tick behind the clock
         last = self.rec.last("/tool/command")
         xz = m.pose_xz(last) if last is not None else self.planner.plan.start
+        xz = xz if self.hold_at is None else self.hold_at
         self.pose.publish(m.pose_msg(xz, self.t_ns - int(round(dt * NS))))
         self.ros.spin_for(spin)
 
@@ -175,6 +177,8 @@ def test_reset_refused_while_moving_then_rearms_with_an_approach(ros):
                       "tool.home": home})
     b.until(lambda: b.planner.state == "running", what="running")
     b.run(1.0)
+    # the simulator holds the tool where the abort finds it (it follows no stop or retract)
+    b.hold_at = m.pose_xz(b.rec.last("/tool/command"))
     b.abort.publish(String(data="test abort"))
     b.until(lambda: b.planner.state in ("stopping", "retracting"), what="stopping")
     client = b.node.create_client(Trigger, "/planner/reset")
@@ -189,15 +193,12 @@ def test_reset_refused_while_moving_then_rearms_with_an_approach(ros):
     future = client.call_async(Trigger.Request())
     ros.spin_until(future.done, 5.0, "reset response")
     assert future.result().success, future.result().message
-    tool = b.planner._tool_pose.copy()                        # where the tool is measured
     b.until(lambda: b.planner.state == "running", what="running again")
     plan = b.planner.streamer.plan
-    # an approach back to the start from where the tool is measured (a real simulator holds
-    # the tool where the abort found it and does not follow the retract to home)
+    # an approach back to the start from where the tool is measured, not from home where
+    # the planner's own retract ended (37 mm away)
     assert plan.segments[0].label == "approach"
-    # (the bench's tool follows the newest set-point, still arriving: it moves by a fraction
-    # of a millimetre between this read and the start; home is 37 mm away)
-    assert np.hypot(*(np.asarray(plan.start) - tool)) < 1e-3
+    assert np.hypot(*(np.asarray(plan.start) - b.hold_at)) < 1e-9
     assert np.hypot(*(np.asarray(plan.start) - home)) > 0.03
 
 

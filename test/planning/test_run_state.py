@@ -19,6 +19,8 @@ READY = StartInputs(aborted=False, wants_start=True, start_requested=False, pose
     ({"aborted": True}, "holding"),
     ({"wants_start": False}, "idle"),
     ({"pose_unknown": True}, "waiting_for_pose"),
+    ({"arriving": True}, "waiting_for_pose"),
+    ({"arriving": True, "start_requested": True}, "waiting_for_pose"),
     ({"tool_away": "the tool is 30 mm from home"}, "tool_away"),
     ({"monitor_ok": False}, "waiting_for_monitor"),
     ({"refusal": "the cell differs from the simulator's: ..."}, "waiting_for_cell"),
