@@ -40,6 +40,10 @@ def add_parser(sub) -> None:
                         "one ROS domain")
     p.add_argument("--compare", action="store_true",
                    help="also run the core offline on the same plan and print both")
+    p.add_argument("--adaptive", action="store_true",
+                   help="the planner's closed loop (planner parameter adaptive: true): it "
+                        "estimates the material while it shapes and re-plans the rest of the "
+                        "movement (docs/closed-loop.md)")
     p.add_argument("--json", action="store_true", help="print one JSON object at the end")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--verbose", action="store_true", help="show the nodes' INFO log lines too")
@@ -58,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as exc:
         raise UserError(f"the cell needs ROS 2 (rclpy): {exc}; use the full venv "
                         f"(python3 dev.py setup, then .venv/bin/rheo-shaping cell)") from None
+    from rclpy.parameter import Parameter
+
     from ..params.schema import ParameterError
     say = None if (args.quiet or args.json) else (lambda msg: print(msg, flush=True))
     try:
@@ -65,7 +71,9 @@ def run(args: argparse.Namespace) -> int:
                           real_time_factor=args.real_time_factor, timeout=args.timeout,
                           progress=say,
                           log_level="info" if args.verbose else "warn",
-                          namespace=ros_namespace(args.namespace))
+                          namespace=ros_namespace(args.namespace),
+                          overrides=({"planner": [Parameter("adaptive", value=True)]}
+                                     if args.adaptive else None))
     except ParameterError as exc:
         raise UserError(str(exc)) from None
     except Exception as exc:   # rcl refuses the params file, etc.
@@ -73,6 +81,9 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"ROS could not use the parameters: {exc}") from None
         raise
     out = {**result.summary()}
+    if args.adaptive:
+        out["adaptive"] = result.extra["adaptive"]
+        out["plan_duration"] = result.extra["plan_duration"]
     if args.compare:
         from dataclasses import replace
         from ..planning.movement import run_movement
@@ -94,6 +105,11 @@ def run(args: argparse.Namespace) -> int:
             f"{result.F_max_time:.1f} s")
         print(f"  SF    = {result.SF:.3f}  (F_break = {result.F_break:g} N)")
         print(f"  Delta = {result.delta * 1e3:.2f} mm  (quality limit 5 mm)")
+        if args.adaptive:
+            log = result.extra["adaptive"]
+            print(f"  adaptive: {len(log)} refreshes, "
+                  f"{sum(1 for e in log if e['switched'])} re-plans; the plan lasted "
+                  f"{result.extra['plan_duration']:.1f} s")
         if args.compare:
             o = out["offline"]
             print(f"  offline (core, same plan): F_max = {o['F_max']:.4f} N "

@@ -142,6 +142,10 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
             achieved_factor=sim.process_time / run_wall if run_wall > 0 else math.nan,
             finished=finished, d=cell.movement.d if cell.movement.number == 4 else math.nan,
             extra={"run_time": sim.process_time, "lockstep_waits": sim.lockstep_waits,
+                   "plan_duration": (planner.streamer.plan.duration
+                                     if planner.streamer and planner.streamer.plan
+                                     else math.nan),
+                   "adaptive": list(planner.adaptive_log),
                    "abort_threshold": monitor.threshold,
                    "history": list(sim.history), **_stop_times(planner, sim)})
 

@@ -59,13 +59,14 @@ from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
 from .guards import CellCheck, OwnedStream, Presence, clock_publishers, guard_clock
+from .planner_adaptive import PlannerAdaptive
 from .planner_supervision import PlannerSupervision
 from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
 from ..units import NS
 
 
-class PlannerNode(PlannerSupervision, Node):
+class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
     """Plans the shaping movement and streams it, behind the monitor's interlock."""
 
     def __init__(self, **node_kwargs):
@@ -103,6 +104,7 @@ class PlannerNode(PlannerSupervision, Node):
                                  T.COMMANDER.qos)
         self.create_service(Trigger, '~/start', self._on_start)
         self.create_service(Trigger, '~/reset', self._on_reset)
+        self._setup_adaptive()
 
         self.cell_used, self.plan = self._make_plan()
         self._start_failed = ""       # the run could not start (e.g. its approach); ~/reset
@@ -219,6 +221,7 @@ class PlannerNode(PlannerSupervision, Node):
         stamp = m.stamp_ns(msg.header.stamp)
         if self._pose_ns is None or stamp > self._pose_ns:
             self._pose_ns = stamp
+            self._adaptive_pose(self._tool_pose, stamp)
             if self.streamer is not None and self._lead_note:
                 self._stream()                  # execution caught up: the stream goes on
 
@@ -353,6 +356,7 @@ class PlannerNode(PlannerSupervision, Node):
             if not self._lead_note:
                 self.get_logger().warning(note, throttle_duration_sec=5.0)
         self._lead_note = note
+        self._adaptive_tick()                   # a finished re-plan first, then the set-points
         skipped = self.grid.skipped
         for t in self.grid.due(now, limit, self.get_clock().ros_time_is_active):
             self._publish_setpoint(t)

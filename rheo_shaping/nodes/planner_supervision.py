@@ -129,8 +129,8 @@ class PlannerSupervision:
             # after a run, from where the tool is measured (a simulator reset moves it to
             # the movement's start; a hold stops it where it was, not where the stop ended)
             held = self._hold
-            plan = self._plan_from(self._tool_pose if held is not None
-                                   and self._tool_pose is not None else held)
+            plan = self._adaptive_plan(self._plan_from(
+                self._tool_pose if held is not None and self._tool_pose is not None else held))
         except (ParameterError, ValueError, RuntimeError) as exc:
             self._start_failed = str(exc)              # until ~/reset
             self.get_logger().error(f"cannot start: {exc}")

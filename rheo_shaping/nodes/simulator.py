@@ -45,7 +45,7 @@ from std_srvs.srv import Trigger
 
 from ..sheet.geometry import Cake
 from ..params.node_params import SimulatorNodeParams
-from ..params.cell import CellParams
+from ..params.cell import CellParams, batch_cell
 from ..planning.scenarios import movement_scenario
 from ..sheet.setpoints import (HOLD_FOR_START, LATE_STEP, WAIT_MONITOR, WAIT_SETPOINT,
                                SetpointRun, next_step)
@@ -205,8 +205,9 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
     # -- the run (the core's SetpointRun) ---------------------------------------------
     def _new_run(self) -> None:
         """Settled sheet at process time 0, tool at the movement's start."""
-        cell = self.cell
-        self.run = SetpointRun(cell, movement_scenario(cell).start)
+        cell, s = self.cell, self.settings
+        batch = batch_cell(cell, s.batch_k1, s.batch_c2, s.batch_mass)   # the batch played
+        self.run = SetpointRun(batch, movement_scenario(cell).start)
         self._run_cell = cell
         self._tool_outline = tool_shape(cell.tool).outline(48)
         self._cake_outline = Cake.of(cell.cake).outline(48)

@@ -136,13 +136,16 @@ MANAGER_STATUS = Topic("~/status", String, LATCHED_QOS)
 GAP = Topic("shaping/gap", String, STATE_QOS)
 GAP_DIAGNOSIS = Topic("shaping/gap_diagnosis", String, LATCHED_QOS)
 GAP_MARKERS = Topic("shaping/gap_markers", MarkerArray, MARKER_QOS)
+#: The planner's closed loop (``adaptive``): each refresh's estimate and re-plan (JSON, SI
+#: units; rheo_shaping.adaptive.online.OnlineStep.as_dict).
+ESTIMATE = Topic("shaping/estimate", String, LATCHED_QOS)
 
 #: Every topic of the cell, by its contract name.
 ALL: dict[str, Topic] = {t.contract: t for t in (
     PROFILE, MEASURED_PROFILE, TENSIONS, CONTACT_TENSION, TOOL_POSE, TOOL_WRENCH, MARKERS, CLOCK,
     TOOL_COMMAND, PLANNED_TRAJECTORY, ABORT, READY, PLANNER_STATE, CHECKED, DIAGNOSTICS, CELL,
     COMMANDER,
-    PRESENCE, GAP, GAP_DIAGNOSIS, GAP_MARKERS)}
+    PRESENCE, GAP, GAP_DIAGNOSIS, GAP_MARKERS, ESTIMATE)}
 
 #: The remap that makes a namespaced planner or monitor follow its own simulator's clock.
 CLOCK_REMAP = ("-r", "/clock:=clock")

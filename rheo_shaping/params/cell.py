@@ -8,7 +8,7 @@ material; the geometry the paper leaves open is chosen (and explained) in
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from .schema import ParameterError, param
 
@@ -236,3 +236,12 @@ class CellParams:
                 "value "
                 f">= sheet.thickness = {s.thickness:g} m (the bond lies on the workplane beside "
                 "the wall)")
+
+
+def batch_cell(cell: CellParams, k1: float = 1.0, c2: float = 1.0,
+               mass: float = 1.0) -> CellParams:
+    """``cell`` with a batch's material: k1 [N/m], c2 [N s/m] and the sheet's mass per
+    length [kg/m] each a multiple [-] of ``cell``'s (a batch differs from its params file)."""
+    return replace(cell, material=replace(cell.material, k1=cell.material.k1 * k1,
+                                          c2=cell.material.c2 * c2),
+                   sheet=replace(cell.sheet, mass_per_length=cell.sheet.mass_per_length * mass))

@@ -58,6 +58,16 @@ class SimulatorNodeParams:
         0.2, "wall-clock time between /sheet/markers", "s", 0.0, 60.0, lo_open=True, tunable=True)
     publish_clock: bool = param(
         False, "publish /clock (simulated time) even when real_time_factor is 1")
+    batch_k1: float = param(
+        1.0, "the batch this simulator plays: its k1 as a multiple of the params file's (a test "
+        "of a cell whose material differs from its params file, as a real batch's does; the "
+        "cell it announces stays the params file's)", "", 0.2, 5.0)
+    batch_c2: float = param(
+        1.0, "the batch this simulator plays: its c2 as a multiple of the params file's", "",
+        0.2, 5.0)
+    batch_mass: float = param(
+        1.0, "the batch this simulator plays: its mass per length as a multiple of the params "
+        "file's", "", 0.2, 5.0)
     lockstep: bool = param(
         True, "on simulated time: while set-points stream, step only when the set-point for the "
         "end of the step has arrived (waiting at most command_timeout); the run slows down "
@@ -173,6 +183,17 @@ class PlannerNodeParams:
               "optimise_d", "m", 0.0, 1.0, lo_open=True)
     optimise_workers: int = param(
         1, "processes used by optimise_d (1: in the node's process)", "", 1, 64)
+    adaptive: bool = param(
+        False, "closed loop: estimate the batch's k1, c2 and mass per length from /tool/wrench "
+        "and /sheet/contact_tension during the run and re-plan the rest of the movement's "
+        "stroke speed and dwells (docs/closed-loop.md); the monitor stays independent")
+    adaptive_refresh: float = param(
+        2.0, "process time between two estimates and re-plans of the closed loop (and one at "
+        "each move's start and end)", "s", 0.5, 60.0)
+    adaptive_join_lead: float = param(
+        1.0, "a re-plan joins the running plan this much process time after the newest "
+        "set-point sent when it began (its compute time must fit in it: else it is dropped, "
+        "named in the log)", "s", 0.1, 30.0)
 
 
 #: The largest ``abort_ratio`` any cell may set: a threshold at F_break leaves no time to stop

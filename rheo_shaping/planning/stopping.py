@@ -196,6 +196,28 @@ class TrajectoryStreamer:
         self._phase_plan, self._phase_t0, self._queue = plan, t0, []
         self._state, self._final_state = "running", "done"
 
+    def replace_rest(self, plan: Plan, t_join: float) -> None:
+        """Follow ``plan`` instead of the running plan from ``t_join`` [s, plan time, the same
+        origin as the running plan's] on: only while ``running``, before any time at or after
+        ``t_join`` was sampled, and with ``plan`` in the running plan's exact state there
+        (position, velocity, acceleration within 1e-9): the stream stays continuous.  A
+        RuntimeError or ValueError says which condition failed; nothing changes then."""
+        if self._state != "running" or self._main is None or self._phase_plan is not self._main:
+            raise RuntimeError(f"replace_rest() needs state 'running', not {self._state!r}")
+        if not isinstance(plan, Plan):
+            raise TypeError(f"plan must be a Plan, got {type(plan).__name__}")
+        t_join = check_finite("t_join [s]", t_join)
+        if self._phase_t0 + t_join <= self._t_last:
+            raise ValueError(f"t_join = {t_join:.6f} s is already streamed (sampled up to "
+                             f"{self._t_last - self._phase_t0:.6f} s): expected a later join")
+        for what, x, y in zip(("position [m]", "velocity [m/s]", "acceleration [m/s^2]"),
+                              self._main.sample(t_join), plan.sample(t_join)):
+            if float(np.max(np.abs(np.asarray(x) - np.asarray(y)))) > 1e-9:
+                raise ValueError(f"the new plan's {what} at t_join = {t_join:.6f} s is "
+                                 f"{np.asarray(y).tolist()}, the running plan's "
+                                 f"{np.asarray(x).tolist()}: expected equal")
+        self._main = self._phase_plan = plan
+
     def setpoint(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position [m], velocity [m/s], acceleration [m/s^2] (each (2,)) to command at ``t``
         [s]."""

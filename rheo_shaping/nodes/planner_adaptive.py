@@ -1,0 +1,144 @@
+"""The ``planner`` node's closed loop (``adaptive: true``): samples of the run in, the
+core's re-plan out (a part of :class:`~.planner.PlannerNode`; the decisions are the
+core's: :class:`rheo_shaping.adaptive.online.OnlineShaper`).
+
+The node keeps the newest ``/tool/wrench`` and ``/sheet/contact_tension`` and, at each
+executed tool pose the shaper wants, one :class:`~rheo_shaping.adaptive.observe.Sample`;
+when a refresh is due it runs in one worker thread (the estimate and the re-plan take
+tenths of a second), joined ``adaptive_join_lead`` after the newest set-point sent, and
+the next control tick switches the stream to it
+(:meth:`~rheo_shaping.planning.stopping.TrajectoryStreamer.replace_rest`) or drops it when
+the stream has already passed the join or stopped.  Each refresh is published on
+``/shaping/estimate`` and logged with its reason; each re-plan on
+``/tool/planned_trajectory``.  The monitor knows none of it.
+"""
+from __future__ import annotations
+
+import json
+import threading
+
+from geometry_msgs.msg import WrenchStamped
+from std_msgs.msg import Float64, String
+
+from ..adaptive.observe import Sample
+from ..adaptive.online import OnlineConfig, OnlineShaper, OnlineStep
+from ..jsonable import json_safe
+from ..units import NS
+from . import messages as m
+from . import topics as T
+
+
+class PlannerAdaptive:
+    """The planner node's closed loop (mixed into :class:`~.planner.PlannerNode`)."""
+
+    def _setup_adaptive(self) -> None:
+        self.online: OnlineShaper | None = None
+        self._wrench: tuple[float, float] | None = None
+        self._contact: float | None = None
+        self._samples: list[Sample] = []
+        self._worker: threading.Thread | None = None
+        self._result: OnlineStep | BaseException | None = None
+        self.adaptive_log: list[dict] = []      # every refresh of this node (as published)
+        self._span = 0.0                        # s of process time the last refresh took
+        self._began = 0.0                       # s, the stream's time when it began
+        if not self.settings.adaptive:
+            return
+        self.pub_estimate = self.create_publisher(T.ESTIMATE.type, T.ESTIMATE.name,
+                                                  T.ESTIMATE.qos)
+        self.create_subscription(T.TOOL_WRENCH.type, T.TOOL_WRENCH.name, self._on_wrench,
+                                 T.TOOL_WRENCH.qos)
+        self.create_subscription(T.CONTACT_TENSION.type, T.CONTACT_TENSION.name,
+                                 self._on_contact, T.CONTACT_TENSION.qos)
+
+    def _on_wrench(self, msg: WrenchStamped) -> None:
+        self._wrench = (float(msg.wrench.force.x), float(msg.wrench.force.z))
+
+    def _on_contact(self, msg: Float64) -> None:
+        self._contact = float(msg.data)
+
+    def _adaptive_plan(self, plan):
+        """The plan a run starts: the shaper's (the params file's movement as a schedule)
+        when ``adaptive`` and the run starts at the movement's start; else ``plan``."""
+        self.online = None
+        if not self.settings.adaptive:
+            return plan
+        if plan is not self.plan:
+            self.get_logger().warning("adaptive: this run starts with an approach from where "
+                                      "the tool is: it follows the fixed plan")
+            return plan
+        s = self.settings
+        self.online = OnlineShaper(self.cell_used, OnlineConfig(
+            refresh_period=s.adaptive_refresh, join_lead=s.adaptive_join_lead))
+        self._samples, self._result, self._worker = [], None, None
+        self.get_logger().info(f"adaptive: estimating the material every "
+                               f"{s.adaptive_refresh:g} s of process time; the pessimistic "
+                               f"F_max kept under {self.online.limits.F_limit:.3f} N")
+        return self.online.plan
+
+    def _adaptive_pose(self, xz, stamp_ns: int) -> None:
+        """A sample of the run at the executed pose's time, when the shaper wants one."""
+        if self.online is None or self._t0_ns is None or self._wrench is None:
+            return
+        t = (stamp_ns - self._t0_ns) / NS
+        if t >= 0.0 and self.online.wants(t) and (not self._samples
+                                                  or t > self._samples[-1].t):
+            self._samples.append(Sample(t=t, tool=(float(xz[0]), float(xz[1])),
+                                        wrench=self._wrench, contact_tension=self._contact))
+
+    def _adaptive_tick(self) -> None:
+        """Switch to a finished re-plan, then begin the next refresh when one is due."""
+        online, st = self.online, self.streamer
+        if online is None or st is None:
+            return
+        if self._worker is not None and not self._worker.is_alive():
+            self._worker, result, self._result = None, self._result, None
+            self._span = (self._last_cmd_ns - self._t0_ns) / NS - self._began
+            self._take(result)
+        if (self._worker is not None or st.state != "running" or self._pose_ns is None
+                or self._last_cmd_ns is None or self._pose_ns < self._t0_ns):
+            return
+        t = (self._pose_ns - self._t0_ns) / NS
+        reason = online.due(t)
+        if reason is None:
+            return
+        samples, self._samples = self._samples, []
+        streamed = self._began = (self._last_cmd_ns - self._t0_ns) / NS
+        xz = tuple(self._tool_pose)
+        lead = 2.0 * self._span           # the join after the stream's lead of the last one
+
+        def work() -> None:
+            try:
+                for s in samples:
+                    online.add(s)
+                self._result = online.refresh(t, reason, executed_xz=xz, streamed=streamed,
+                                              lead=lead)
+            except Exception as exc:           # reported by the node, never lost in a thread
+                self._result = exc
+        self._worker = threading.Thread(target=work, name="adaptive", daemon=True)
+        self._worker.start()
+
+    def _take(self, result: OnlineStep | BaseException | None) -> None:
+        online, st = self.online, self.streamer
+        if isinstance(result, BaseException) or result is None:
+            self.get_logger().error(f"adaptive: the refresh failed ({result!r}): the running "
+                                    f"plan goes on, no further re-plan")
+            self.online = None
+            return
+        switched = ""
+        if result.plan is not None:
+            try:
+                st.replace_rest(result.plan, result.t_join)
+                online.accept(result)
+                self.pub_trajectory.publish(m.trajectory_msg(
+                    result.plan, self._t0_ns, self.settings.trajectory_period))
+                switched = f"re-planned from t = {result.t_join:.2f} s: "
+            except (RuntimeError, ValueError) as exc:
+                switched = f"re-plan dropped ({exc}): "
+        data = dict(result.as_dict(), switched=switched.startswith("re-planned"))
+        self.adaptive_log.append(data)
+        self.pub_estimate.publish(String(data=json.dumps(json_safe(data))))
+        log = self.get_logger().info if result.plan is None or switched.startswith("re") \
+            else self.get_logger().warning
+        log(f"adaptive ({result.reason.value} at t = {result.t:.2f} s, "
+            f"{result.estimate.cost_s + (result.replan.cost_s if result.replan else 0):.2f} s "
+            f"CPU): {switched}{result.message}")

@@ -1,0 +1,93 @@
+"""The closed loop as the planner node runs it (rheo_shaping.adaptive.online): samples in,
+a re-plan joined ahead of the stream, the streamer switching without a jump."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from rheo_shaping.adaptive.estimator import material_cell
+from rheo_shaping.adaptive.observe import sample_of
+from rheo_shaping.adaptive.online import OnlineConfig, OnlineShaper, Reason
+from rheo_shaping.adaptive.schedule import Choice, fixed_schedule
+from rheo_shaping.params.cell import CellParams
+from rheo_shaping.planning.stopping import TrajectoryStreamer
+from rheo_shaping.sheet.setpoints import SetpointRun
+from rheo_shaping.units import NS
+
+NOMINAL = np.array([95.0, 1300.0, 0.3125])
+DT = 0.1                                   # s, the control period of this loop
+
+
+def movement_1() -> CellParams:
+    return replace(CellParams(), movement=replace(CellParams().movement, number=1))
+
+
+def test_the_streamed_run_re_plans_ahead_of_the_stream_and_shapes_sooner():
+    """Movement 1 on a batch that flows easily (k1, c2 x0.7, mass x1.2), streamed as the
+    planner node streams it: the re-plans join after what was already sent, the set-points
+    never jump, the true cell is shaped well before the params file's process time."""
+    cell = movement_1()
+    true = material_cell(cell, NOMINAL * [0.7, 0.7, 1.2])
+    true = replace(true, movement=replace(true.movement, process_time=600.0))
+    shaper = OnlineShaper(cell, OnlineConfig(join_lead=0.5))
+    streamer = TrajectoryStreamer()
+    streamer.start(shaper.plan, 0.0)
+    run = SetpointRun(true, tool_start=shaper.plan.start)
+    run.command(0, *shaper.plan.start)
+    sent = [np.asarray(shaper.plan.start)]
+    t, switched = 0.0, 0
+    while t < shaper.schedule.cycle_time - 1e-9 and not run.broken:
+        t = round(t + DT, 9)
+        p = streamer.setpoint(t)[0]
+        sent.append(p)
+        run.command(round(t * NS), float(p[0]), float(p[1]))
+        run.advance(round(t * NS))
+        if shaper.wants(t):
+            assert shaper.add(sample_of(run.sim))
+        reason = shaper.due(t)
+        if reason is not None:
+            step = shaper.refresh(t, reason, executed_xz=tuple(run.sim.state.tool))
+            assert step.t_join == pytest.approx(t + 0.5)
+            if step.plan is not None:
+                streamer.replace_rest(step.plan, step.t_join)
+                shaper.accept(step)
+                switched += 1
+    steps = np.linalg.norm(np.diff(np.array(sent), axis=0), axis=1)
+    v_max = max(*shaper.limits.speeds, cell.movement.retract_speed)     # path speed [m/s]
+    assert switched >= 1 and not run.broken
+    assert steps.max() <= v_max * DT + 1e-9                   # no jump at any join
+    assert max(f for _, f in run.history) < shaper.limits.F_limit
+    assert run.sim.delta() <= 5e-3
+    assert shaper.schedule.cycle_time < 0.8 * cell.movement.process_time
+    reasons = {s.reason for s in shaper.steps}
+    assert reasons == {Reason.PERIOD, Reason.BOUNDARY}
+
+
+def test_a_join_already_streamed_or_off_the_running_plan_is_refused():
+    cell = movement_1()
+    sched = fixed_schedule(cell)
+    streamer = TrajectoryStreamer()
+    streamer.start(sched.plan, 10.0)
+    streamer.setpoint(10.0 + 20.0)                            # streamed to plan time 20 s
+    faster = sched.rejoin(25.0, Choice(2 * cell.movement.speed))
+    assert faster is not None
+    with pytest.raises(ValueError, match="already streamed"):
+        streamer.replace_rest(faster.plan, 20.0)
+    other = fixed_schedule(cell, Choice(2 * cell.movement.speed)).plan
+    with pytest.raises(ValueError, match="position"):
+        streamer.replace_rest(other, 25.0)
+    streamer.replace_rest(faster.plan, 25.0)
+    assert streamer.plan is faster.plan
+    streamer.abort(10.0 + 21.0)
+    with pytest.raises(RuntimeError, match="running"):
+        streamer.replace_rest(faster.plan, 40.0)
+
+
+def test_the_samples_are_kept_one_per_period_and_a_refresh_is_due_on_time():
+    shaper = OnlineShaper(movement_1(), OnlineConfig(sample_period=0.5, refresh_period=2.0))
+    run = SetpointRun(movement_1(), tool_start=shaper.plan.start)
+    kept = [shaper.add(replace(sample_of(run.sim), t=t)) for t in (0.0, 0.2, 0.5, 0.9, 1.0)]
+    assert kept == [True, False, True, False, True]
+    assert shaper.due(1.9) is None and shaper.due(2.0) is Reason.PERIOD
