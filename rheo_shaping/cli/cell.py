@@ -80,10 +80,9 @@ def run(args: argparse.Namespace) -> int:
         if type(exc).__name__ in ("RCLError", "InvalidParameterValueException"):
             raise UserError(f"ROS could not use the parameters: {exc}") from None
         raise
-    out = {**result.summary()}
+    out = {**result.summary(), "plan_duration": result.extra["plan_duration"]}
     if args.adaptive:
         out["adaptive"] = result.extra["adaptive"]
-        out["plan_duration"] = result.extra["plan_duration"]
     if args.compare:
         from dataclasses import replace
         from ..planning.movement import run_movement

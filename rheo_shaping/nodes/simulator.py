@@ -206,7 +206,9 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
     def _new_run(self) -> None:
         """Settled sheet at process time 0, tool at the movement's start."""
         cell, s = self.cell, self.settings
-        batch = batch_cell(cell, s.batch_k1, s.batch_c2, s.batch_mass)   # the batch played
+        batch = batch_cell(cell, s.batch_k1, s.batch_c2, s.batch_mass,      # the batch played
+                           s.batch_friction_mould if s.batch_friction_mould >= 0 else None,
+                           s.batch_friction_tool if s.batch_friction_tool >= 0 else None)
         self.run = SetpointRun(batch, movement_scenario(cell).start)
         self._run_cell = cell
         self._tool_outline = tool_shape(cell.tool).outline(48)

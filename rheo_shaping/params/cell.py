@@ -238,10 +238,18 @@ class CellParams:
                 "the wall)")
 
 
-def batch_cell(cell: CellParams, k1: float = 1.0, c2: float = 1.0,
-               mass: float = 1.0) -> CellParams:
+def batch_cell(cell: CellParams, k1: float = 1.0, c2: float = 1.0, mass: float = 1.0,
+               friction_mould: float | None = None,
+               friction_tool: float | None = None) -> CellParams:
     """``cell`` with a batch's material: k1 [N/m], c2 [N s/m] and the sheet's mass per
-    length [kg/m] each a multiple [-] of ``cell``'s (a batch differs from its params file)."""
+    length [kg/m] each a multiple [-] of ``cell``'s (a batch differs from its params file),
+    and the Coulomb friction coefficients [-] of mould and tool when given."""
+    effects = cell.effects
+    if friction_mould is not None:
+        effects = replace(effects, friction_mould=float(friction_mould))
+    if friction_tool is not None:
+        effects = replace(effects, friction_tool=float(friction_tool))
     return replace(cell, material=replace(cell.material, k1=cell.material.k1 * k1,
                                           c2=cell.material.c2 * c2),
-                   sheet=replace(cell.sheet, mass_per_length=cell.sheet.mass_per_length * mass))
+                   sheet=replace(cell.sheet, mass_per_length=cell.sheet.mass_per_length * mass),
+                   effects=effects)

@@ -68,6 +68,12 @@ class SimulatorNodeParams:
     batch_mass: float = param(
         1.0, "the batch this simulator plays: its mass per length as a multiple of the params "
         "file's", "", 0.2, 5.0)
+    batch_friction_mould: float = param(
+        -1.0, "the batch this simulator plays: the sheet's Coulomb friction on the mould "
+        "(-1: the params file's effects.friction_mould)", "", -1.0, 2.0)
+    batch_friction_tool: float = param(
+        -1.0, "the batch this simulator plays: the sheet's Coulomb friction on the tool (-1: "
+        "the params file's effects.friction_tool)", "", -1.0, 2.0)
     lockstep: bool = param(
         True, "on simulated time: while set-points stream, step only when the set-point for the "
         "end of the step has arrived (waiting at most command_timeout); the run slows down "
