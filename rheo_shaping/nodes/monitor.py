@@ -48,7 +48,7 @@ from ..params.cell import CellParams
 from ..safety.abort_budget import abort_horizon, monitor_abort_ratio
 from ..safety.acknowledge import Acknowledgements
 from ..safety.clock_guard import ClockGuard
-from ..safety.monitor import TensionMonitor
+from ..safety.monitor import TensionMonitor, stale_on_cell_clock
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
@@ -281,6 +281,8 @@ class MonitorNode(Node):
     def _on_watchdog(self) -> None:
         now = self._steady.now().nanoseconds
         self.core.blocked = self._not_yet()
+        self.core.cell_clock = stale_on_cell_clock(
+            self.settings, self.get_clock().ros_time_is_active)
         # this process stood still for over max_data_age / 2 (a busy machine): samples may
         # wait unread behind this timer, so they are judged at the next tick, not now
         stalled = self._watchdog_guard.check(now)

@@ -232,8 +232,14 @@ class MonitorNodeParams:
              "threshold", "", 0.0, 1.0, lo_open=True, tunable=True)
     max_data_age: float = param(
         0.5, "longest time without tension data (wall-clock age of the newest sample on a "
-        "steady clock, and the QoS deadline requested); longer: "
-        "abort", "s", 0.0, 60.0, lo_open=True)
+        "steady clock, and the QoS deadline requested; with stale_clock 'auto' in a lockstep "
+        "cell, on the cell's clock instead); longer: abort", "s", 0.0, 60.0, lo_open=True)
+    stale_clock: str = param(
+        "auto", "the clock max_data_age is judged on: 'auto', the cell's (simulated) clock when "
+        "on simulated time and acknowledging (the simulator steps only on this monitor's "
+        "acknowledgements: a starved machine slows the cell, it does not move the tool "
+        "unwatched), else the wall's; 'wall': always the wall's (a real cell)",
+        choices=("auto", "wall"))
     max_stamp_age: float = param(
         2.0, "oldest header stamp accepted on /sheet/profile and /tool/wrench, against the "
         "node's clock (a source replaying old data); older: abort. On simulated time keep it "

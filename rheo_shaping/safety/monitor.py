@@ -10,7 +10,13 @@ publishes what it decides):
   when the linear trend of the largest tension predicts it within ``horizon``;
 * a non-finite tension, a zero or future header stamp, stale data (no sample for
   ``max_data_age`` on the steady clock, a missed deadline, stamps older than
-  ``max_stamp_age``), no data within ``startup_timeout``: abort (principles 1, 2).
+  ``max_stamp_age``), no data within ``startup_timeout``: abort (principles 1, 2);
+* in a lockstep cell (:attr:`TensionMonitor.cell_clock`: the simulator steps only on this
+  monitor's acknowledgements) a stream is stale when the cell's clock has run
+  ``max_data_age`` past its newest sample; the wall's age and the QoS deadline count
+  there only beyond :data:`LOCKSTEP_WALL_FACTOR` x ``max_data_age`` (a starved machine
+  slows such a cell, its tool does not move unwatched; a clock that stands still that long
+  has lost its simulator).
 
 Times are integer nanoseconds: ``steady`` on a steady clock, ``clock`` on the node's
 clock (simulated time when ``sim_time``; 0 while there is no clock yet).
@@ -26,6 +32,17 @@ import numpy as np
 from ..params.node_params import MonitorNodeParams
 from ..sheet.metrics import safety_factor
 from ..units import NS
+
+
+def stale_on_cell_clock(settings: MonitorNodeParams, sim_time: bool) -> bool:
+    """Judge staleness on the cell's clock: ``stale_clock`` 'auto', on simulated time, and
+    acknowledging (the simulator then steps only on this monitor's acknowledgements)."""
+    return settings.stale_clock == "auto" and sim_time and settings.acknowledge
+
+
+#: In a lockstep cell, the wall time [in max_data_age] after which a stream counts as stale
+#: even though the cell's clock stood still: the simulator (the clock) is lost.
+LOCKSTEP_WALL_FACTOR = 10.0
 
 
 class TensionMonitor:
@@ -74,6 +91,9 @@ class TensionMonitor:
         #: checks of the cell, the clock, its twins
         self.blocked = ""
         self._clock_seen = 0                   # the node clock at the newest tick [ns]
+        #: staleness on the cell's clock (a lockstep cell), set by the node at each tick
+        self.cell_clock = False
+        self._rx_clock: dict[str, int] = {}    # topic -> node clock at the newest sample [ns]
         self._start = steady
         self._rx: dict[str, int | None] = {t: None for t in self.tension_topics
                                            + self.stamped_topics}
@@ -97,15 +117,27 @@ class TensionMonitor:
         return True
 
     def age(self, topic: str, steady: int) -> float:
-        """Wall time [s] since the newest sample on ``topic`` (inf: none yet)."""
+        """Time [s] since the newest sample on ``topic`` (inf: none yet): on the wall's
+        steady clock, or on the cell's clock when :attr:`cell_clock` (and it has run)."""
         rx = self._rx[topic]
-        return math.inf if rx is None else (steady - rx) / NS
+        if rx is None:
+            return math.inf
+        seen = self._rx_clock.get(topic, 0)
+        if self.cell_clock and seen > 0 and self._clock_seen > 0:
+            return max(self._clock_seen - seen, 0) / NS
+        return (steady - rx) / NS
+
+    def _received(self, topic: str, steady: int) -> None:
+        self._rx[topic] = steady
+        self._rx_clock[topic] = self._clock_seen
 
     # -- data -------------------------------------------------------------------------
     def on_tensions(self, values: Sequence[float], steady: int, clock: int) -> None:
         """The link tensions [N] of one sample."""
         topic = self.tension_topics[0]
-        self._rx[topic] = steady
+        if clock > 0:
+            self._clock_seen = clock
+        self._received(topic, steady)
         tensions = np.asarray(values, dtype=float)
         if tensions.size == 0:
             self.abort(f"empty {topic} message")
@@ -130,7 +162,7 @@ class TensionMonitor:
     def on_contact(self, value: float, steady: int) -> None:
         """The tension [N] at the tool contact."""
         topic = self.tension_topics[1]
-        self._rx[topic] = steady
+        self._received(topic, steady)
         value = float(value)
         if not math.isfinite(value):
             self.abort(f"non-finite contact tension ({value}) on {topic}")
@@ -232,8 +264,9 @@ class TensionMonitor:
                            + f", {(steady - arrived) / NS:.3f} s after it arrived")
 
     def on_deadline(self, topic: str) -> None:
-        """The QoS deadline of ``topic`` was missed."""
-        if self.state == "ready":
+        """The QoS deadline of ``topic`` was missed (a wall-clock deadline: not counted on
+        the cell's clock)."""
+        if self.state == "ready" and not self.cell_clock:
             self.abort(f"stale data: QoS deadline of {self.settings.max_data_age:g} s "
                        f"missed on {topic}")
 
@@ -263,9 +296,14 @@ class TensionMonitor:
             self.abort(f"stale data: {self._old[topic]}")
         elif self.state == "ready" and stale:
             t = stale[0]
-            self.abort(f"stale data: no {t} for "
-                       + (f"{ages[t]:.3f} s" if math.isfinite(ages[t]) else "ever")
-                       + f" (max_data_age {s.max_data_age:g} s)")
+            if ages[t] <= s.max_data_age:                 # a lockstep cell's clock stood still
+                self.abort(f"stale data: no {t} for {self.wall_age(t, steady):.3f} s of wall "
+                           f"time while the cell's clock stood still: its simulator is lost "
+                           f"({LOCKSTEP_WALL_FACTOR:g} x max_data_age {s.max_data_age:g} s)")
+            else:
+                self.abort(f"stale data: no {t} for "
+                           + (f"{ages[t]:.3f} s" if math.isfinite(ages[t]) else "ever")
+                           + f" (max_data_age {s.max_data_age:g} s)")
         elif self.state == "waiting":
             if (not stale and not self._old and not self._future and clock > 0
                     and not self.blocked):
@@ -287,9 +325,22 @@ class TensionMonitor:
         return ("no fresh sample on " + ", ".join(stale)) if stale else ""
 
     def _stale(self, steady: int) -> list[str]:
-        """The tension topics whose newest sample is older than ``max_data_age``."""
+        """The tension topics whose newest sample is older than ``max_data_age`` (in a
+        lockstep cell: on its clock, or beyond the wall's bound)."""
+        limit = self.settings.max_data_age
         return [t for t in self.tension_topics
-                if self.age(t, steady) > self.settings.max_data_age]
+                if self.age(t, steady) > limit or self.wall_age(t, steady) > self._wall_limit]
+
+    @property
+    def _wall_limit(self) -> float:
+        """The wall age [s] beyond which a stream is stale whatever the cell's clock."""
+        s = self.settings
+        return s.max_data_age * (LOCKSTEP_WALL_FACTOR if self.cell_clock else 1.0)
+
+    def wall_age(self, topic: str, steady: int) -> float:
+        """Wall time [s] since the newest sample on ``topic`` (inf: none yet)."""
+        rx = self._rx[topic]
+        return math.inf if rx is None else (steady - rx) / NS
 
     def diagnostics(self, steady: int) -> tuple[str, str, dict]:
         """(level OK/WARN/ERROR/STALE, message, key values) of the present state."""

@@ -177,6 +177,9 @@ class FakeCell:
 def make_monitor(ros, **settings):
     # fixed: no core runs for the budget (tested below)
     settings.setdefault("abort_ratio", 0.6)
+    # the fake cells here do not wait for the acknowledgements: not a lockstep cell, so
+    # staleness on the wall's clock (stale_clock 'auto' is the cell's in a lockstep cell)
+    settings.setdefault("stale_clock", "wall")
     overrides = [Parameter("use_sim_time", value=True)]
     overrides += [Parameter(k, value=v) for k, v in settings.items()]
     return ros.add(MonitorNode(context=ros.context, parameter_overrides=overrides))

@@ -8,7 +8,6 @@ could read); the wall-clock margins are printed (pytest -s)."""
 from __future__ import annotations
 
 import itertools
-import math
 import random
 import re
 import signal
@@ -153,26 +152,25 @@ def running_cell(ros, procs, tmp_path, **planner):
 
 
 def test_simulator_killed_mid_run_monitor_aborts_and_planner_stops(ros, procs, tmp_path):
+    """A lockstep cell (simulated time, the simulator stepping on the monitor's
+    acknowledgements): a killed simulator stops the cell's clock, so nothing moves; the
+    monitor calls it lost after 10 x max_data_age of wall time with its clock standing
+    still, and the planner stops."""
     c, _ = running_cell(ros, procs, tmp_path)
     kill(procs, c.sim)
-    t_kill = time.monotonic()
-    took = c.wait(lambda: c.rec["/shaping/abort"], 10.0, "the monitor's abort")
+    took = c.wait(lambda: c.rec["/shaping/abort"], 20.0, "the monitor's abort")
     reason = c.rec["/shaping/abort"][0].data
-    assert "stale data" in reason
+    assert "stale data" in reason and "its simulator is lost" in reason, reason
     c.wait(lambda: c.state() not in ("running",), 5.0, "the planner to stop")
-    # The monitor's own measure of the silence when it aborted (its steady clock): the
-    # observer's arrival time adds this test process's scheduling on a busy machine.
-    found = re.search(r"for ([0-9.]+) s \(max_data_age 0.5 s\)", reason)
-    # (a missed QoS deadline is DDS's own timer: exactly max_data_age)
-    age = float(found.group(1)) if found else 0.5 if "QoS deadline" in reason else math.nan
-    print(f"\nsimulator killed: the monitor aborted after {age:.3f} s of silence by its clock "
-          f"(max_data_age 0.5 s), seen by the test {took:.3f} s after the kill; planner "
-          f"{c.state()}")
-    # max_data_age, one watchdog period, and one more check when the monitor itself stalled
-    # for over max_data_age / 2 (StallGuard): it judges only what it could read
-    assert age <= 0.5 + 0.05 + 0.5, reason
+    # the monitor's own measure of the silence when it aborted (its steady clock)
+    found = re.search(r"for ([0-9.]+) s of wall time", reason)
+    age = float(found.group(1))
+    print(f"\nsimulator killed: the monitor aborted after {age:.3f} s of wall with the cell's "
+          f"clock still (10 x max_data_age 0.5 s), seen by the test {took:.3f} s after the "
+          f"kill; planner {c.state()}")
+    # 10 x max_data_age, one watchdog period, one more check when the monitor itself stalled
+    assert 5.0 < age <= 5.0 + 0.05 + 0.5, reason
     assert c.state() in ("stopping", "retracting", "holding")
-    assert time.monotonic() - t_kill < 10.0
     for p in procs.all:
         assert p.stop() == 0, c.logs()
 

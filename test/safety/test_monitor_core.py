@@ -11,7 +11,7 @@ from dataclasses import replace
 import pytest
 
 from rheo_shaping.params.node_params import MonitorNodeParams
-from rheo_shaping.safety.monitor import TensionMonitor
+from rheo_shaping.safety.monitor import TensionMonitor, stale_on_cell_clock
 from rheo_shaping.units import NS
 
 TENSIONS, CONTACT = "/sheet/tensions", "/sheet/contact_tension"
@@ -251,6 +251,42 @@ def test_a_stalled_process_judges_staleness_at_the_next_tick():
     h.mon.tick(h.steady, h.clock, stalled=True)
     h.mon.tick(h.steady, h.clock)             # still nothing: a stream that stopped
     assert len(h.aborts) == 1 and "stale data" in h.aborts[0]
+
+
+def test_in_a_lockstep_cell_a_starved_machine_slows_the_cell_and_stale_is_on_its_clock():
+    """On the cell's clock (the simulator steps only on this monitor's acknowledgements):
+    5 s of wall with the cell's clock standing still is no fault (nothing moved), and a
+    missed wall-clock QoS deadline neither; beyond 10 x max_data_age of wall the simulator
+    is lost; the cell's clock running 0.51 s past the newest sample is stale."""
+    h = Harness(max_data_age=0.5)
+    h.mon.cell_clock = True
+    h.make_ready()
+    h.steady += 5 * NS                               # the wall runs, the cell stands still
+    assert h.mon.tick(h.steady, h.clock) and not h.aborts
+    h.mon.on_deadline(TENSIONS)
+    assert not h.aborts
+    h.steady += int(0.01 * NS)                       # beyond 10 x max_data_age: lost
+    assert not h.mon.tick(h.steady, h.clock)
+    assert h.aborts == [f"stale data: no {TENSIONS} for 5.010 s of wall time while the cell's "
+                        f"clock stood still: its simulator is lost (10 x max_data_age 0.5 s)"]
+    h = Harness(max_data_age=0.5)
+    h.mon.cell_clock = True
+    h.make_ready()
+    h.steady += 4 * NS
+    h.clock += int(0.5 * NS)
+    assert h.mon.tick(h.steady, h.clock) and not h.aborts           # 0.5 s of cell: fresh
+    h.clock += int(0.01 * NS)
+    assert not h.mon.tick(h.steady, h.clock)
+    assert h.aborts == [f"stale data: no {TENSIONS} for 0.510 s (max_data_age 0.5 s)"]
+
+
+@pytest.mark.parametrize("sim_time, acknowledge, stale_clock, expected", [
+    (True, True, "auto", True), (False, True, "auto", False), (True, False, "auto", False),
+    (True, True, "wall", False)])
+def test_the_cells_clock_is_used_only_where_the_cell_waits_for_the_monitor(
+        sim_time, acknowledge, stale_clock, expected):
+    s = MonitorNodeParams(acknowledge=acknowledge, stale_clock=stale_clock)
+    assert stale_on_cell_clock(s, sim_time) is expected
 
 
 def test_missed_deadline_aborts_only_when_ready():
