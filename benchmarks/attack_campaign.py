@@ -71,8 +71,9 @@ TB_RE = re.compile(r"process tracebacks: ([0-9]+)")
 SEEN_RE = re.compile(r"frozen monitor seen by the simulator ([0-9.]+) s")
 
 
-def one_run(attack: str, rtf: float, seed: int, domain: int) -> dict:
+def one_run(attack: str, rtf: float, seed: int, domain: int, adaptive: bool = False) -> dict:
     env = dict(os.environ, RHEO_ATTACK_SEED=str(seed), RHEO_ATTACK_RTF=str(rtf),
+               RHEO_ATTACK_ADAPTIVE="1" if adaptive else "0",
                ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     t0 = time.monotonic()
     p = subprocess.run([sys.executable, "-m", "pytest", "-q", "-s", "-p", "no:cacheprovider",
@@ -138,6 +139,8 @@ def main(argv=None) -> int:
     ap.add_argument("--domain", type=int, default=None,
                     help="the ROS domain of a one-job campaign (default: one claimed per job)")
     ap.add_argument("--jobs", type=int, default=1, help="attacks run at once (default 1)")
+    ap.add_argument("--adaptive", action="store_true",
+                    help="the planner's closed loop on in every run (RHEO_ATTACK_ADAPTIVE=1)")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--summarise", type=Path, nargs="+", default=None, metavar="JSON",
                     help="print the figures of campaigns already run (their --json files, "
@@ -168,12 +171,12 @@ def main(argv=None) -> int:
     seeds = [rng.randrange(2**31) for _ in todo]
     results, t0, loads = [], time.monotonic(), []
     meta = {"seed": args.seed, "runs_per_attack_and_rate": args.runs, "rates": rates,
-            "jobs": args.jobs, "commit": _commit()}
+            "jobs": args.jobs, "commit": _commit(), "adaptive": args.adaptive}
 
     def job(i):
         domain = free.pop()
         try:
-            return one_run(*todo[i], seeds[i], domain)
+            return one_run(*todo[i], seeds[i], domain, args.adaptive)
         finally:
             free.append(domain)
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:

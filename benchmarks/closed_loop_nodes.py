@@ -13,6 +13,9 @@ settle time after its fixed plan), re-plans.  Progress with an ETA on stderr.
     .venv/bin/python benchmarks/closed_loop_nodes.py --cells 200 --seed 4301 --jobs 2 \\
         [--real-time-factor 20] [--json] [--save FILE.json]
 
+``--save`` is written after every run; a campaign started again with the same file, seed
+and real-time factor runs only what it lacks (a campaign cut short resumes).
+
 Each run's wall time depends on the machine's load: the figures say what ran beside them.
 """
 from __future__ import annotations
@@ -20,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import queue
 import subprocess
 import sys
 import tempfile
@@ -110,38 +114,66 @@ def main(argv: list[str] | None = None) -> int:
     draws = [draw(rng) for _ in range(a.cells)]
     tasks = [(i, arm) for i in range(a.cells) for arm in (False, True)]
     rows: dict = {i: {"draw": d} for i, d in enumerate(draws)}
+    loads: list[float] = []
+    if a.save and a.save.exists():
+        old = json.loads(a.save.read_text())
+        same = old["report"].get("seed") == a.seed and \
+            old["report"].get("real_time_factor") == a.real_time_factor
+        if not same:
+            ap.error(f"--save {a.save}: another campaign's (seed, real-time factor): expected "
+                     f"{a.seed}, {a.real_time_factor:g} to resume; give another file")
+        for k, row in old["rows"].items():
+            if int(k) < a.cells:
+                rows[int(k)].update({arm: r for arm, r in row.items() if arm != "draw"})
+        loads = old["report"].get("loads", [])
+    tasks = [(i, arm) for i, arm in tasks if key(arm) not in rows[i]]
     t0, done = time.monotonic(), 0
-    loads = []
     with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(a.jobs) as pool:
-        futures = {pool.submit(run_one, draws[i], arm, a.real_time_factor,
-                               a.domain + (k % a.jobs), Path(tmp) / str(k)): (i, arm)
-                   for k, (i, arm) in enumerate(tasks)
-                   if (Path(tmp) / str(k)).mkdir() is None}
+        free = queue.Queue()             # one ROS domain per running job, never shared
+        for j in range(a.jobs):
+            free.put(a.domain + j)
+
+        def job(k: int, i: int, arm: bool) -> dict:
+            domain = free.get()
+            try:
+                folder = Path(tmp) / str(k)
+                folder.mkdir()
+                return run_one(draws[i], arm, a.real_time_factor, domain, folder)
+            finally:
+                free.put(domain)
+        futures = {pool.submit(job, k, i, arm): (i, arm) for k, (i, arm) in enumerate(tasks)}
         for fut in futures:
             i, arm = futures[fut]
             rows[i][key(arm)] = fut.result()
             done += 1
             loads.append(os.getloadavg()[0])
+            if a.save:
+                a.save.write_text(json.dumps(json_safe(
+                    {"report": {"seed": a.seed, "real_time_factor": a.real_time_factor,
+                                "partial": True, "loads": loads}, "rows": rows}), indent=1))
             el = time.monotonic() - t0
             print(f"[{done}/{len(tasks)}] cell {i} {key(arm)}: "
                   f"{'shaped' if rows[i][key(arm)].get('shaped') else 'not shaped'}"
                   f"; ETA {el / done * (len(tasks) - done):.0f} s", file=sys.stderr, flush=True)
     report = {"machine": f"{cpu_name()}, {os.cpu_count()} cores", "seed": a.seed,
               "cells": a.cells, "real_time_factor": a.real_time_factor, "jobs": a.jobs,
-              "wall_s": time.monotonic() - t0, "load_average_median": float(np.median(loads))}
+              "wall_s": time.monotonic() - t0,
+              "load_average_median": float(np.median(loads)) if loads else None,
+              "loads": loads}
     for arm in ("fixed", "adaptive"):
-        rs = [rows[i][arm] for i in rows]
+        rs = [rows[i][arm] for i in rows if arm in rows[i]]
         report[arm] = {k: sum(1 for r in rs if r.get(k)) for k in ("shaped", "aborted", "torn")}
         report[arm]["errors"] = sum(1 for r in rs if "error" in r)
-    both = [rows[i] for i in rows if rows[i]["fixed"].get("shaped")
-            and rows[i]["adaptive"].get("shaped")]
+    both = [rows[i] for i in rows if rows[i].get("fixed", {}).get("shaped")
+            and rows[i].get("adaptive", {}).get("shaped")]
     report["cycle_ratio_median"] = (float(np.median([r["adaptive"]["cycle_time"]
                                                      / r["fixed"]["cycle_time"] for r in both]))
                                     if both else None)
     if a.save:
         a.save.write_text(json.dumps(json_safe({"report": report, "rows": rows}), indent=1))
-    print(json.dumps(json_safe(report)) if a.json else
-          "\n".join(f"{k}: {v}" for k, v in report.items()))
+    shown = {k: v for k, v in report.items() if k != "loads"}
+    print(json.dumps(json_safe(shown)) if a.json else
+          "\n".join(f"{k}: {v}" for k, v in shown.items()))
     return 0
 
 

@@ -38,6 +38,8 @@ from .ros import Recorder  # noqa: E402
 _SEED = os.environ.get("RHEO_ATTACK_SEED")
 ATTACK_AT = random.Random(int(_SEED)).uniform(2.0, 14.0) if _SEED else 5.0
 RTF = float(os.environ.get("RHEO_ATTACK_RTF", "10"))
+#: the planner's closed loop on (RHEO_ATTACK_ADAPTIVE=1): the attacks hold with it too
+ADAPTIVE = os.environ.get("RHEO_ATTACK_ADAPTIVE", "0") == "1"
 #: process time [s] of an attack late in the run, close below the tear plan's threshold
 #: crossing (~16 s): the same draw mapped onto [13, 15.5] s (a monitor frozen at 15.6 s
 #: while a rogue acknowledged tore the sheet at x1 in 3 of 3 runs)
@@ -63,7 +65,7 @@ class Attacked:
             simulator={"real_time_factor": rtf, "step_period": STEP, "diagnostics_period": 0.2,
                        "publish_clock": True,            # at x1 too: the cell's clock
                        **(simulator or {})},
-            planner={"autostart": False, **(planner or {})},
+            planner={"autostart": False, "adaptive": ADAPTIVE, **(planner or {})},
             monitor={"max_data_age": 0.5, **(monitor or {})})
         self.c = Cell(ros, procs, self.params, streams=(),
                       sampled=("/sheet/profile", "/sheet/tensions", "/tool/pose"))
