@@ -87,8 +87,8 @@ def run(args: argparse.Namespace) -> int:
         from dataclasses import replace
         from ..planning.movement import run_movement
         p = params
-        p = replace(p, movement=replace(p.movement, number=result.movement,
-                                        **({"d": result.d} if result.movement == 4 else {})))
+        d = result.d if result.movement == 4 else p.movement.d
+        p = replace(p, movement=replace(p.movement, number=result.movement, d=d))
         offline = run_movement(p)
         out["offline"] = offline.run_summary.as_dict()
     if args.json:

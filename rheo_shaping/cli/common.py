@@ -5,7 +5,7 @@ import argparse
 import contextlib
 import os
 from pathlib import Path
-from typing import Iterator
+from typing import Iterator, overload
 
 from ..params.config import ConfigError, load_cell
 from ..params.cell import CellParams
@@ -31,6 +31,14 @@ def cell_from_args(args: argparse.Namespace) -> CellParams:
         return load_cell(args.params)
     except ConfigError as exc:
         raise UserError(str(exc)) from None
+
+
+@overload
+def output_path(path: str, force: bool, what: str = ...) -> Path: ...
+
+
+@overload
+def output_path(path: None, force: bool, what: str = ...) -> None: ...
 
 
 def output_path(path: str | None, force: bool, what: str = "file") -> Path | None:
@@ -72,6 +80,16 @@ def _probe_writable(option: str, p: Path, folder: Path, expected: str) -> None:
                         "folder") from None
     os.close(fd)
     os.unlink(probe)
+
+
+@overload
+def output_dir(path: str, force: bool, option: str = ..., *, record: bool = ...,
+               create: bool = ...) -> Path: ...
+
+
+@overload
+def output_dir(path: None, force: bool, option: str = ..., *, record: bool = ...,
+               create: bool = ...) -> None: ...
 
 
 def output_dir(path: str | None, force: bool, option: str = "--out", *,

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 import time
+from typing import Any
 from dataclasses import replace
 
 from ..diagnosis.baseline import BASELINE_MODES
@@ -75,7 +76,7 @@ class _Progress:
 
     def __init__(self, quiet: bool):
         self.quiet = quiet
-        self.bar = None
+        self.bar: Any = None          # a tqdm bar (the current stage's)
         self.fixed = False
 
     def stage(self, k: int, n: int, name: str, total: int | None) -> None:
@@ -147,15 +148,17 @@ def run(args: argparse.Namespace) -> int:
     result["wall_time_s"] = time.monotonic() - t0
     process = None
     if scen is not None:
+        corrected = diag.corrected
+        assert corrected is not None            # the engine always gives the corrected cell
         from ..params.config import dump_cell
         from ..diagnosis.result import process_figures
         scen.write_text("# rheo-shaping diagnose: calibrated baseline + verdict "
                         f"'{diag.verdict}' of {', '.join(diag.records)}\n"
-                        + dump_cell(diag.corrected))
+                        + dump_cell(corrected))
         nominal = fit[0].scenario
         process = process_figures(replace(nominal, movement=replace(nominal.movement, number=4)),
-                                  replace(diag.corrected,
-                                          movement=replace(diag.corrected.movement, number=4)))
+                                  replace(corrected,
+                                          movement=replace(corrected.movement, number=4)))
         result["scenario"] = str(scen)
         result["process"] = process
     if out is not None:
@@ -196,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {w['rank']}. {w['kind']} {w['name']}: {w['relative']:.2f}")
     for grp in ("fit", "holdout"):
         b, a = diag.gap_before.get(grp), diag.gap_after.get(grp)
-        if b:
+        if b and a:                 # the same groups before and after (gap.figures)
             print(f"gap on {grp} records: profile RMS {b['profile_rms_m'] * 1e3:.3f} -> "
                   f"{a['profile_rms_m'] * 1e3:.3f} mm, "
                   f"gap beyond noise {b['gap']:.3f} -> {a['gap']:.3f}")

@@ -132,7 +132,7 @@ def _curve_info(curves) -> list[dict]:
 
 
 def _json_doc(method: str, model: str | None, params: dict[str, Estimate], extra: dict) -> dict:
-    doc = {"method": method, "model": model, "length_m": SPECIMEN_LENGTH_M}
+    doc: dict = {"method": method, "model": model, "length_m": SPECIMEN_LENGTH_M}
     for n in _NAMES:
         doc[n] = params[n].as_dict()["value"]
     doc["se"] = {n: params[n].as_dict()["se"] for n in _NAMES}

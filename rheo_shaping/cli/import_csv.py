@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(str(exc)) from None
     summary = {"record": str(out), "pose_samples": int(record.pose_t.size),
                "profile_frames": len(record.profiles),
-               "wrench_samples": int(record.wrench_t.size) if record.has_wrench else 0,
+               "wrench_samples": int(record.wrench_t.size) if record.wrench_t is not None else 0,
                "duration_s": record.duration}
     if args.json:
         import json

@@ -68,13 +68,14 @@ def run(args: argparse.Namespace) -> int:
         write_record(record, out, truth=params, start_stamp=ms.start_stamp, force=args.force)
     except RecordError as exc:
         raise UserError(str(exc)) from None
+    effects = active_effects(params)
     summary = {"record": str(out), "movement": params.movement.number,
                "duration_s": record.duration, "pose_samples": int(record.pose_t.size),
                "profile_frames": len(record.profiles),
                "points_per_frame": float(sum(len(f) for f in record.profiles)
                                          / max(len(record.profiles), 1)),
-               "wrench_samples": int(record.wrench_t.size) if record.has_wrench else 0,
-               "effects": active_effects(params), "F_max_true": run_.F_max,
+               "wrench_samples": int(record.wrench_t.size) if record.wrench_t is not None else 0,
+               "effects": effects, "F_max_true": run_.F_max,
                "delta_true": run_.delta}
     if args.json:
         print(json.dumps(summary))
@@ -83,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
               f"{summary['pose_samples']} poses, {summary['profile_frames']} profile frames "
               f"(~{summary['points_per_frame']:.0f} points), {summary['wrench_samples']} wrench "
               "samples")
-        print(f"  effects on: {', '.join(summary['effects']) or 'none'}; true F_max "
+        print(f"  effects on: {', '.join(effects) or 'none'}; true F_max "
               f"{run_.F_max:.4f} N, "
               f"Delta {run_.delta * 1e3:.2f} mm")
     return 0

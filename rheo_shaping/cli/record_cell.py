@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(str(exc)) from None
     summary = {"record": str(path), "duration_s": rec.duration,
                "pose_samples": int(rec.pose_t.size), "profile_frames": len(rec.profiles),
-               "wrench_samples": int(rec.wrench_t.size) if rec.has_wrench else 0,
+               "wrench_samples": int(rec.wrench_t.size) if rec.wrench_t is not None else 0,
                "movement": rec.scenario.movement.number}
     if args.json:
         print(json.dumps(summary))

@@ -49,7 +49,7 @@ class _Progress:
         self.bar = tqdm(desc="replay", total=round(span_s, 1), unit="s", file=sys.stderr,
                         disable=quiet, bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} recorded s "
                         "[{elapsed}<{remaining}]")
-        self.started = None
+        self.started: float | None = None
         self.stop = threading.Event()
         self.thread = threading.Thread(target=self._tick, daemon=True)
         self.thread.start()

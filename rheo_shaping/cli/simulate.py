@@ -41,6 +41,7 @@ def run(args: argparse.Namespace) -> int:
         t_end = result.t[-1]
         plot_profiles(result, [0.0, *plan.knots()[1:-1], t_end], plot,
                       f"movement {params.movement.number}")
+        assert history is not None                  # named with the plot
         plot_history(result, history, title=f"movement {params.movement.number}")
         out["plots"] = [str(plot), str(history)]
     if args.json:

@@ -115,7 +115,8 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
             if t_started is None and sim.started:
                 t_started = time.monotonic()
             t = sim.process_time if sim.started else 0.0
-            if progress is not None and progress_period > 0 and sim.started and t >= next_report:
+            if (progress is not None and progress_period > 0 and t_started is not None
+                    and sim.started and t >= next_report):
                 st = sim.sim.state
                 elapsed = time.monotonic() - t_started
                 left = eta(elapsed, t, pt)
@@ -156,4 +157,6 @@ def _stop_times(planner: PlannerNode, sim: SimulatorNode) -> dict:
     if st is None or st.abort_time is None or sim.process_offset_ns is None:
         return {"abort_time": None, "rest_time": None}
     offset = sim.process_offset_ns / 1e9
-    return {"abort_time": st.abort_time - offset, "rest_time": st.rest_time - offset}
+    rest = st.rest_time
+    return {"abort_time": st.abort_time - offset,
+            "rest_time": None if rest is None else rest - offset}

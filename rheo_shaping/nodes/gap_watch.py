@@ -32,6 +32,7 @@ import tempfile
 import threading
 import time
 from collections import deque
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from rclpy.clock import Clock, ClockType
@@ -108,7 +109,7 @@ class GapWatchNode(Node):
                                "(tool/planned_trajectory)", "residuals": {}}
         self.lag = {"last_s": 0.0, "max_s": 0.0}
         self.frame = None
-        self._pool = None
+        self._pool: ProcessPoolExecutor | None = None
         self.jobs: DiagnosisJobs | None = None
         self.verdicts = 0
         self._warned_run = False
@@ -206,8 +207,7 @@ class GapWatchNode(Node):
                 if s.wait_for_plan:           # kept until the process start is known
                     self._early.append((kind, stamp, value, rx))
                     continue
-                self._new_run(stamp)
-                core = self.core
+                core = self._new_run(stamp)
             if kind == "profile":
                 if core.profile(stamp, value) is None:
                     self.frame = value
@@ -224,27 +224,29 @@ class GapWatchNode(Node):
         if fed:
             self._update()
 
-    def _new_run(self, stamp: float) -> None:
-        self.core = GapWatch(self.model, self.floor, self.settings)
-        self.core.start(stamp)
+    def _new_run(self, stamp: float) -> GapWatch:
+        core = self.core = GapWatch(self.model, self.floor, self.settings)
+        core.start(stamp)
         # samples of this run that came before its start (the plan is latched and may
         # arrive after the first states): fed now; the rest is the cell at rest before it
         early = [e for e in self._early if e[1] >= stamp - 1e-9]
         self._early.clear()
         for kind, t, value, _ in early:
             if kind == "profile":
-                self.core.profile(t, value)
+                core.profile(t, value)
             elif kind == "pose":
-                self.core.pose(t, *value)
+                core.pose(t, *value)
             else:
-                self.core.wrench(t, *value)
+                core.wrench(t, *value)
         self.start_stamp = stamp
         self._warned_run = False
         self._end_diagnosed = False
         self.get_logger().info(f"process start at stamp {stamp:.3f} s: watching a new run")
+        return core
 
     def _update(self) -> None:
         core = self.core
+        assert core is not None                 # called once a run is watched (_drain)
         for event in core.update():
             self.get_logger().warning(event) if not event.startswith("OK") else \
                 self.get_logger().info(event)
@@ -289,6 +291,8 @@ class GapWatchNode(Node):
         except (OSError, ValueError) as exc:
             return False, f"cannot write the record to {rec_dir}: {exc}"
         future = self.jobs.submit(str(rec_dir), str(self.report_dir / name / "report"))
+        if future is None:
+            return False, "a diagnosis is running"
         future.add_done_callback(self._on_verdict)
         self.get_logger().info(f"{why}: diagnosing {rec_dir} in a worker process")
         self.pub_verdict.publish(String(data=json.dumps(

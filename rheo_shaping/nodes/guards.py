@@ -9,9 +9,9 @@ from __future__ import annotations
 import os
 import socket
 import time
-from typing import Callable
+from typing import Any, Callable, cast
 
-from rclpy.clock import Clock, ClockType
+from rclpy.clock import Clock, ClockType, ROSClock
 from rclpy.node import Node
 from std_msgs.msg import String
 
@@ -44,6 +44,20 @@ def guard_clock(node: Node, guard: ClockGuard, on_fault: Callable[[str], None]) 
         return callback
 
     wrap_clock_callback(node, wrap)
+
+
+def sim_time_active(node: Node) -> bool:
+    """Whether the node's clock follows /clock (``use_sim_time`` and a /clock heard).  A
+    node's clock is a ``ROSClock``; rclpy annotates ``get_clock()`` as its base ``Clock``."""
+    clock = node.get_clock()
+    assert isinstance(clock, ROSClock)
+    return clock.ros_time_is_active
+
+
+def with_message_info(callback: Callable[[Any, Any], None]) -> Callable[[Any], None]:
+    """``callback(msg, info)`` as ``create_subscription`` takes it: rclpy passes the message
+    info to a callback of two parameters, but annotates only the one-parameter form."""
+    return cast(Callable[[Any], None], callback)
 
 
 def publishers_of(node: Node, topic: str) -> list[Publisher]:
@@ -144,7 +158,7 @@ class Presence:
         self._on_twin = on_twin
         self.twin = ""
         self._younger: set[Announcement] = set()   # same-name nodes that started after this
-        self._settled = False
+        self._settled: bool = False
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._t0 = self._start = self._steady.now().nanoseconds
         self._settle_s = settle_time(None)

@@ -18,11 +18,13 @@ from __future__ import annotations
 
 import json
 import sys
+from functools import partial
 
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.task import Future
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
@@ -60,7 +62,7 @@ class LifecycleManagerNode(Node):
                                   ready_timeout=s.heartbeat_timeout)
         self._change_state = {}
         self._reset: dict = {}              # each node's ~/reset (a recovery clears latches)
-        self._calls: dict[str, tuple[str, object, int]] = {}   # node -> (transition, future, t)
+        self._calls: dict[str, tuple[str, Future, int]] = {}   # node -> (transition, future, t)
         self._waiting: dict[str, tuple[str, int]] = {}         # asked, service not seen yet
         # each heartbeat only from its node, /shaping/ready only from the monitor
         # (by name: a restarted node beats while the killed one's writer is in the graph)
@@ -69,7 +71,7 @@ class LifecycleManagerNode(Node):
         self._ready_src = OwnedStream(self, T.READY.name, "monitor")
         for name in CELL_ORDER:
             self.create_subscription(T.HEARTBEAT.type, f"{name}/heartbeat",
-                                     lambda msg, n=name: self._on_heartbeat(n, msg),
+                                     partial(self._on_heartbeat, name),
                                      T.HEARTBEAT.qos)
             self._change_state[name] = self.create_client(ChangeState, f"{name}/change_state")
             self._reset[name] = self.create_client(Trigger, f"{name}/reset")
@@ -89,7 +91,7 @@ class LifecycleManagerNode(Node):
         guard_clock(self, ClockGuard(MANAGER_CLOCK_JUMP), lambda why: self.get_logger().error(
             f"/clock refused: {why}", throttle_duration_sec=5.0))
         self._status = ""
-        self._last_diag = None
+        self._last_diag: int | None = None
         if s.autostart:
             self.core.startup()
         self.create_timer(s.period, self._tick, clock=self._steady)

@@ -34,6 +34,7 @@ import json
 import os
 import sys
 import time
+from typing import Any, Callable
 
 from rclpy.clock import Clock, ClockType
 from rclpy.lifecycle import LifecycleNodeMixin, LifecycleState, TransitionCallbackReturn
@@ -44,6 +45,7 @@ from ..params.schema import ParameterError
 from ..safety.lifecycle import HEARTBEAT_PERIOD
 from ..params.wire import Field
 from ..units import NS
+from .hosts import ManagedMixin
 from .monitor import MonitorNode
 from .rclpy_private import clock_subscription, lifecycle_label, release_state_machine
 from .planner import MOVING, PlannerNode
@@ -60,7 +62,7 @@ HEARTBEAT_FIELDS = {"state": Field(str, max_len=32), "transitions": Field(int, 0
                     "instance": Field(str, max_len=64), "latch": Field(str, max_len=LATCH_LEN)}
 
 
-class Managed(LifecycleNodeMixin):
+class Managed(LifecycleNodeMixin, ManagedMixin):
     """The lifecycle around the plain node class it is combined with: that class's ``_build``
     runs at ``configure``, its timers run only while ``active``."""
 
@@ -129,7 +131,8 @@ class Managed(LifecycleNodeMixin):
         """Destroy every entity made since the lifecycle's own (the plain node's), but the
         time source's /clock subscription (guard_clock made it again; the node keeps it)."""
         keep = clock_subscription(self)
-        destroy = {"publishers": self.destroy_publisher,
+        destroy: dict[str, Callable[[Any], object]] = {
+                   "publishers": self.destroy_publisher,
                    "subscriptions": self.destroy_subscription,
                    "services": self.destroy_service, "clients": self.destroy_client,
                    "timers": self.destroy_timer, "guards": self.destroy_guard_condition}
@@ -274,7 +277,7 @@ class ManagedPlannerNode(Managed, PlannerNode):
         planner has no later abort).  The simulator follows it in lockstep, its command gate
         checking every set-point; the retract after it is not sent."""
         st = self.streamer
-        if st.stop_plan is None or st.abort_time is None or self.grid is None:
+        if st is None or st.stop_plan is None or st.abort_time is None or self.grid is None:
             return
         end = int(round((st.abort_time + st.stop_plan.duration) * NS))
         for t in self.grid.due(end, end, True):

@@ -64,7 +64,7 @@ def profile_points(msg: PoseArray) -> np.ndarray:
     return np.array([[p.position.x, p.position.z] for p in msg.poses], dtype=float).reshape(-1, 2)
 
 
-def tensions_msg(tension: Sequence[float]) -> Float64MultiArray:
+def tensions_msg(tension: Sequence[float] | np.ndarray) -> Float64MultiArray:
     """Axial force [N] of every link, top bond to workplane bond; dim[0] labelled "link"."""
     values = [float(v) for v in tension]
     msg = Float64MultiArray()
@@ -78,7 +78,7 @@ def float_msg(value: float) -> Float64:
     return Float64(data=float(value))
 
 
-def pose_msg(xz: Sequence[float], ns: int) -> PoseStamped:
+def pose_msg(xz: Sequence[float] | np.ndarray, ns: int) -> PoseStamped:
     msg = PoseStamped(header=header(ns))
     msg.pose.position.x, msg.pose.position.z = float(xz[0]), float(xz[1])
     msg.pose.orientation.w = 1.0
@@ -89,7 +89,7 @@ def pose_xz(msg: PoseStamped) -> tuple[float, float]:
     return float(msg.pose.position.x), float(msg.pose.position.z)
 
 
-def wrench_msg(force_xz: Sequence[float], ns: int) -> WrenchStamped:
+def wrench_msg(force_xz: Sequence[float] | np.ndarray, ns: int) -> WrenchStamped:
     """Force [N] the sheet exerts on the tool."""
     msg = WrenchStamped(header=header(ns))
     msg.wrench.force.x, msg.wrench.force.z = float(force_xz[0]), float(force_xz[1])

@@ -40,6 +40,7 @@ import sys
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
+from rclpy.subscription import Subscription
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String, UInt64
 from std_srvs.srv import Trigger
 
@@ -53,7 +54,8 @@ from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
 from .rclpy_private import clock_subscription
-from .guards import CellCheck, OwnedStream, Presence, clock_publishers, guard_clock
+from .guards import (CellCheck, OwnedStream, Presence, clock_publishers, guard_clock,
+                     sim_time_active, with_message_info)
 from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
 from ..units import NS
@@ -82,7 +84,7 @@ class MonitorNode(Node):
         self.pub_checked = self._publisher(T.CHECKED)
         self.acks = Acknowledgements(s.abort_hold)   # what /shaping/checked says
         self.pub_diag = self._publisher(T.DIAGNOSTICS)
-        self._subs = []
+        self._subs: list[Subscription] = []
         # the tensions only from the simulator of this namespace, the planner's state only
         # from its planner (docs/ros.md, "Who may write what")
         self._owned = {t.contract: OwnedStream(self, t.name, "simulator")
@@ -155,7 +157,7 @@ class MonitorNode(Node):
         self._subs = [
             self.create_subscription(
                 T.TENSIONS.type, T.TENSIONS.name,
-                ((lambda msg, info: self._on_tensions(msg, info))
+                (with_message_info(lambda msg, info: self._on_tensions(msg, info))
                  if self.settings.acknowledge else self._on_tensions), qos,
                 event_callbacks=SubscriptionEventCallbacks(
                     deadline=lambda e: self._on_deadline(T.TENSIONS.contract, e))),
@@ -250,7 +252,7 @@ class MonitorNode(Node):
         steady = self._steady.now().nanoseconds
         self.core.on_stamped(topic, m.stamp_ns(msg.header.stamp), steady,
                              self.get_clock().now().nanoseconds,
-                             self.get_clock().ros_time_is_active)
+                             sim_time_active(self))
 
     def _on_deadline(self, topic: str, event) -> None:
         self.core.on_deadline(topic)
@@ -282,7 +284,7 @@ class MonitorNode(Node):
         now = self._steady.now().nanoseconds
         self.core.blocked = self._not_yet()
         self.core.cell_clock = stale_on_cell_clock(
-            self.settings, self.get_clock().ros_time_is_active)
+            self.settings, sim_time_active(self))
         # this process stood still for over max_data_age / 2 (a busy machine): samples may
         # wait unread behind this timer, so they are judged at the next tick, not now
         stalled = self._watchdog_guard.check(now)

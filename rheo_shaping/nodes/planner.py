@@ -58,7 +58,8 @@ from ..safety.clock_guard import ClockGuard
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
-from .guards import CellCheck, OwnedStream, Presence, clock_publishers, guard_clock
+from .guards import (CellCheck, OwnedStream, Presence, clock_publishers, guard_clock,
+                     sim_time_active)
 from .planner_adaptive import PlannerAdaptive
 from .planner_supervision import PlannerSupervision
 from .ros_params import SchemaParameters
@@ -81,9 +82,10 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         # /tool/command is created once no older planner of this name is known (a twin
         # that yields never shows up as a second commander, _supervise)
         self.pub_command = None
-        for attr, topic in (("pub_trajectory", T.PLANNED_TRAJECTORY),
-                            ("pub_state", T.PLANNER_STATE)):
-            setattr(self, attr, self.create_publisher(topic.type, topic.name, topic.qos))
+        pub = T.PLANNED_TRAJECTORY
+        self.pub_trajectory = self.create_publisher(pub.type, pub.name, pub.qos)
+        pub = T.PLANNER_STATE
+        self.pub_state = self.create_publisher(pub.type, pub.name, pub.qos)
         subs = {topic.contract: self.create_subscription(topic.type, topic.name, callback,
                                                          topic.qos)
                 for topic, callback in ((T.ABORT, self._on_abort), (T.READY, self._on_ready),
@@ -271,9 +273,12 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
             # so the stream stays continuous in position, velocity and acceleration.
             t = self._executed_ns(now)
             self.streamer.abort(t / NS, reason)
-            t = int(round(self.streamer.abort_time * NS))
-            if self._last_cmd_ns is not None and t < self._last_cmd_ns:
-                for t_send in self.grid.rewind(t):
+            abort_time = self.streamer.abort_time
+            assert abort_time is not None           # abort() gives it
+            t = int(round(abort_time * NS))
+            grid = self.grid            # the run's grid (the streamer runs only with one)
+            if grid is not None and grid.last_ns is not None and t < grid.last_ns:
+                for t_send in grid.rewind(t):
                     self._publish_setpoint(t_send)
             stop = self.streamer.stop_plan
             self.get_logger().error(
@@ -304,7 +309,7 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
             response.message = f"aborted ({self.abort_reason}); ~/reset first"
         else:
             self._start_requested = True
-            if self._tool_away():
+            if self._tool_away() and self._tool_pose is not None:   # away: a pose is known
                 self._hold = self._tool_pose.copy()          # the plan approaches from there
             response.success, response.message = True, "start requested: waiting for the interlock"
             if not self.presence.settled:     # served only if no older planner of this name
@@ -358,7 +363,7 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         self._lead_note = note
         self._adaptive_tick()                   # a finished re-plan first, then the set-points
         skipped = self.grid.skipped
-        for t in self.grid.due(now, limit, self.get_clock().ros_time_is_active):
+        for t in self.grid.due(now, limit, sim_time_active(self)):
             self._publish_setpoint(t)
         if self.grid.skipped > skipped:
             self.get_logger().warning(f"the clock jumped {self.grid.skipped - skipped} control "
@@ -367,8 +372,10 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         self._update_state()
 
     def _publish_setpoint(self, t_ns: int) -> None:
-        pos, _, _ = self.streamer.setpoint(t_ns / NS)
-        self.pub_command.publish(m.pose_msg(pos, t_ns))
+        st, pub = self.streamer, self.pub_command
+        assert st is not None and pub is not None      # only while a run streams
+        pos, _, _ = st.setpoint(t_ns / NS)
+        pub.publish(m.pose_msg(pos, t_ns))
 
 
 def main(args=None):

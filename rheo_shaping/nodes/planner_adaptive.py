@@ -23,12 +23,14 @@ from std_msgs.msg import Float64, String
 from ..adaptive.observe import Sample
 from ..adaptive.online import OnlineConfig, OnlineShaper, OnlineStep
 from ..jsonable import json_safe
+from ..planning.stopping import TrajectoryStreamer
 from ..units import NS
 from . import messages as m
 from . import topics as T
+from .hosts import PlannerMixin
 
 
-class PlannerAdaptive:
+class PlannerAdaptive(PlannerMixin):
     """The planner node's closed loop (mixed into :class:`~.planner.PlannerNode`)."""
 
     def _setup_adaptive(self) -> None:
@@ -87,23 +89,27 @@ class PlannerAdaptive:
 
     def _adaptive_tick(self) -> None:
         """Switch to a finished re-plan, then begin the next refresh when one is due."""
-        online, st = self.online, self.streamer
-        if online is None or st is None:
+        online, st, grid = self.online, self.streamer, self.grid
+        if online is None or st is None or grid is None:     # (a streamer has its grid)
             return
+        t0 = grid.t0_ns
         if self._worker is not None and not self._worker.is_alive():
             self._worker, result, self._result = None, self._result, None
-            self._span = (self._last_cmd_ns - self._t0_ns) / NS - self._began
-            self._take(result)
-        if (self._worker is not None or st.state != "running" or self._pose_ns is None
-                or self._last_cmd_ns is None or self._pose_ns < self._t0_ns):
+            last = grid.last_ns
+            assert last is not None             # a refresh begins after a set-point is sent
+            self._span = (last - t0) / NS - self._began
+            self._take(result, online, st, t0)
+        last, pose_ns, pose = grid.last_ns, self._pose_ns, self._tool_pose
+        if (self._worker is not None or st.state != "running" or pose_ns is None
+                or pose is None or last is None or pose_ns < t0):
             return
-        t = (self._pose_ns - self._t0_ns) / NS
+        t = (pose_ns - t0) / NS
         reason = online.due(t)
         if reason is None:
             return
         samples, self._samples = self._samples, []
-        streamed = self._began = (self._last_cmd_ns - self._t0_ns) / NS
-        xz = tuple(self._tool_pose)
+        streamed = self._began = (last - t0) / NS
+        xz = tuple(pose)
         lead = 2.0 * self._span           # the join after the stream's lead of the last one
 
         def work() -> None:
@@ -117,8 +123,9 @@ class PlannerAdaptive:
         self._worker = threading.Thread(target=work, name="adaptive", daemon=True)
         self._worker.start()
 
-    def _take(self, result: OnlineStep | BaseException | None) -> None:
-        online, st = self.online, self.streamer
+    def _take(self, result: OnlineStep | BaseException | None, online: OnlineShaper,
+              st: TrajectoryStreamer, t0_ns: int) -> None:
+        """A refresh's result (of ``online``, the running ``st`` since ``t0_ns``)."""
         if isinstance(result, BaseException) or result is None:
             self.get_logger().error(f"adaptive: the refresh failed ({result!r}): the running "
                                     f"plan goes on, no further re-plan")
@@ -130,7 +137,7 @@ class PlannerAdaptive:
                 st.replace_rest(result.plan, result.t_join)
                 online.accept(result)
                 self.pub_trajectory.publish(m.trajectory_msg(
-                    result.plan, self._t0_ns, self.settings.trajectory_period))
+                    result.plan, t0_ns, self.settings.trajectory_period))
                 switched = f"re-planned from t = {result.t_join:.2f} s: "
             except (RuntimeError, ValueError) as exc:
                 switched = f"re-plan dropped ({exc}): "

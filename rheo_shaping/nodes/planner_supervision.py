@@ -6,6 +6,7 @@ monitor's heartbeat, what the planner waits for and says, the start of a run (a 
 """
 from __future__ import annotations
 
+from rclpy.publisher import Publisher
 from std_msgs.msg import String
 
 from ..params.schema import ParameterError
@@ -16,12 +17,22 @@ from ..safety.watchdog import StallGuard
 from ..units import NS
 from . import messages as m
 from . import topics as T
+from .hosts import PlannerMixin
 from .rclpy_private import clock_subscription
 
 
-class PlannerSupervision:
+class PlannerSupervision(PlannerMixin):
     """The planner node's supervision (mixed into :class:`~.planner.PlannerNode`, whose state
     it reads and sets)."""
+
+    # the node's state this sets (PlannerNode._build initializes it)
+    pub_command: Publisher | None       # /tool/command, made once no older twin is known
+    streamer: TrajectoryStreamer | None
+    grid: SetpointGrid | None
+    _supervise_guard: StallGuard | None
+    _commander: str | None
+    _refused: str
+    _start_failed: str
 
     # -- supervision (steady clock) -------------------------------------------------
     def _on_commander(self, msg: String) -> None:
@@ -82,6 +93,7 @@ class PlannerSupervision:
     def _say_wait(self, state: str, monitor_why: str) -> None:
         """What a wait waits for: the full topic name and the likely fix, every 5 s."""
         clock = clock_subscription(self)
+        command = self.pub_command          # made before any wait for a subscriber
         what = {
             "waiting_for_monitor": (
                 f"the monitor's ready heartbeat on {self._ready_topic} ({monitor_why}): the "
@@ -91,7 +103,8 @@ class PlannerSupervision:
                 f"/clock on {clock.topic_name if clock else '/clock'}: the simulator publishes "
                 f"its clock relative to its namespace; in a namespace add -r /clock:=clock"),
             "waiting_for_subscriber": (
-                f"a subscriber of {self.pub_command.topic_name} (the simulator or the robot)"),
+                f"a subscriber of {command.topic_name if command else T.TOOL_COMMAND.name} "
+                f"(the simulator or the robot)"),
             "waiting_for_pose": (f"the tool pose on {self.resolve_topic_name(T.TOOL_POSE.name)}"
                                  + ("" if self._hold_ns is None else
                                     f" stamped at or after the last run's newest set-point "
@@ -156,7 +169,9 @@ class PlannerSupervision:
         if st.state == "done":
             pt = self.cell_used.movement.process_time
             now = self._now_ns()
-            self._set_state("done" if now >= self._t0_ns + pt * NS - 1 else "running")
+            t0 = self._t0_ns
+            assert t0 is not None               # a streamer that ran has its grid
+            self._set_state("done" if now >= t0 + pt * NS - 1 else "running")
         elif st.state == "idle":
             self._set_state("waiting")
         else:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+from rclpy.lifecycle import LifecycleNodeMixin
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 from rclpy.time_source import TimeSource
@@ -28,7 +29,9 @@ def wrap_clock_callback(node: Node, wrap: Callable[[ClockCallback], ClockCallbac
     """Replace the time source's ``/clock`` callback by ``wrap(original)`` and subscribe
     again with it (same topic, so remaps such as ``/clock:=clock`` hold)."""
     ts = node._time_source
-    ts.clock_callback = wrap(lambda msg: TimeSource.clock_callback(ts, msg))
+    # the instance's callback replaces the class's method (setattr: mypy refuses assigning
+    # to a method, which is what this does on purpose)
+    setattr(ts, "clock_callback", wrap(lambda msg: TimeSource.clock_callback(ts, msg)))
     if ts._clock_sub is not None:
         node.destroy_subscription(ts._clock_sub)
         ts._clock_sub = None
@@ -44,11 +47,11 @@ def parameter_overrides(node: Node) -> dict:
     return overrides
 
 
-def lifecycle_label(node: Node) -> str:
+def lifecycle_label(node: LifecycleNodeMixin) -> str:
     """A lifecycle node's primary state's label (unconfigured, inactive, active, ...)."""
     return node._state_machine.current_state[1]
 
 
-def release_state_machine(node: Node) -> None:
+def release_state_machine(node: LifecycleNodeMixin) -> None:
     """Let a lifecycle node's state machine go with the node (rclpy keeps its handle)."""
     node._state_machine.destroy_when_not_in_use()

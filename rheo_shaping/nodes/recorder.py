@@ -193,8 +193,10 @@ def _record(node: CellRecorder, executor, context, out: Path, scenario, namespac
     except KeyboardInterrupt:
         say("record-cell: interrupted: writing what was recorded")
     rec = node.record(cell, out.name)
-    start = start_stamp if start_stamp is not None else node.buf.start_ns / NS
-    path = write_record(rec, out, start_stamp=start, force=force)
+    start_ns = node.buf.start_ns
+    assert start_ns is not None             # record() refuses a run that never started
+    stamp = start_stamp if start_stamp is not None else start_ns / NS
+    path = write_record(rec, out, start_stamp=stamp, force=force)
     return path, rec
 
 

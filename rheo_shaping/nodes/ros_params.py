@@ -99,12 +99,14 @@ def describe(fi: FieldInfo) -> ParameterDescriptor:
     desc = ParameterDescriptor(name=fi.name, description=text, additional_constraints=valid)
     if fi.kind in (float, int, tuple):
         desc.dynamic_typing = True          # 120 and 120.0 both accepted; the schema checks
-    bounded = spec.lo is not None and spec.hi is not None
-    if fi.kind is float and bounded and math.isfinite(spec.lo) and math.isfinite(spec.hi):
-        desc.floating_point_range = [FloatingPointRange(from_value=float(spec.lo),
-                                                        to_value=float(spec.hi), step=0.0)]
-    elif fi.kind is int and bounded:
-        desc.integer_range = [IntegerRange(from_value=int(spec.lo), to_value=int(spec.hi), step=0)]
+    lo, hi = spec.lo, spec.hi
+    if lo is None or hi is None:
+        pass
+    elif fi.kind is float and math.isfinite(lo) and math.isfinite(hi):
+        desc.floating_point_range = [FloatingPointRange(from_value=float(lo),
+                                                        to_value=float(hi), step=0.0)]
+    elif fi.kind is int:
+        desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=0)]
     return desc
 
 

@@ -16,6 +16,8 @@ from __future__ import annotations
 import time
 from typing import Callable
 
+from rclpy.task import Future
+
 
 def query(client, request, spin_once: Callable[[float], None], timeout_s: float,
           resend_s: float = 2.0):
@@ -23,7 +25,8 @@ def query(client, request, spin_once: Callable[[float], None], timeout_s: float,
     reply; None when no reply came within ``timeout_s`` [s].  ``spin_once(seconds)`` spins the
     executor that holds the client's node."""
     end = time.monotonic() + timeout_s
-    futures, sent = [], -float("inf")
+    futures: list[Future] = []
+    sent = -float("inf")
     while True:
         for future in futures:
             if future.done():

@@ -5,7 +5,7 @@ context shut down.  Node executables use :func:`.spin.run_node` (signals, exit c
 from __future__ import annotations
 
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Callable, Iterator
 
 import rclpy
 from rclpy.context import Context
@@ -14,7 +14,7 @@ from rclpy.node import Node
 
 
 @contextmanager
-def ros_session(args: list[str], executor_type: type = SingleThreadedExecutor
+def ros_session(args: list[str], executor_type: Callable[..., Executor] = SingleThreadedExecutor
                 ) -> Iterator[tuple[Context, Executor, list[Node]]]:
     """``with ros_session(args) as (context, executor, nodes):`` make nodes on ``context``,
     append them to ``nodes`` and add them to ``executor``; all are torn down on exit."""

@@ -40,6 +40,7 @@ import sys
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
@@ -56,7 +57,7 @@ from ..safety.command_gate import CommandGate, ToolLimits
 from ..safety.watchdog import Freshness
 from . import messages as m
 from . import topics as T
-from .guards import OwnedStream, Presence
+from .guards import OwnedStream, Presence, with_message_info
 from .simulator_intake import SetpointIntake
 from .simulator_outputs import SimulatorOutputs
 from .ros_params import SchemaParameters
@@ -95,28 +96,26 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         self.pub_diag = pub(T.DIAGNOSTICS)
         self.pub_camera = pub(T.MEASURED_PROFILE)
         # only while this node is the clock (_configure_time)
-        self.pub_clock = None
+        self.pub_clock: Publisher | None = None
         self._command_sub = self.create_subscription(
             T.TOOL_COMMAND.type, T.TOOL_COMMAND.name,
-            (lambda msg, info: self._on_command(msg, info)) if message_info
+            with_message_info(lambda msg, info: self._on_command(msg, info)) if message_info
             else self._on_command, T.TOOL_COMMAND.qos)
         # one commander: the bound planner's set-points, within the tool's limits
         self.gate = CommandGate(self._tool_limits())
         self._unbound: list[tuple] = []            # set-points waiting for the graph
         self.pub_abort = self._latched(T.ABORT)
-        self.create_subscription(T.ABORT.type, T.ABORT.name,
-                                 lambda msg: self._hold(f"abort: {msg.data}", publish=False),
-                                 T.ABORT.qos)
+        self.create_subscription(T.ABORT.type, T.ABORT.name, self._on_abort, T.ABORT.qos)
         self.pub_cell = self._latched(T.CELL)
         self.pub_commander = self._latched(T.COMMANDER)
         self._commander: str | None = None          # what /shaping/commander said last
         self._commander_ns = 0                      # steady time it was last checked
-        self._last_hold_pub = None     # steady time of the last state re-published on hold
+        self._last_hold_pub: int | None = None  # steady time of the last re-publication on hold
         # acknowledgements only from the monitor of this namespace (a second writer holds)
         self._checked = OwnedStream(self, T.CHECKED.name, "monitor")
         self.create_subscription(
             T.CHECKED.type, T.CHECKED.name,
-            (lambda msg, info: self._on_checked(msg, info)) if message_info
+            with_message_info(lambda msg, info: self._on_checked(msg, info)) if message_info
             else self._on_checked, T.CHECKED.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
@@ -185,6 +184,9 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
             self.pub_abort.publish(String(data=f"simulator: {reason}"))
         self._force_publish = True
         self._last_diag = None                          # /diagnostics says it at once
+
+    def _on_abort(self, msg: String) -> None:
+        self._hold(f"abort: {msg.data}", publish=False)
 
     # -- parameters -------------------------------------------------------------------
     @property
@@ -318,7 +320,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
             if choice == HOLD_FOR_START:
                 self._pending = False
                 self._clock_holds += 1
-                self.pub_clock.publish(m.clock_msg(self._t_ns + self._dt_ns))
+                self._publish_clock(self._t_ns + self._dt_ns)
                 now = self._steady.now().nanoseconds
                 if (self._last_hold_pub is None
                         or now - self._last_hold_pub >= HOLD_REPUBLISH * NS):
@@ -339,13 +341,19 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
                     f"step to {target / NS:.3f} s without its set-point (newest "
                     f"{self.run.cmds[-1][0] / NS:.3f} s): the tool holds; late steps so far "
                     f"{self._late_steps}", throttle_duration_sec=5.0)
-            self.pub_clock.publish(m.clock_msg(target + self._dt_ns))   # one step ahead
+            self._publish_clock(target + self._dt_ns)   # one step ahead
         else:
             target = self.get_clock().now().nanoseconds
             if target <= self._t_ns:
                 return
         self._pending = False
         self._step_to(target)
+
+    def _publish_clock(self, t_ns: int) -> None:
+        """/clock at ``t_ns`` (only while this node is the clock, _configure_time)."""
+        pub = self.pub_clock
+        assert pub is not None
+        pub.publish(m.clock_msg(t_ns))
 
     def _step_to(self, target: int) -> None:
         run = self.run
@@ -357,7 +365,9 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
                 self._finish(finished)
                 if finished < run.process_time_at(target) - 1e-9:
                     # the state at the process end is published, then the run goes on
-                    self._publish_state(run.offset_ns + int(round(finished * NS)))
+                    offset = run.offset_ns
+                    assert offset is not None           # a run that advanced has started
+                    self._publish_state(offset + int(round(finished * NS)))
                     run.advance(target)
                 else:
                     self._force_publish = True

@@ -13,11 +13,16 @@ from ..safety.command_gate import GRAPH_WAIT, Publisher
 from ..units import NS
 from . import messages as m
 from .guards import publishers_of
+from .hosts import SimulatorMixin
 
 
-class SetpointIntake:
+class SetpointIntake(SimulatorMixin):
     """The simulator node's set-point intake (mixed into :class:`~.simulator.SimulatorNode`,
     whose gate, run and publishers it uses)."""
+
+    # the node's state this sets (SimulatorNode._build initializes it)
+    _commander: str | None
+    _unbound: list[tuple]
 
     def _command_publishers(self) -> list[Publisher]:
         return publishers_of(self, self._command_sub.topic_name)

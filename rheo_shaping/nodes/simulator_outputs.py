@@ -11,11 +11,23 @@ from ..records.measurement import MeasurementParams, profile_frame
 from ..sheet.setpoints import run_status
 from ..units import NS
 from . import messages as m
+from .hosts import SimulatorMixin
 
 
-class SimulatorOutputs:
+class SimulatorOutputs(SimulatorMixin):
     """The simulator node's publishing (mixed into :class:`~.simulator.SimulatorNode`, whose
     state it reads)."""
+
+    # the node's state this sets (SimulatorNode._build and _new_run initialize it)
+    _force_publish: bool
+    _last_pub_ns: int | None            # the last state published [ns, node clock]
+    _last_camera: int | None            # the next camera frame is due at this time [ns]
+    _last_marker: int | None            # steady time of the last markers [ns]
+    _last_diag: int | None              # steady time of the last /diagnostics [ns]
+    _last_hold_camera: int | None       # steady time of the last frame while /clock held
+    _rate_ref: tuple[int, int] | None   # (steady ns, sim ns) to measure the achieved factor
+    achieved_factor: float
+    _next_progress: float
 
     # -- publishing -------------------------------------------------------------------
     def _publish(self, t_ns: int) -> None:

@@ -32,7 +32,7 @@ PIP_ONLY = {"ruckig": "pip install ruckig",
 #: RViz configuration): a misspelt key would make `rosdep install` fail.
 #: The tests' own third-party modules (imported, or run as ``python -m``) and their keys
 #: (rosdep/python.yaml): pytest, the property tests' hypothesis, and the lint and type
-#: tests' flake8 (test/package/test_lint.py) and mypy (test/architecture/test_types.py).
+#: tests' flake8 (test/package/test_lint.py) and mypy (test/_support/typecheck.py).
 TEST_MODULE_KEYS = {"pytest": "python3-pytest", "hypothesis": "python3-hypothesis",
                     "flake8": "python3-flake8", "mypy": "python3-mypy"}
 TEST_DEPENDS = set(TEST_MODULE_KEYS.values())
