@@ -14,4 +14,6 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'schedule': ['Choice', 'Schedule', 'fixed_schedule'],
     'replan': ['replan', 'Replan', 'ReplanStatus', 'ReplanLimits', 'Prediction'],
     'loop': ['run_closed_loop', 'LoopConfig', 'LoopResult', 'monitor_threshold'],
+    'online': ['OnlineShaper', 'OnlineConfig', 'OnlineStep', 'Reason'],
+    'worker': ['ShaperProcess'],
 })

@@ -143,7 +143,7 @@ class OnlineShaper:
         ``t`` (a tool further than ``pose_tolerance`` from its set-point is not
         re-planned)."""
         t = check_finite("t [s]", t, non_negative=True)
-        self._t_refresh, self._where = t, self.schedule.move_at(t)[:2]
+        self.begin(t)
         estimate = self.estimator.update(self._pending)
         self._pending = []
         lead = max(self.config.join_lead, 0.0 if lead is None else float(lead))
@@ -165,6 +165,13 @@ class OnlineShaper:
                 return self._step(t, reason, t_join, estimate, rp, back,
                                   f"{rp.message}; back to the params file's plan")
         return self._step(t, reason, t_join, estimate, rp, sched, rp.message)
+
+    def begin(self, t: float, drop_samples: bool = False) -> None:
+        """A refresh begins at process time ``t`` [s]: the next is due from here (and the
+        samples kept are dropped: a bookkeeping copy whose refresh runs elsewhere)."""
+        self._t_refresh, self._where = t, self.schedule.move_at(t)[:2]
+        if drop_samples:
+            self._pending = []
 
     def accept(self, step: OnlineStep) -> None:
         """The stream follows ``step``'s plan from its join on."""

@@ -106,9 +106,9 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
                                  T.COMMANDER.qos)
         self.create_service(Trigger, '~/start', self._on_start)
         self.create_service(Trigger, '~/reset', self._on_reset)
-        self._setup_adaptive()
 
         self.cell_used, self.plan = self._make_plan()
+        self._setup_adaptive()
         self._start_failed = ""       # the run could not start (e.g. its approach); ~/reset
         self.streamer: TrajectoryStreamer | None = None
         self.aborted = False
@@ -139,6 +139,11 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         self.presence = Presence(self, self._yield, acting=lambda: self.pub_command is not None)
 
     # -- parameters and plan --------------------------------------------------------
+    def destroy_node(self) -> None:
+        if getattr(self, "_shaper_process", None) is not None:
+            self._close_adaptive()                 # the closed loop's worker process
+        super().destroy_node()
+
     @property
     def cell(self) -> CellParams:
         return self.params["cell"]
@@ -237,6 +242,8 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         """Why the plan may not start now (twins, cell, clocks); "" if it may."""
         if not self.presence.settled:
             return "starting up: checking that no other planner of this name runs"
+        if self.streamer is None and self._adaptive_refusal():
+            return self._adaptive_refusal()
         if self.settings.check_cell:
             why = self.cell_check.mismatch()
             if why is None:

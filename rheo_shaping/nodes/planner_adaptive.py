@@ -4,8 +4,10 @@ core's: :class:`rheo_shaping.adaptive.online.OnlineShaper`).
 
 The node keeps the newest ``/tool/wrench`` and ``/sheet/contact_tension`` and, at each
 executed tool pose the shaper wants, one :class:`~rheo_shaping.adaptive.observe.Sample`;
-when a refresh is due it runs in one worker thread (the estimate and the re-plan take
-tenths of a second), joined ``adaptive_join_lead`` after the newest set-point sent, and
+when a refresh is due it runs in the closed loop's worker process
+(:class:`rheo_shaping.adaptive.worker.ShaperProcess`: the estimate and the re-plan take
+tenths of a second of CPU that would hold this interpreter), joined
+``adaptive_join_lead`` after the newest set-point sent, and
 the next control tick switches the stream to it
 (:meth:`~rheo_shaping.planning.stopping.TrajectoryStreamer.replace_rest`) or drops it when
 the stream has already passed the join or stopped.  Each refresh is published on
@@ -15,13 +17,14 @@ the stream has already passed the join or stopped.  Each refresh is published on
 from __future__ import annotations
 
 import json
-import threading
+from concurrent.futures import Future
 
 from geometry_msgs.msg import WrenchStamped
 from std_msgs.msg import Float64, String
 
 from ..adaptive.observe import Sample
 from ..adaptive.online import OnlineConfig, OnlineShaper, OnlineStep
+from ..adaptive.worker import ShaperProcess
 from ..jsonable import json_safe
 from ..planning.stopping import TrajectoryStreamer
 from ..units import NS
@@ -38,19 +41,37 @@ class PlannerAdaptive(PlannerMixin):
         self._wrench: tuple[float, float] | None = None
         self._contact: float | None = None
         self._samples: list[Sample] = []
-        self._worker: threading.Thread | None = None
-        self._result: OnlineStep | BaseException | None = None
+        self._work: Future | None = None
         self.adaptive_log: list[dict] = []      # every refresh of this node (as published)
         self._span = 0.0                        # s of process time the last refresh took
         self._began = 0.0                       # s, the stream's time when it began
+        self._shaper_process: ShaperProcess | None = None
         if not self.settings.adaptive:
             return
+        self._shaper_process = ShaperProcess(self.cell_used, self._online_config())
         self.pub_estimate = self.create_publisher(T.ESTIMATE.type, T.ESTIMATE.name,
                                                   T.ESTIMATE.qos)
         self.create_subscription(T.TOOL_WRENCH.type, T.TOOL_WRENCH.name, self._on_wrench,
                                  T.TOOL_WRENCH.qos)
         self.create_subscription(T.CONTACT_TENSION.type, T.CONTACT_TENSION.name,
                                  self._on_contact, T.CONTACT_TENSION.qos)
+
+    def _online_config(self) -> OnlineConfig:
+        s = self.settings
+        return OnlineConfig(refresh_period=s.adaptive_refresh, join_lead=s.adaptive_join_lead)
+
+    def _adaptive_refusal(self) -> str:
+        """Why a run may not start yet: the closed loop's worker is still starting."""
+        proc = self._shaper_process
+        if proc is not None and not proc.warm:
+            return "the closed loop's worker process is starting (adaptive)"
+        return ""
+
+    def _close_adaptive(self) -> None:
+        """End the closed loop's worker process (the node is destroyed)."""
+        if self._shaper_process is not None:
+            self._shaper_process.close()
+            self._shaper_process = None
 
     def _on_wrench(self, msg: WrenchStamped) -> None:
         self._wrench = (float(msg.wrench.force.x), float(msg.wrench.force.z))
@@ -62,16 +83,15 @@ class PlannerAdaptive(PlannerMixin):
         """The plan a run starts: the shaper's (the params file's movement as a schedule)
         when ``adaptive`` and the run starts at the movement's start; else ``plan``."""
         self.online = None
-        if not self.settings.adaptive:
+        if self._shaper_process is None:
             return plan
         if plan is not self.plan:
             self.get_logger().warning("adaptive: this run starts with an approach from where "
                                       "the tool is: it follows the fixed plan")
             return plan
         s = self.settings
-        self.online = OnlineShaper(self.cell_used, OnlineConfig(
-            refresh_period=s.adaptive_refresh, join_lead=s.adaptive_join_lead))
-        self._samples, self._result, self._worker = [], None, None
+        self.online = self._shaper_process.start(self.cell_used, self._online_config())
+        self._samples, self._work = [], None
         self.get_logger().info(f"adaptive: estimating the material every "
                                f"{s.adaptive_refresh:g} s of process time; the pessimistic "
                                f"F_max kept under {self.online.limits.F_limit:.3f} N")
@@ -84,23 +104,31 @@ class PlannerAdaptive(PlannerMixin):
         t = (stamp_ns - self._t0_ns) / NS
         if t >= 0.0 and self.online.wants(t) and (not self._samples
                                                   or t > self._samples[-1].t):
-            self._samples.append(Sample(t=t, tool=(float(xz[0]), float(xz[1])),
-                                        wrench=self._wrench, contact_tension=self._contact))
+            sample = Sample(t=t, tool=(float(xz[0]), float(xz[1])), wrench=self._wrench,
+                            contact_tension=self._contact)
+            self.online.add(sample)
+            self._samples.append(sample)
 
     def _adaptive_tick(self) -> None:
         """Switch to a finished re-plan, then begin the next refresh when one is due."""
-        online, st, grid = self.online, self.streamer, self.grid
-        if online is None or st is None or grid is None:     # (a streamer has its grid)
+        online, st, grid, proc = self.online, self.streamer, self.grid, self._shaper_process
+        if online is None or st is None or grid is None or proc is None:
             return
         t0 = grid.t0_ns
-        if self._worker is not None and not self._worker.is_alive():
-            self._worker, result, self._result = None, self._result, None
+        if self._work is not None and self._work.done():
+            work, self._work = self._work, None
             last = grid.last_ns
             assert last is not None             # a refresh begins after a set-point is sent
             self._span = (last - t0) / NS - self._began
-            self._take(result, online, st, t0)
+            try:
+                index, step, cpu = work.result()
+            except Exception as exc:            # the worker's error, named; never lost
+                self._failed(exc)
+                return
+            proc.cpu_s += cpu
+            self._take(index, step, proc, st, t0)
         last, pose_ns, pose = grid.last_ns, self._pose_ns, self._tool_pose
-        if (self._worker is not None or st.state != "running" or pose_ns is None
+        if (self._work is not None or st.state != "running" or pose_ns is None
                 or pose is None or last is None or pose_ns < t0):
             return
         t = (pose_ns - t0) / NS
@@ -109,39 +137,30 @@ class PlannerAdaptive(PlannerMixin):
             return
         samples, self._samples = self._samples, []
         streamed = self._began = (last - t0) / NS
-        xz = tuple(pose)
         lead = 2.0 * self._span           # the join after the stream's lead of the last one
+        self._work = proc.submit(samples, t, reason, (float(pose[0]), float(pose[1])),
+                                 streamed, lead)
 
-        def work() -> None:
-            try:
-                for s in samples:
-                    online.add(s)
-                self._result = online.refresh(t, reason, executed_xz=xz, streamed=streamed,
-                                              lead=lead)
-            except Exception as exc:           # reported by the node, never lost in a thread
-                self._result = exc
-        self._worker = threading.Thread(target=work, name="adaptive", daemon=True)
-        self._worker.start()
+    def _failed(self, exc: BaseException) -> None:
+        self.get_logger().error(f"adaptive: the refresh failed ({exc!r}): the running plan "
+                                f"goes on, no further re-plan")
+        self.online = None
 
-    def _take(self, result: OnlineStep | BaseException | None, online: OnlineShaper,
+    def _take(self, index: int, result: OnlineStep, proc: ShaperProcess,
               st: TrajectoryStreamer, t0_ns: int) -> None:
-        """A refresh's result (of ``online``, the running ``st`` since ``t0_ns``)."""
-        if isinstance(result, BaseException) or result is None:
-            self.get_logger().error(f"adaptive: the refresh failed ({result!r}): the running "
-                                    f"plan goes on, no further re-plan")
-            self.online = None
-            return
+        """Refresh ``index``'s result (of ``proc``, the running ``st`` since ``t0_ns``)."""
         switched = ""
         if result.plan is not None:
             try:
                 st.replace_rest(result.plan, result.t_join)
-                online.accept(result)
+                proc.accept(index, result)
                 self.pub_trajectory.publish(m.trajectory_msg(
                     result.plan, t0_ns, self.settings.trajectory_period))
                 switched = f"re-planned from t = {result.t_join:.2f} s: "
             except (RuntimeError, ValueError) as exc:
                 switched = f"re-plan dropped ({exc}): "
-        data = dict(result.as_dict(), switched=switched.startswith("re-planned"))
+        data = dict(result.as_dict(), switched=switched.startswith("re-planned"),
+                    worker_cpu_s=proc.cpu_s)
         self.adaptive_log.append(data)
         self.pub_estimate.publish(String(data=json.dumps(json_safe(data))))
         log = self.get_logger().info if result.plan is None or switched.startswith("re") \

@@ -91,3 +91,45 @@ def test_the_samples_are_kept_one_per_period_and_a_refresh_is_due_on_time():
     kept = [shaper.add(replace(sample_of(run.sim), t=t)) for t in (0.0, 0.2, 0.5, 0.9, 1.0)]
     assert kept == [True, False, True, False, True]
     assert shaper.due(1.9) is None and shaper.due(2.0) is Reason.PERIOD
+
+
+def test_the_worker_process_refreshes_as_the_shaper_in_this_process_does():
+    """ShaperProcess: the same samples give the same step in its worker process as in an
+    OnlineShaper here, and an accepted step is the worker's schedule at the next refresh."""
+    from rheo_shaping.adaptive.worker import ShaperProcess
+    cell = movement_1()
+    true = material_cell(cell, NOMINAL * [0.7, 0.7, 1.2])
+    here = OnlineShaper(cell)
+    run = SetpointRun(true, tool_start=here.plan.start)
+    samples = []
+    for k in range(1, 41):                                     # 4 s, a sample every 0.5 s
+        t = k * DT
+        p = here.plan.sample(t)[0]
+        run.command(round(t * NS), float(p[0]), float(p[1]))
+        run.advance(round(t * NS))
+        if k % 5 == 0:
+            samples.append(sample_of(run.sim))
+    proc = ShaperProcess(cell)
+    try:
+        proc.start(cell, OnlineConfig())
+        index, step, cpu = proc.submit(samples, 4.0, Reason.PERIOD, None, 4.0, 0.0).result(120)
+        for s in samples:
+            here.add(s)
+        mine = here.refresh(4.0, Reason.PERIOD, None, streamed=4.0)
+        assert index == 0 and cpu > 0.0
+        assert step.estimate.k1 == mine.estimate.k1 and step.message == mine.message
+        # (the prior's spread at 4 s: the fixed plan's pessimistic tension is over the
+        # limit, a slower rest is chosen)
+        assert step.plan is not None and mine.plan is not None
+        if step.plan is not None:
+            proc.accept(index, step)
+            assert proc.shaper is not None and proc.shaper.plan is step.plan
+            _, again, _ = proc.submit([], 6.0, Reason.PERIOD, None, 6.0, 0.0).result(120)
+            # the worker follows the accepted plan: before the new join (7 s) its schedule is
+            # the step's, which left the params file's plan at 5 s
+            fixed = OnlineShaper(cell).plan
+            assert not np.allclose(step.plan.sample(6.5)[0], fixed.sample(6.5)[0], atol=1e-9)
+            assert np.allclose(again.schedule.plan.sample(6.5)[0], step.plan.sample(6.5)[0],
+                               atol=1e-12)
+    finally:
+        proc.close()
