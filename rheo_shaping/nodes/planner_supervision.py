@@ -89,7 +89,8 @@ class PlannerSupervision:
                 f"(ros2 run rheo_shaping monitor, use_sim_time as here)"),
             "waiting_for_clock": (
                 f"/clock on {clock.topic_name if clock else '/clock'}: the simulator publishes "
-                f"its clock relative to its namespace; in a namespace add -r /clock:=clock"),
+                f"it on /clock, or with {' '.join(T.CLOCK_REMAP)} in its namespace (then every "
+                f"node of the cell needs that remap)"),
             "waiting_for_subscriber": (
                 f"a subscriber of {self.pub_command.topic_name} (the simulator or the robot)"),
             "waiting_for_pose": (f"the tool pose on {self.resolve_topic_name(T.TOOL_POSE.name)}"

@@ -19,6 +19,7 @@ MODULE_KEYS = {
     "geometry_msgs": "geometry_msgs", "trajectory_msgs": "trajectory_msgs",
     "visualization_msgs": "visualization_msgs", "diagnostic_msgs": "diagnostic_msgs",
     "rosgraph_msgs": "rosgraph_msgs", "std_srvs": "std_srvs", "lifecycle_msgs": "lifecycle_msgs",
+    "tf2_msgs": "tf2_msgs",
     "launch": "launch", "launch_ros": "launch_ros", "ament_index_python": "ament_index_python",
     "numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml",
     "matplotlib": "python3-matplotlib", "tqdm": "python3-tqdm", "numba": "python3-numba",
