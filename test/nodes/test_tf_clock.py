@@ -140,3 +140,15 @@ def test_without_tf2_msgs_the_simulator_says_so_once_and_runs(ros, monkeypatch):
     assert all(s.pub_tf_static is None for s in sims)
     assert all(e.topic_name != T.TF_STATIC for s in sims for e in s.publishers)
     assert len(said) == 1 and "tf2_msgs does not import" in said[0], said
+
+
+def test_cake_rpy_turns_about_the_parents_fixed_axes():
+    """cake_rpy as static_transform_publisher takes it: roll about x, then pitch about y,
+    then yaw about z, all of the parent (scipy's extrinsic 'xyz')."""
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+    from rheo_shaping.nodes.frames import quaternion_from_rpy
+    for rpy in ((0.3, -0.7, 1.9), (1.0, 0.2, -2.5), (0.0, 0.0, 0.0)):
+        q = np.array(quaternion_from_rpy(*rpy))
+        want = Rotation.from_euler("xyz", rpy).as_quat()          # (x, y, z, w)
+        assert np.allclose(q, want, atol=1e-12) or np.allclose(q, -want, atol=1e-12), rpy
