@@ -240,3 +240,14 @@ def test_setup_cfg_installs_scripts_where_ros2_run_looks():
 
 def test_ament_resource_marker_exists():
     assert (REPO / "resource" / "rheo_shaping").is_file()
+
+
+def test_the_vendored_tf2_msgs_is_licensed_and_hidden_from_colcon():
+    """vendor/tf2_msgs (dev.py builds it into .venv, where no wheel has tf2_msgs) carries
+    its BSD license and a COLCON_IGNORE: a workspace uses the system's tf2_msgs."""
+    vendor = REPO / "vendor" / "tf2_msgs"
+    assert (vendor / "COLCON_IGNORE").is_file()
+    assert "BSD 3-Clause License" in (vendor / "LICENSE").read_text()
+    assert ET.parse(vendor / "package.xml").getroot().findtext("name") == "tf2_msgs"
+    assert (vendor / "msg" / "TFMessage.msg").read_text().split() == \
+        ["geometry_msgs/TransformStamped[]", "transforms"]
