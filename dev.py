@@ -182,13 +182,16 @@ def ensure_tf2_msgs(venv: Venv) -> None:
                  "-DBUILD_TESTING=OFF"],
                 ["cmake", "--build", build, "-j", str(os.cpu_count() or 1)],
                 ["cmake", "--install", build]):
-        proc = subprocess.run([str(c) for c in cmd], env=env, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True, errors="replace")
+        try:
+            proc = subprocess.run([str(c) for c in cmd], env=env, stdout=subprocess.PIPE,
+                                  stderr=subprocess.STDOUT, text=True, errors="replace")
+        except OSError as exc:
+            raise SystemExit(f"[dev] building tf2_msgs needs cmake and a C++ compiler: {exc}")
         if proc.returncode != 0:
             sys.stderr.write(proc.stdout[-6000:])
             raise SystemExit(f"[dev] building tf2_msgs failed ({cmd[0]} {cmd[1]} ..., exit "
-                             f"code {proc.returncode}); the nodes run without /tf_static "
-                             f"until it builds")
+                             f"code {proc.returncode}; its output above; "
+                             f"vendor/tf2_msgs/README.md says what it builds)")
     ours.write_text(
         "built by rheo_shaping's dev.py from vendor/tf2_msgs\n")
     probe = subprocess.run([str(venv.python), "-c", "from tf2_msgs.msg import TFMessage"],
