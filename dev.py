@@ -20,9 +20,11 @@ Only what venv + pip + pytest do not do themselves: three virtualenvs, refreshed
 stamp of their inputs' hash changes (.venv: requirements-ros.txt with the ROS 2 Jazzy
 wheels; .venv-core: requirements-core.txt, no ROS; .venv-noble: requirements-noble.txt,
 the core pinned to Ubuntu 24.04's versions, made only for the noble stage; each then
-`pip install -e .`); the suite split between them by test/_support/stages.py; a
-ROS_DOMAIN_ID of this run's own and LOCALHOST discovery for every ROS process; the time
-of each stage at the end.
+`pip install -e .`); tf2_msgs' messages, which no wheel has, built from vendor/tf2_msgs
+into .venv with the ament_cmake and rosidl wheels (cmake and a C++ compiler; about 20 s,
+once: stamped like the venvs; skipped where tf2_msgs is importable already); the suite
+split between them by test/_support/stages.py; a ROS_DOMAIN_ID of this run's own and
+LOCALHOST discovery for every ROS process; the time of each stage at the end.
 """
 from __future__ import annotations
 
@@ -142,6 +144,65 @@ STAGE_VENVS = {"core": (CORE, "core"), "ros": (FULL, "ros"), "noble": (NOBLE, "c
 DEFAULT_STAGES = ("core", "ros")   # `dev.py test`; the README's command, under 10 minutes
 
 
+#: tf2_msgs' message files (ros2/geometry2, jazzy) and the ament_cmake package that builds
+#: them (COLCON_IGNORE: a colcon workspace never builds it; a ROS installation has tf2_msgs).
+TF2_MSGS = ROOT / "vendor" / "tf2_msgs"
+
+
+def ensure_tf2_msgs(venv: Venv) -> None:
+    """Build tf2_msgs (TFMessage, TF2Error) into ``venv`` unless it imports there already:
+    cmake on vendor/tf2_msgs with the venv's ament_cmake and rosidl wheels, installed into
+    the venv's prefix (its Python package into site-packages, its libraries into lib/, on
+    the wheels' LD_LIBRARY_PATH). Stamped with the hash of the vendored files and the venv's
+    own stamp; the build folder stays in the venv (a rebuild of the venv removes it)."""
+    stamp = venv.path / ".tf2_msgs-stamp"
+    h = hashlib.sha256(venv.stamp.read_bytes())
+    for path in sorted(p for p in TF2_MSGS.rglob("*") if p.is_file()):
+        h.update(path.relative_to(ROOT).as_posix().encode() + path.read_bytes())
+    if stamp.exists() and stamp.read_text().strip() == h.hexdigest():
+        say(f"{venv.path.name}: tf2_msgs up to date")
+        return
+    stamp.unlink(missing_ok=True)
+    ours = venv.path / "share" / "tf2_msgs" / "rheo_vendored"    # our build's mark
+    probe = subprocess.run([str(venv.python), "-c", "import tf2_msgs.msg"],
+                           env=dict(os.environ, PYTHONPATH=""), capture_output=True)
+    if probe.returncode == 0 and not ours.exists():
+        say(f"{venv.path.name}: tf2_msgs is installed (not built here)")
+        stamp.write_text(h.hexdigest() + "\n")
+        return
+    t0 = time.monotonic()
+    say(f"{venv.path.name}: building tf2_msgs' messages from {TF2_MSGS.relative_to(ROOT)}")
+    build = venv.path / "build" / "tf2_msgs"
+    prefix = str(venv.path)
+    env = dict(os.environ, AMENT_PREFIX_PATH=prefix, CMAKE_PREFIX_PATH=prefix,
+               PATH=f"{venv.path / 'bin'}{os.pathsep}{os.environ.get('PATH', '')}")
+    env.pop("PYTHONPATH", None)
+    for cmd in (["cmake", "-S", TF2_MSGS, "-B", build, f"-DCMAKE_INSTALL_PREFIX={prefix}",
+                 f"-DPython3_EXECUTABLE={venv.python}", "-DCMAKE_BUILD_TYPE=Release",
+                 "-DBUILD_TESTING=OFF"],
+                ["cmake", "--build", build, "-j", str(os.cpu_count() or 1)],
+                ["cmake", "--install", build]):
+        try:
+            proc = subprocess.run([str(c) for c in cmd], env=env, stdout=subprocess.PIPE,
+                                  stderr=subprocess.STDOUT, text=True, errors="replace")
+        except OSError as exc:
+            raise SystemExit(f"[dev] building tf2_msgs needs cmake and a C++ compiler: {exc}")
+        if proc.returncode != 0:
+            sys.stderr.write(proc.stdout[-6000:])
+            raise SystemExit(f"[dev] building tf2_msgs failed ({cmd[0]} {cmd[1]} ..., exit "
+                             f"code {proc.returncode}; its output above; "
+                             f"vendor/tf2_msgs/README.md says what it builds)")
+    ours.write_text(
+        "built by rheo_shaping's dev.py from vendor/tf2_msgs\n")
+    probe = subprocess.run([str(venv.python), "-c", "from tf2_msgs.msg import TFMessage"],
+                           env=dict(os.environ, PYTHONPATH=""), capture_output=True, text=True)
+    if probe.returncode != 0:
+        raise SystemExit(f"[dev] tf2_msgs was built but does not import: "
+                         f"{probe.stderr.strip()[-2000:]}")
+    stamp.write_text(h.hexdigest() + "\n")
+    say(f"{venv.path.name}: tf2_msgs built in {time.monotonic() - t0:.0f} s")
+
+
 def ensure_venvs(venvs: list[Venv], verbose: bool) -> None:
     """Set up the venvs that need it, side by side (pip mostly waits on downloads and
     unpacking: two at once take about 60 % of the time of one after the other), under a
@@ -156,6 +217,8 @@ def ensure_venvs(venvs: list[Venv], verbose: bool) -> None:
         with concurrent.futures.ThreadPoolExecutor(max(1, len(todo))) as pool:
             for future in [pool.submit(v.ensure, verbose) for v in todo]:
                 future.result()                    # a failed set-up exits here
+        if FULL in venvs:
+            ensure_tf2_msgs(FULL)
 
 
 def ros_env() -> dict[str, str]:

@@ -5,13 +5,18 @@ file.
     ros2 launch rheo_shaping cell.launch.py namespace:=/cell2 rviz:=true
     ros2 launch rheo_shaping cell.launch.py params_file:=my_cell.yaml use_sim_time:=false
     ros2 launch rheo_shaping cell.launch.py managed:=true namespace:=/cellA
+    ros2 launch rheo_shaping cell.launch.py namespace:=/cellB clock_topic:=clock
 
 Arguments (docs/ros.md, "Launch"):
 
 * ``params_file``: the cell in ``/**``, node settings in ``/**/simulator``,
   ``/**/planner``, ``/**/monitor`` (default: the package's config/cell.yaml);
-* ``namespace``: every node, topic and service of the cell moves there; planner
-  and monitor follow their own simulator's clock (``/clock`` -> ``clock``);
+* ``namespace``: every node, topic and service of the cell moves there; the clock
+  stays the absolute ``/clock`` (and the cake frame goes on the absolute ``/tf_static``),
+  where rviz2, ``ros2 bag`` and rqt find them without remaps;
+* ``clock_topic``: ``/clock`` (default) or ``clock``: the cell's clock in its namespace
+  (``-r /clock:=clock`` on every node, the simulator's publisher included), for several
+  simulated cells on one ROS domain;
 * ``use_sim_time``: ``true`` (default) the simulator is the clock (its
   ``real_time_factor`` from the file) and planner and monitor follow it;
   ``false``: everything on the wall clock, the simulator at real time;
@@ -36,6 +41,9 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 PACKAGE = 'rheo_shaping'
+#: Where the simulator's clock goes (rheo_shaping.nodes.topics.CLOCK_TOPICS; not imported
+#: here: the launch file needs no ROS message package).
+CLOCK_TOPICS = ('/clock', 'clock')
 
 
 def _nodes(context):
@@ -46,33 +54,36 @@ def _nodes(context):
     follow = ['-p', f"use_sim_time:={'true' if sim_time else 'false'}"]
     simulator_args = [] if sim_time else ['-p', 'real_time_factor:=1.0',
                                           '-p', 'publish_clock:=false']
-    clock = [('/clock', 'clock')]
+    clock_topic = LaunchConfiguration('clock_topic').perform(context)
+    if clock_topic not in CLOCK_TOPICS:
+        raise RuntimeError(f"clock_topic:={clock_topic!r}: expected one of "
+                           f"{', '.join(CLOCK_TOPICS)} (/clock: the absolute clock rviz2 and "
+                           f"ros2 bag read; clock: the cell's namespace)")
+    # every node of the cell, the simulator's publisher and each time source alike
+    clock = [('/clock', 'clock')] if clock_topic == 'clock' else []
     common = dict(package=PACKAGE, namespace=namespace, parameters=[params_file],
-                  output='screen', emulate_tty=True)
+                  output='screen', emulate_tty=True, remappings=clock)
     if LaunchConfiguration('managed').perform(context).lower() in ('true', '1'):
         cell = [
             Node(executable='simulator_managed', name='simulator',
                  ros_arguments=simulator_args, **common),
             Node(executable='monitor_managed', name='monitor', ros_arguments=follow,
-                 remappings=clock, **common),
+                 **common),
             Node(executable='planner_managed', name='planner', ros_arguments=follow,
-                 remappings=clock, **common),
+                 **common),
             Node(executable='lifecycle_manager', name='lifecycle_manager', ros_arguments=follow,
-                 remappings=clock, **common),    # the cell's clock: one stamp source
+                 **common),    # the cell's clock: one stamp source
         ]
     else:
         cell = [
             Node(executable='simulator', name='simulator', ros_arguments=simulator_args,
                  **common),
-            Node(executable='monitor', name='monitor', ros_arguments=follow, remappings=clock,
-                 **common),
-            Node(executable='planner', name='planner', ros_arguments=follow, remappings=clock,
-                 **common),
+            Node(executable='monitor', name='monitor', ros_arguments=follow, **common),
+            Node(executable='planner', name='planner', ros_arguments=follow, **common),
         ]
     return cell + [
         Node(executable='gap_watch', name='gap_watch', ros_arguments=follow,
-             remappings=clock, condition=IfCondition(LaunchConfiguration('gap_watch')),
-             **common),
+             condition=IfCondition(LaunchConfiguration('gap_watch')), **common),
         Node(package='rviz2', executable='rviz2', name='rviz2', namespace=namespace,
              arguments=['-d', os.path.join(share, 'rviz', 'cell.rviz')],
              parameters=[{'use_sim_time': sim_time}], remappings=clock, output='screen',
@@ -92,6 +103,10 @@ def generate_launch_description():
         DeclareLaunchArgument(
             'use_sim_time', default_value='true',
             description='true: the simulator is the clock; false: wall clock, real time'),
+        DeclareLaunchArgument(
+            'clock_topic', default_value='/clock', choices=list(CLOCK_TOPICS),
+            description="/clock: the absolute clock rviz2 and ros2 bag read; clock: the "
+                        "cell's own in its namespace (several simulated cells on one domain)"),
         DeclareLaunchArgument(
             'rviz', default_value='false', description='true: start RViz with rviz/cell.rviz'),
         DeclareLaunchArgument(

@@ -35,9 +35,12 @@ def add_parser(sub) -> None:
     p.add_argument("--timeout", type=float, default=300.0, metavar="S",
                    help="give up after S wall-clock seconds (default 300)")
     p.add_argument("--namespace", default="", metavar="NS",
-                   help="run the cell in ROS namespace NS (e.g. /cell2): every node, topic, "
-                        "service and the simulated clock move there, so several cells share "
-                        "one ROS domain")
+                   help="run the cell in ROS namespace NS (e.g. /cell2): every node, topic "
+                        "and service moves there; the clock stays /clock (see --clock-topic)")
+    p.add_argument("--clock-topic", default="/clock", choices=("/clock", "clock"),
+                   help="where the simulated clock goes: /clock (default: where rviz2 and "
+                        "ros2 bag look) or clock, the namespace's own, so that several cells "
+                        "share one ROS domain")
     p.add_argument("--compare", action="store_true",
                    help="also run the core offline on the same plan and print both")
     p.add_argument("--adaptive", action="store_true",
@@ -72,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
                           progress=say,
                           log_level="info" if args.verbose else "warn",
                           namespace=ros_namespace(args.namespace),
+                          clock_topic=args.clock_topic,
                           overrides=({"planner": [Parameter("adaptive", value=True)]}
                                      if args.adaptive else None))
     except ParameterError as exc:

@@ -26,7 +26,7 @@ from .monitor import MonitorNode
 from .planner import PlannerNode
 from .session import eta, ros_session
 from .simulator import SimulatorNode
-from .topics import CLOCK_REMAP
+from .topics import CLOCK, CLOCK_REMAP, CLOCK_TOPICS
 
 #: Simulated seconds per step of the runner's simulator (its step period is
 #: this divided by the real-time factor).
@@ -62,19 +62,27 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
              real_time_factor: float = 50.0, timeout: float = 300.0,
              progress: Callable[[str], None] | None = print, progress_period: float = 10.0,
              overrides: dict[str, Sequence[Parameter]] | None = None,
-             log_level: str = "warn", namespace: str = "") -> CellResult:
+             log_level: str = "warn", namespace: str = "",
+             clock_topic: str = CLOCK.name) -> CellResult:
     """Run the cell once; returns its figures (raises ParameterError for bad parameters).
 
     ``overrides`` maps a node name to extra parameters for it; ``log_level``
     (debug, info, warn, error) is the nodes' logging threshold; ``namespace``
-    (e.g. ``/cell2``) moves every node, topic and service of the cell there, the
-    clock included (``-r __ns:=NS -r /clock:=clock``, docs/ros.md).
+    (e.g. ``/cell2``) moves every node, topic and service of the cell there (``-r
+    __ns:=NS``); ``clock_topic`` is where the simulator's clock goes: the absolute
+    ``/clock`` (default, where rviz2 and ``ros2 bag`` look) or ``clock``, the namespace's
+    own (``-r /clock:=clock`` for all three nodes: several simulated cells on one domain).
     """
+    if clock_topic not in CLOCK_TOPICS:
+        raise ValueError(f"clock_topic = {clock_topic!r}: expected one of "
+                         f"{', '.join(CLOCK_TOPICS)}")
     args = ["rheo_shaping_cell", "--ros-args"]
     if params_file is not None:
         args += ["--params-file", str(params_file)]
     if namespace.strip("/"):
-        args += ["-r", f"__ns:=/{namespace.strip('/')}", *CLOCK_REMAP]
+        args += ["-r", f"__ns:=/{namespace.strip('/')}"]
+    if clock_topic != CLOCK.name:
+        args += [*CLOCK_REMAP]
     common = [] if movement is None else [Parameter("movement.number", value=int(movement))]
     extra = overrides or {}
     sim_params = [Parameter("real_time_factor", value=float(real_time_factor)),

@@ -109,10 +109,18 @@ class OwnedStream:
         return trust
 
 
-def clock_publishers(node: Node) -> int:
-    """Publishers of the topic the node's time source follows (0 on wall time)."""
+def second_clock(node: Node) -> str:
+    """Why the clock the node's time source follows is not one simulator's: "" when its
+    topic has at most one publisher (or the node is on wall time)."""
     sub = clock_subscription(node)
-    return node.count_publishers(sub.topic_name) if sub is not None else 0
+    if sub is None:
+        return ""
+    clocks = node.count_publishers(sub.topic_name)
+    if clocks <= 1:
+        return ""
+    return (f"{clocks} publishers of {sub.topic_name}: one simulator is the cell's clock (for "
+            f"several simulated cells on one domain, give every node of each cell "
+            f"{' '.join(T.CLOCK_REMAP)})")
 
 
 class CellCheck:

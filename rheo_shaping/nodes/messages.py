@@ -17,9 +17,10 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import ColorRGBA, Float64, Float64MultiArray, Header, MultiArrayDimension
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
+from ..params.node_params import CAKE_FRAME
 from ..units import NS
 
-FRAME = "cake"
+FRAME = CAKE_FRAME
 JOINTS = ("tool_x", "tool_z")
 
 

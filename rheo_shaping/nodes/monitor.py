@@ -54,7 +54,7 @@ from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
 from .rclpy_private import clock_subscription
-from .guards import (CellCheck, OwnedStream, Presence, clock_publishers, guard_clock,
+from .guards import (CellCheck, OwnedStream, Presence, guard_clock, second_clock,
                      sim_time_active, with_message_info)
 from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
@@ -274,10 +274,9 @@ class MonitorNode(Node):
             if why:
                 self._abort(f"monitor: {why}")
                 return why
-        clocks = clock_publishers(self)
-        if clocks > 1:
-            self._abort(f"monitor: {clocks} publishers of /clock: one simulator is the cell's "
-                        f"clock")
+        clocks = second_clock(self)
+        if clocks:
+            self._abort(f"monitor: {clocks}")
         return ""
 
     def _on_watchdog(self) -> None:
@@ -296,8 +295,9 @@ class MonitorNode(Node):
         elif self.state == "waiting":
             lacks = self.core.waiting_for(now, self.get_clock().now().nanoseconds)
             clock = clock_subscription(self)
-            hint = (f"; the simulator's clock: {clock.topic_name} (in a namespace: -r "
-                    f"/clock:=clock)" if clock is not None and "clock" in lacks else "")
+            hint = (f"; the simulator's clock: {clock.topic_name} (a cell whose clock is in "
+                    f"its namespace: {' '.join(T.CLOCK_REMAP)} on every node)"
+                    if clock is not None and "clock" in lacks else "")
             self.get_logger().info(
                 f"waiting (not ready, the planner will not move): {lacks}{hint}; tension topics "
                 f"{self.resolve_topic_name(T.TENSIONS.name)}, "

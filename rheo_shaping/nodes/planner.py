@@ -58,7 +58,7 @@ from ..safety.clock_guard import ClockGuard
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
-from .guards import (CellCheck, OwnedStream, Presence, clock_publishers, guard_clock,
+from .guards import (CellCheck, OwnedStream, Presence, guard_clock, second_clock,
                      sim_time_active)
 from .planner_adaptive import PlannerAdaptive
 from .planner_supervision import PlannerSupervision
@@ -252,10 +252,8 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
                         f"without one)")
             if why:
                 return why
-        clocks = clock_publishers(self)
-        if clocks > 1:
-            return f"{clocks} publishers of /clock: one simulator is the cell's clock"
-        return ""           # (a second /shaping/ready publisher: _monitor_ok, the interlock)
+        # (a second /shaping/ready publisher: _monitor_ok, the interlock)
+        return second_clock(self)
 
     def _tool_away(self) -> str:
         """Why autostart is unsafe (:func:`~rheo_shaping.planning.movement.autostart_refusal`)."""

@@ -101,7 +101,8 @@ class PlannerSupervision(PlannerMixin):
                 f"(ros2 run rheo_shaping monitor, use_sim_time as here)"),
             "waiting_for_clock": (
                 f"/clock on {clock.topic_name if clock else '/clock'}: the simulator publishes "
-                f"its clock relative to its namespace; in a namespace add -r /clock:=clock"),
+                f"it on /clock, or with {' '.join(T.CLOCK_REMAP)} in its namespace (then every "
+                f"node of the cell needs that remap)"),
             "waiting_for_subscriber": (
                 f"a subscriber of {command.topic_name if command else T.TOOL_COMMAND.name} "
                 f"(the simulator or the robot)"),

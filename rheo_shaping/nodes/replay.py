@@ -70,8 +70,8 @@ def _play(node: Node, executor, record_dir: Path, rate: float, clock: bool,
                 qos = T.writer_qos(topic.qos if topic is not None else T.STATE_QOS)
             pubs[c.id] = node.create_publisher(get_message(c.msgtype), c.topic.lstrip("/"),
                                                qos)
-        clock_pub = node.create_publisher(T.CLOCK.type, T.CLOCK.name, T.CLOCK.qos) \
-            if clock else None
+        clock_pub = node.create_publisher(T.NAMESPACED_CLOCK.type, T.NAMESPACED_CLOCK.name,
+                                          T.NAMESPACED_CLOCK.qos) if clock else None
         if wait_for_subscribers > 0:
             end = time.monotonic() + wait_for_subscribers
             while (time.monotonic() < end and not all(

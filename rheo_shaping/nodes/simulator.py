@@ -3,12 +3,14 @@
 It runs the core (:class:`rheo_shaping.sheet.simulation.Simulation`) and publishes
 the cell's state (docs/interfaces.md): ``/sheet/profile``, ``/sheet/tensions``,
 ``/sheet/contact_tension``, ``/tool/pose``, ``/tool/wrench``, and
-``/sheet/markers`` for RViz; its own status on ``/diagnostics``.
+``/sheet/markers`` for RViz; its own status on ``/diagnostics``; and where the cell's
+frame ``cake`` stands, once on ``/tf_static`` (:mod:`rheo_shaping.nodes.frames`).
 
 Time.  A step timer on the steady clock fires every ``step_period``; each
 step advances simulated time by ``real_time_factor x step_period``.  When
 ``real_time_factor`` is not 1 (or ``publish_clock`` is set) the simulator is
-the clock of the cell: it publishes ``/clock`` and the other nodes run with
+the clock of the cell: it publishes the absolute ``/clock`` (``-r /clock:=clock`` on
+every node of the cell: the namespace's) and the other nodes run with
 ``use_sim_time:=true``.  ``/clock`` is published one step ahead of the
 physics, so the planner streams the set-points of a step before the step is
 computed; with ``lockstep`` the simulator waits (at most ``command_timeout``)
@@ -57,6 +59,7 @@ from ..safety.command_gate import CommandGate, ToolLimits
 from ..safety.watchdog import Freshness
 from . import messages as m
 from . import topics as T
+from .frames import publish_cake_frame
 from .guards import OwnedStream, Presence, with_message_info
 from .simulator_intake import SetpointIntake
 from .simulator_outputs import SimulatorOutputs
@@ -95,6 +98,8 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         self.pub_markers = pub(T.MARKERS)
         self.pub_diag = pub(T.DIAGNOSTICS)
         self.pub_camera = pub(T.MEASURED_PROFILE)
+        # where frame cake stands (cake_parent_frame), latched on /tf_static
+        self.pub_tf_static = publish_cake_frame(self, self.settings)
         # only while this node is the clock (_configure_time)
         self.pub_clock: Publisher | None = None
         self._command_sub = self.create_subscription(

@@ -6,12 +6,12 @@ and the whole cell moves with the nodes' namespace (``--ros-args -r
 __ns:=/cell2`` gives ``/cell2/sheet/profile``).  Services are private
 (``~/reset``: ``/cell2/simulator/reset``).
 
-``/clock`` is the one exception ROS itself makes: rclpy's time source
-subscribes to the absolute ``/clock``.  The simulator publishes the relative
-``clock`` (so two simulated cells in one domain do not share a clock); in a
-namespace, planner and monitor follow their own simulator with the remap
-``-r /clock:=clock`` (launch/cell.launch.py and ``rheo-shaping cell
---namespace`` add it).
+``/clock`` and ``/tf_static`` are absolute, where ROS itself and its tools look
+for them: rclpy's time source subscribes to ``/clock``, and rviz2, ``ros2 bag`` and
+tf2 read ``/clock`` and ``/tf_static`` in any namespace.  Several simulated cells on
+one domain give each its own clock with the remap ``-r /clock:=clock`` on every
+node of the cell, the simulator included (:data:`CLOCK_REMAP`; the launch file's
+``clock_topic:=clock``, ``rheo-shaping cell --clock-topic clock``).
 
 Nodes, the cell runner, the recorder and the tests all take their names and
 QoS from here.
@@ -61,6 +61,9 @@ LATCHED_QOS = _qos(1, DurabilityPolicy.TRANSIENT_LOCAL)
 HEARTBEAT_QOS = _qos(1)
 #: /clock: the latest value only.
 CLOCK_QOS = _qos(1)
+#: /tf_static: tf2_ros's StaticTransformBroadcaster's (Jazzy): depth 1, transient local,
+#: reliable; every static frame of a publisher in its one latched message.
+TF_STATIC_QOS = _qos(1, DurabilityPolicy.TRANSIENT_LOCAL)
 #: /sheet/markers: the newest picture only.
 MARKER_QOS = _qos(1)
 
@@ -100,7 +103,12 @@ CONTACT_TENSION = Topic("sheet/contact_tension", Float64, STATE_QOS)
 TOOL_POSE = Topic("tool/pose", PoseStamped, STATE_QOS)
 TOOL_WRENCH = Topic("tool/wrench", WrenchStamped, STATE_QOS)
 MARKERS = Topic("sheet/markers", MarkerArray, MARKER_QOS)
-CLOCK = Topic("clock", Clock, CLOCK_QOS)
+#: The simulator's clock: absolute, as rclpy's time source, rviz2 and ``ros2 bag`` read it
+#: (``-r /clock:=clock`` on every node of a cell moves it into the cell's namespace).
+CLOCK = Topic("/clock", Clock, CLOCK_QOS)
+#: A clock in the namespace: what ``-r /clock:=clock`` makes of :data:`CLOCK`, and what
+#: ``rheo-shaping replay --namespace`` publishes.
+NAMESPACED_CLOCK = Topic("clock", Clock, CLOCK_QOS)
 TOOL_COMMAND = Topic("tool/command", PoseStamped, COMMAND_QOS)
 PLANNED_TRAJECTORY = Topic("tool/planned_trajectory", JointTrajectory, LATCHED_QOS)
 ABORT = Topic("shaping/abort", String, LATCHED_QOS)
@@ -147,5 +155,12 @@ ALL: dict[str, Topic] = {t.contract: t for t in (
     COMMANDER,
     PRESENCE, GAP, GAP_DIAGNOSIS, GAP_MARKERS, ESTIMATE)}
 
-#: The remap that makes a namespaced planner or monitor follow its own simulator's clock.
+#: The cell's clock in its namespace (several simulated cells on one domain): the remap for
+#: every node of the cell, the simulator's /clock publisher and every time source alike.
 CLOCK_REMAP = ("-r", "/clock:=clock")
+#: Where the simulator's clock may be (the launch file's ``clock_topic``, ``rheo-shaping
+#: cell --clock-topic``): the absolute ``/clock``, or the namespace's ``clock``.
+CLOCK_TOPICS = (CLOCK.name, NAMESPACED_CLOCK.name)
+#: tf2's static transforms, absolute as tf2 and rviz2 read them (tf2_msgs/TFMessage; the
+#: type is imported where it is published, since tf2_msgs may be missing).
+TF_STATIC = "/tf_static"

@@ -18,6 +18,8 @@ numbers of :mod:`rheo_shaping.safety.abort_budget`.
 """
 from __future__ import annotations
 
+import math
+import re
 from dataclasses import dataclass
 
 from .schema import iter_fields, param
@@ -134,6 +136,37 @@ class SimulatorNodeParams:
                                         0.0, 0.9)
     camera_seed: int = param(0, "seed of the camera's noise and dropouts (0: random)", "", 0,
                              2**31 - 1)
+    cake_parent_frame: str = param(
+        "world", "parent frame of the cell's frame cake on /tf_static (as tf2's static "
+        "broadcaster sends it, once, latched): where the mould stands in a robot's TF tree; "
+        "empty: no /tf_static")
+    cake_xyz: tuple = param(
+        [0.0, 0.0, 0.0], "position of frame cake's origin (the mould's wall at the workplane) "
+        "in cake_parent_frame: x, y, z", "m", -1000.0, 1000.0, length=3)
+    cake_rpy: tuple = param(
+        [0.0, 0.0, 0.0], "orientation of frame cake in cake_parent_frame: roll, pitch, yaw "
+        "about the parent's fixed x, y, z axes (static_transform_publisher's --roll --pitch "
+        "--yaw)", "rad", -2 * math.pi, 2 * math.pi, length=3)
+
+    def __post_init__(self) -> None:
+        check_frame_id("cake_parent_frame", self.cake_parent_frame)
+
+
+#: The cell's frame (docs/interfaces.md): every message of the cell is stamped in it.
+CAKE_FRAME = "cake"
+
+
+def check_frame_id(name: str, value: str) -> None:
+    """A parent frame for ``cake`` as tf2 takes it ("" for none), or ValueError naming
+    ``name``, the value and what was expected."""
+    if value == "":
+        return
+    if (not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_./-]*", value) or value == CAKE_FRAME
+            or "//" in value or value.endswith("/")):
+        raise ValueError(
+            f"parameter '{name}' = {value!r} is invalid: expected a TF frame name other than "
+            f"{CAKE_FRAME!r} (letters, digits, _ . - and / between names, no leading /: "
+            f"tf2 refuses one), or '' for no /tf_static")
 
 
 @dataclass(frozen=True)

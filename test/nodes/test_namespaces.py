@@ -3,10 +3,11 @@
 Cell A (``/cellA``) runs the default cell on 31 masses to the end; cell B
 (``/cellB``) runs a 15-mass sheet with a monitor set to abort (abort_ratio 0.5,
 F_abort 0.52 N below movement 4's F_max 0.65 N).  Both run at once as
-``rheo-shaping cell --namespace NS`` processes, each with its own simulated
-clock.  Senders are told apart by the graph (the GID and node of every
-publisher on each topic) and by content (the number of poses is the cell's
-``sheet.n_masses``; only B aborts), never by counting messages in flight.
+``rheo-shaping cell --namespace NS --clock-topic clock`` processes, each with its own
+simulated clock in its namespace (the default, the absolute ``/clock``, is one cell's).
+Senders are told apart by the graph (the GID and node of every publisher on each topic)
+and by content (the number of poses is the cell's ``sheet.n_masses``; only B aborts),
+never by counting messages in flight.
 """
 from __future__ import annotations
 
@@ -49,7 +50,8 @@ def test_two_namespaced_cells_share_a_domain_and_keep_their_own_topics(ros, tmp_
     for ns in CELLS:
         logs[ns] = open(tmp_path / f"{ns.strip('/')}.log", "w")
         procs[ns] = subprocess.Popen(
-            [str(BIN / "rheo-shaping"), "cell", "--namespace", ns, "--json", "--params",
+            [str(BIN / "rheo-shaping"), "cell", "--namespace", ns, "--clock-topic", "clock",
+             "--json", "--params",
              _params(tmp_path, ns), "--timeout", str(RUN_TIMEOUT_S),
              "--real-time-factor", str(REAL_TIME_FACTOR)],
             stdout=subprocess.PIPE, stderr=logs[ns], text=True, env=dict(os.environ),
@@ -80,7 +82,7 @@ def test_two_namespaced_cells_share_a_domain_and_keep_their_own_topics(ros, tmp_
             for topic, node_names in ((T.PROFILE, ["simulator"]),
                                       (T.ABORT, ["monitor", "simulator"]),
                                       (T.TENSIONS, ["simulator"]), (T.TOOL_COMMAND, ["planner"]),
-                                      (T.CLOCK, ["simulator"])):
+                                      (T.NAMESPACED_CLOCK, ["simulator"])):
                 name = topic.in_namespace(ns)
                 want = sorted((ns, n) for n in node_names)
                 # discovery first reports an endpoint, then (a little later) its node's name

@@ -168,7 +168,7 @@ def test_replay_publishes_the_record_on_its_own_stamps(recorded, ros):
     ns = "/rp"
     # a reader on every topic of the record: the replay's --wait ends when each is matched
     rec = Recorder(node, {ns + topic: get_message(msgtype) for topic, msgtype in types.items()}
-                   | {T.CLOCK.in_namespace(ns): T.CLOCK.type})
+                   | {T.NAMESPACED_CLOCK.in_namespace(ns): T.NAMESPACED_CLOCK.type})
     proc = _cli("replay", str(out), "--namespace", ns, "--rate", "40", "--wait", "30",
                 "--json")
     try:
@@ -191,7 +191,7 @@ def test_replay_publishes_the_record_on_its_own_stamps(recorded, ros):
         got = [m.stamp_ns(x.header.stamp) for x in rec[topic]]
         assert got and set(got) <= set(bag[name]), topic
         assert got == sorted(got), topic
-    clocks = [m.stamp_ns(x.clock) for x in rec[T.CLOCK.in_namespace(ns)]]
+    clocks = [m.stamp_ns(x.clock) for x in rec[T.NAMESPACED_CLOCK.in_namespace(ns)]]
     assert clocks and set(clocks) <= {t for ts_ in bag.values() for t in ts_}
 
 

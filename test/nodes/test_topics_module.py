@@ -56,6 +56,8 @@ def test_every_endpoint_is_a_topic_of_the_module(ros, namespace):
             if e.topic_name.endswith(("/parameter_events", "/rosout")) or \
                     e.topic_name == "/clock" and direction == "sub":
                 continue                                     # rclpy's own
+            if e.topic_name == T.TF_STATIC:                  # tf2's, checked below
+                continue
             got[e.topic_name] = e
         want_names = {T.ALL[c].in_namespace(namespace) for c in want}
         assert set(got) == want_names, (name, direction, sorted(got))
@@ -77,6 +79,14 @@ def test_every_endpoint_is_a_topic_of_the_module(ros, namespace):
     assert sub.qos_profile.deadline.nanoseconds == int(
         nodes["monitor"].settings.max_data_age * 1e9)
     assert T.ABORT.qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    # the cake frame: absolute in any namespace, tf2_ros's static QoS (when tf2_msgs imports)
+    tf = [e for e in nodes["simulator"].publishers if e.topic_name == T.TF_STATIC]
+    if nodes["simulator"].pub_tf_static is not None:
+        assert len(tf) == 1 and tf[0].qos_profile.depth == 1
+        assert tf[0].qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        assert tf[0].qos_profile.reliability == ReliabilityPolicy.RELIABLE
+    else:
+        assert tf == []
 
 
 def test_diagnostics_are_absolute_with_a_hardware_id_per_cell():

@@ -63,6 +63,7 @@ def workspace(tmp_path_factory) -> Path:
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                           timeout=BUILD_TIMEOUT_S)
     assert proc.returncode == 0, f"colcon build failed:\n$ {shlex.join(cmd)}\n{proc.stdout}"
+    # rheo_shaping alone: vendor/tf2_msgs (COLCON_IGNORE) is dev.py's, a workspace has its own
     assert "1 package finished" in proc.stdout, proc.stdout
     return ws
 

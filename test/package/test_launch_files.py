@@ -90,11 +90,29 @@ def test_launch_file_opens_only_shipped_files():
 def test_launch_arguments_are_documented():
     args = [n.args[0].value for n in ast.walk(_tree()) if isinstance(n, ast.Call)
             and getattr(n.func, "id", None) == "DeclareLaunchArgument"]
-    assert sorted(args) == ["gap_watch", "managed", "namespace", "params_file", "rviz",
-                            "use_sim_time"]
+    assert sorted(args) == ["clock_topic", "gap_watch", "managed", "namespace", "params_file",
+                            "rviz", "use_sim_time"]
     doc = (REPO / "docs" / "ros.md").read_text()
     for name in args:
         assert f"| `{name}` |" in doc, f"docs/ros.md: launch argument `{name}` not in its table"
+
+
+def test_the_clock_remap_reaches_every_node_of_the_cell():
+    """clock_topic:=clock moves the clock into the namespace only if the simulator's publisher
+    and every time source move together: the remap is in the arguments every node of this
+    package gets (``common``), and RViz's."""
+    calls = [n for n in ast.walk(_tree()) if isinstance(n, ast.Call)]
+    common = next(c for c in calls if getattr(c.func, "id", None) == "dict"
+                  and any(k.arg == "package" for k in c.keywords))
+    assert any(k.arg == "remappings" and getattr(k.value, "id", None) == "clock"
+               for k in common.keywords)
+    nodes = [c for c in calls if getattr(c.func, "id", None) == "Node"]
+    for call in nodes:
+        own = [k for k in call.keywords if k.arg == "remappings"]
+        if _kw(call, "package") == "rviz2":
+            assert own and getattr(own[0].value, "id", None) == "clock"
+        else:
+            assert not own and any(k.arg is None for k in call.keywords), ast.dump(call)
 
 
 def test_rviz_config_shows_the_cell_in_frame_cake():

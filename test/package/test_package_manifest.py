@@ -19,6 +19,7 @@ MODULE_KEYS = {
     "geometry_msgs": "geometry_msgs", "trajectory_msgs": "trajectory_msgs",
     "visualization_msgs": "visualization_msgs", "diagnostic_msgs": "diagnostic_msgs",
     "rosgraph_msgs": "rosgraph_msgs", "std_srvs": "std_srvs", "lifecycle_msgs": "lifecycle_msgs",
+    "tf2_msgs": "tf2_msgs",
     "launch": "launch", "launch_ros": "launch_ros", "ament_index_python": "ament_index_python",
     "numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml",
     "matplotlib": "python3-matplotlib", "tqdm": "python3-tqdm", "numba": "python3-numba",
@@ -239,3 +240,14 @@ def test_setup_cfg_installs_scripts_where_ros2_run_looks():
 
 def test_ament_resource_marker_exists():
     assert (REPO / "resource" / "rheo_shaping").is_file()
+
+
+def test_the_vendored_tf2_msgs_is_licensed_and_hidden_from_colcon():
+    """vendor/tf2_msgs (dev.py builds it into .venv, where no wheel has tf2_msgs) carries
+    its BSD license and a COLCON_IGNORE: a workspace uses the system's tf2_msgs."""
+    vendor = REPO / "vendor" / "tf2_msgs"
+    assert (vendor / "COLCON_IGNORE").is_file()
+    assert "BSD 3-Clause License" in (vendor / "LICENSE").read_text()
+    assert ET.parse(vendor / "package.xml").getroot().findtext("name") == "tf2_msgs"
+    assert (vendor / "msg" / "TFMessage.msg").read_text().split() == \
+        ["geometry_msgs/TransformStamped[]", "transforms"]
