@@ -69,7 +69,7 @@ def one_case(shared: dict, index: int) -> list[dict]:
             t1 = time.monotonic()
             diag = diagnose(recs[:nf], recs[nf:nf + nh], library=(), jobs=1,
                             initial_state="auto", floor="numerics")
-            gb = diag.gap_baseline
+            gb = diag.gap_baseline.as_json()
             rows.append({
                 "index": index, "process_time_s": T, "n_masses": n, "n_fit": nf,
                 "n_holdout": nh, "movements": case["movements"][:nf + nh], "lay": case["lay"],
@@ -78,7 +78,7 @@ def one_case(shared: dict, index: int) -> list[dict]:
                 "force_sys_N": gb.get("fit", {}).get("force_systematic_N"),
                 "profile_sys_holdout_m": gb.get("holdout", {}).get("profile_systematic_m"),
                 "force_sys_holdout_N": gb.get("holdout", {}).get("force_systematic_N"),
-                "noise": diag.noise, "initial": diag.initial_state, "form": case["form"],
+                "noise": diag.noise.as_json(), "initial": diag.initial_state, "form": case["form"],
                 "diagnosis_s": time.monotonic() - t1, "world_s": t_world})
     return rows
 

@@ -253,7 +253,7 @@ NAMES_NO_EFFECT = NAMES_NOTHING + ("measurement chain",)
 
 def score_case(case: dict, diag) -> dict:
     names = [n for n, _ in case["truth"]]
-    verdict = diag.verdict
+    verdict = diag.verdict_name
     named = verdict.split("+") if verdict not in NAMES_NO_EFFECT else []
     vf = diag.verdict_fit
     row = {"index": case["index"], "kind": case["kind"], "movements": case["movements"],
@@ -297,17 +297,19 @@ def score_case(case: dict, diag) -> dict:
     row["baseline_error_u"] = errs
     row["baseline_within_tolerance"] = all(not diag.baseline[k]["outside"] for k in diag.baseline
                                            if k in {s.name for s in SHEET})
-    fl = diag.floor or {}
-    row["floor_source"] = fl.get("source")
-    row["floor_q95"], row["naming"] = fl.get("q95_fit"), fl.get("naming")
+    fl = diag.floor
+    row["floor_source"] = fl.source
+    row["floor_q95"] = fl.q95_fit
+    row["naming"] = None if fl.naming is None else fl.naming.as_json()
     row["form"] = case.get("form")
     # what the verdict leaves against the floor (fit or holdout records beyond it), for a
     # named effect or pair and for the measurement chain's hypothesis alike: the chain's
     # knobs beyond their tolerances are a name too (the report flags their remainder the
     # same way)
-    row["verdict_beyond_floor"] = (bool(fl.get("verdict", {}).get("beyond_floor")
-                                        or fl.get("verdict_holdout", {}).get("beyond_floor"))
-                                   if verdict not in NAMES_NOTHING and "verdict" in fl
+    row["verdict_beyond_floor"] = (bool(fl.verdict.beyond_floor
+                                        or (fl.verdict_holdout is not None
+                                            and fl.verdict_holdout.beyond_floor))
+                                   if verdict not in NAMES_NOTHING and fl.verdict is not None
                                    else None)
     row["initial_state"] = (diag.initial_state or {}).get("mode")
     if "compared" in (diag.initial_state or {}):
@@ -319,8 +321,9 @@ def score_case(case: dict, diag) -> dict:
         row["param_rel_error"] = float(np.linalg.norm(fit - true) / np.linalg.norm(true))
         ivs = vf.interval.get(n, [])
         row["in_interval"] = bool(ivs) and all(lo <= t <= hi for t, (lo, hi) in zip(true, ivs))
-        h = diag.gap_after.get("holdout")
-        row["holdout_gap_shrink"] = h.get("shrink") if h else None
+        h = diag.gap_after.holdout
+        row["holdout_gap_shrink"] = (None if h is None or h.shrink is None or math.isnan(h.shrink)
+                                     else h.shrink)
     return row
 
 

@@ -124,7 +124,7 @@ def pairs_stage(ctx: FitContext, base: Baseline, gap: GapTest,
 
 
 @dataclass(frozen=True)
-class Verdict:
+class VerdictStage:
     """Stage 7: what the diagnosis says and the explanation it rests on."""
 
     name: str                       # an effect (or pair), "none", "measurement chain", ...
@@ -135,7 +135,7 @@ class Verdict:
 
 
 def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explanation,
-                  cands: Candidates, library: Sequence[str], rule=None) -> Verdict:
+                  cands: Candidates, library: Sequence[str], rule=None) -> VerdictStage:
     """Stage 7: name the best single effect if it is significant and explains the gap and
     beats the chain's hypothesis; else the chain's hypothesis if it does; else the best pair;
     else ``unexplained`` (``none`` when no gap is left).  The chain's hypothesis with a
@@ -207,7 +207,7 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
                                 "values": {k.name: float(v * k.tolerance) for k, v in
                                            zip(CHAIN, chain_c.fitted_u[n_s:])}},
             "p_gap": gap.p, "timing": timing}
-    return Verdict(name, verdict_fit, pairs, chain_side, side)
+    return VerdictStage(name, verdict_fit, pairs, chain_side, side)
 
 
 @dataclass(frozen=True)
@@ -220,7 +220,7 @@ class After:
     u_c: np.ndarray
 
 
-def after_stage(ctx: FitContext, base: Baseline, verdict: Verdict,
+def after_stage(ctx: FitContext, base: Baseline, verdict: VerdictStage,
                 chain_c: Explanation) -> After:
     """Stage 8: the verdict's runs on the fit and holdout records, for the gap figures."""
     fit = verdict.fit or (chain_c if verdict.chain_side else None)

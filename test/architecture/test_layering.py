@@ -195,3 +195,48 @@ def test_every_lazy_public_name_resolves_to_its_definition():
             if home is not None and not home.startswith(name):
                 bad.append(f"{name}.{attr} is defined in {home}")
     assert not bad, "lazy public names that do not resolve: " + "; ".join(bad)
+
+
+def _packages() -> list[str]:
+    """Every package of rheo_shaping (each folder with an ``__init__.py``), dotted."""
+    return sorted(".".join(p.parent.relative_to(PKG.parent).parts)
+                  for p in PKG.rglob("__init__.py"))
+
+
+def test_every_package_declares_its_public_api():
+    """Each package's ``__init__`` declares ``__all__`` (read from the source: the ROS side
+    is checked without rclpy), and in the core each name it lists resolves."""
+    import importlib
+    pkgs = _packages()
+    assert {"rheo_shaping.diagnosis", "rheo_shaping.nodes", "rheo_shaping.cli"} <= set(pkgs)
+    bad = []
+    for name in pkgs:
+        init = PKG.parent / Path(*name.split(".")) / "__init__.py"
+        tree = ast.parse(init.read_text())
+        declared = any(isinstance(n, (ast.Assign, ast.AnnAssign)) and "__all__" in
+                       ast.unparse(n.targets[0] if isinstance(n, ast.Assign) else n.target)
+                       for n in tree.body)
+        if not declared:
+            bad.append(f"{name}: no __all__")
+            continue
+        if _unit(name) in ROS_SIDE:
+            continue
+        pkg = importlib.import_module(name)
+        bad += [f"{name}.{attr} does not resolve" for attr in pkg.__all__
+                if not hasattr(pkg, attr)]
+    assert not bad, "packages without a public API: " + "; ".join(bad)
+
+
+def test_the_diagnosis_public_face():
+    """``from rheo_shaping.diagnosis import diagnose, Diagnosis, Verdict``: the verdict an
+    enum whose values are the JSON's, the diagnosis frozen and built by keyword."""
+    import dataclasses
+    import enum
+    from rheo_shaping.diagnosis import DEFAULTS, Diagnosis, Verdict, diagnose
+    assert issubclass(Verdict, enum.StrEnum)
+    assert {v.value for v in Verdict} == {"none", "effect", "pair", "measurement chain",
+                                          "unexplained"}
+    params = dataclasses.fields(Diagnosis)
+    assert Diagnosis.__dataclass_params__.frozen
+    assert all(f.kw_only for f in params)
+    assert callable(diagnose) and DEFAULTS.floor == "model-form"

@@ -201,13 +201,13 @@ def test_auto_reading_settled_takes_the_start_whose_baseline_fits_better():
     ``MOVING``) fits far better from its first frames."""
     from rheo_shaping.diagnosis.benchmark import base_cell, make_case
     from rheo_shaping.diagnosis.engine import diagnose
-    from rheo_shaping.diagnosis.report import markdown
+    from rheo_shaping.diagnosis.report_text import markdown
     p = CellParams()
     p = replace(p, sheet=replace(p.sheet, n_masses=15))
     own = [synthesize_record(replace(p, movement=replace(p.movement, number=m,
                                                          process_time=30.0)), seed=m)[0]
            for m in (4, 1)]
-    d = diagnose(own, library=(), jobs=1, initial_state="auto")
+    d = diagnose(own, library=(), jobs=1, initial_state="auto", floor="numerics")
     both = d.initial_state["compared"]
     assert both["laid_J"] == pytest.approx(both["settled_J"], rel=0.01)   # measured 0.2 %
     assert d.J_base == min(both.values())
@@ -216,7 +216,7 @@ def test_auto_reading_settled_takes_the_start_whose_baseline_fits_better():
     assert {s.mode for s in ist.pool([ist.estimate(r, "auto") for r in case["records"]],
                                      True)} == {"settled"}
     d = diagnose(case["records"][:2], case["records"][2:], library=(), jobs=1,
-                 initial_state="auto")
+                 initial_state="auto", floor="numerics")
     both = d.initial_state["compared"]
     assert d.initial_state["mode"] == "laid" and d.J_base == both["laid_J"]
     assert both["laid_J"] - 1.0 < 0.8 * (both["settled_J"] - 1.0)  # measured 0.73 vs 1.67
