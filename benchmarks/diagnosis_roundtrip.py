@@ -14,7 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from rheo_shaping.params.config import dump_cell, load_cell
-from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+from rheo_shaping_validation.benchmark import base_cell, make_case
 from rheo_shaping.diagnosis.engine import diagnose
 from rheo_shaping.planning.movement import synthesize_record
 

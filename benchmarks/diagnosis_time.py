@@ -1,6 +1,6 @@
 """What one diagnosis of three records costs: wall time and simulations, per kind of case.
 
-Cases (records without the inverse crime, ``rheo_shaping.diagnosis.benchmark.make_case``, two
+Cases (records without the inverse crime, ``rheo_shaping_validation.benchmark.make_case``, two
 fitted and one held out):
 
 * ``free``: effect-free records (seed 11, case 5);
@@ -36,7 +36,7 @@ CASES = {"free": ("none", 5, 11), "offset": ("single", 4, 4), "kelvin": ("single
 
 def records_of(name: str, base):
     """The three records of case ``name`` on the diagnosis cell ``base``."""
-    from rheo_shaping.diagnosis.benchmark import make_case
+    from rheo_shaping_validation.benchmark import make_case
     from rheo_shaping.planning.movement import synthesize_record
     from rheo_shaping.sheet.effects import EFFECTS
     if name in CASES:
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     if bad or args.repeat < 1:
         ap.error(f"--cases from {', '.join((*CASES, 'kelvin-file'))} (got {bad}); "
                  "--repeat >= 1")
-    from rheo_shaping.diagnosis.benchmark import base_cell
+    from rheo_shaping_validation.benchmark import base_cell
     from rheo_shaping.diagnosis.engine import diagnose
     from rheo_shaping.diagnosis.evaluate import default_executor
     base = base_cell(args.n_masses, args.process_time)
@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
 def dynamic_cases(args, indices: list[int]) -> int:
     """Time the dynamic-world benchmark's cases ``indices`` of ``args.seed`` as it diagnoses
     them (its library, floor and initial state), the records made before the clock starts."""
-    from rheo_shaping.diagnosis.benchmark import KINDS_PATTERN, base_cell, library_for, make_case
+    from rheo_shaping_validation.benchmark import KINDS_PATTERN, base_cell, library_for, make_case
     from rheo_shaping.diagnosis.engine import diagnose
     from rheo_shaping.diagnosis.evaluate import default_executor
     base = base_cell(args.n_masses, args.process_time)

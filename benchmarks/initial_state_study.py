@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
-    from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+    from rheo_shaping_validation.benchmark import base_cell, make_case
     from rheo_shaping.diagnosis.engine import diagnose
     base = base_cell(a.n_masses, a.process_time)
     rows = []

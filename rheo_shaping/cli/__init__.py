@@ -16,7 +16,7 @@ __all__ = ["main", "build_parser", "UserError", "SUBCOMMANDS"]
 
 #: Subcommand modules, in the order ``--help`` lists them.
 SUBCOMMANDS = ("identify", "simulate", "reproduce", "cell", "record", "record-cell", "replay",
-               "import-csv", "diagnose", "diagnose-benchmark")
+               "import-csv", "diagnose")
 
 
 class UserError(Exception):

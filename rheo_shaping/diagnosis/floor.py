@@ -4,7 +4,7 @@ world that differs from the model in form (issue 26, point 3).
 A real cell never is the model: the stored numerics null (``stats.NULL_FILE``, a finer
 chain of the model itself) measures numerics only, so every difference of form reads
 as a gap there.  The floor is the baseline's excess J - 1 on effect-free records of the
-dynamic world (``rheo_shaping.worlds``: inertia, soft contact with friction, the sheet
+dynamic world (``rheo_shaping_validation.worlds``: inertia, soft contact with friction, the sheet
 laid and released, its own sensors), calibrated by ``benchmarks/diagnosis_floor.py``
 into ``rheo_shaping/data/diagnosis_floor.json`` per configuration (diagnosis chain size,
 record length, fit and holdout record counts).

@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[2] / "rheo_shaping"
+#: The validation package beside it: the worlds, the benchmark, the campaigns.
+VALIDATION = PKG.parent / "rheo_shaping_validation"
 
 #: Top-level module names that are ROS: rclpy, its launch tools and message packages.
 ROS_ROOTS = {"rclpy", "rosidl_runtime_py", "launch", "launch_ros", "ament_index_python",
@@ -159,7 +161,7 @@ def test_docs_architecture_lists_every_import_between_subpackages():
     graph = _graph()
     missing = []
     for src in ("params", "material", "identification", "sheet", "planning", "records",
-                "study", "safety", "diagnosis", "worlds", "adaptive", "parallel", "units"):
+                "study", "safety", "diagnosis", "adaptive", "parallel", "units"):
         assert src in allowed, f"docs/architecture.md has no row for {src}"
         used = {d for d in graph.get(src, {}) if d not in ROS_ROOTS and d not in ("_lazy",)}
         missing += [f"{src} -> {d}" for d in sorted(used - allowed[src])]
@@ -198,9 +200,10 @@ def test_every_lazy_public_name_resolves_to_its_definition():
 
 
 def _packages() -> list[str]:
-    """Every package of rheo_shaping (each folder with an ``__init__.py``), dotted."""
+    """Every package of rheo_shaping and of the validation (each folder with an
+    ``__init__.py``), dotted."""
     return sorted(".".join(p.parent.relative_to(PKG.parent).parts)
-                  for p in PKG.rglob("__init__.py"))
+                  for root in (PKG, VALIDATION) for p in root.rglob("__init__.py"))
 
 
 def test_every_package_declares_its_public_api():
@@ -208,7 +211,8 @@ def test_every_package_declares_its_public_api():
     is checked without rclpy), and in the core each name it lists resolves."""
     import importlib
     pkgs = _packages()
-    assert {"rheo_shaping.diagnosis", "rheo_shaping.nodes", "rheo_shaping.cli"} <= set(pkgs)
+    assert {"rheo_shaping.diagnosis", "rheo_shaping.nodes", "rheo_shaping.cli",
+            "rheo_shaping_validation.benchmark"} <= set(pkgs)
     bad = []
     for name in pkgs:
         init = PKG.parent / Path(*name.split(".")) / "__init__.py"
@@ -240,3 +244,19 @@ def test_the_diagnosis_public_face():
     assert Diagnosis.__dataclass_params__.frozen
     assert all(f.kw_only for f in params)
     assert callable(diagnose) and DEFAULTS.floor == "model-form"
+
+
+def test_the_product_imports_nothing_of_the_validation():
+    """``rheo_shaping`` (what a cell runs) imports nothing from ``rheo_shaping_validation``
+    (what it is measured with), at module level or inside functions; the validation imports
+    no ROS and no node."""
+    assert (VALIDATION / "benchmark" / "world.py").is_file()       # sees the validation
+    bad = [f"{p.relative_to(PKG.parent)} imports {name}" for p in sorted(PKG.rglob("*.py"))
+           for name in _imports(p) if name.split(".")[0] == VALIDATION.name]
+    assert not bad, "the product imports the validation: " + "; ".join(bad)
+    ros = [f"{p.relative_to(PKG.parent)} imports {name}" for p in sorted(VALIDATION.rglob("*.py"))
+           for name in _imports(p) if name.split(".")[0] in ROS_ROOTS
+           or name.startswith("rheo_shaping.nodes")]
+    assert not ros, "the validation imports ROS: " + "; ".join(ros)
+    assert any(name.startswith("rheo_shaping.diagnosis") for p in VALIDATION.rglob("*.py")
+               for name in _imports(p))                           # the walk reads it

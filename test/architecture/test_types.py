@@ -1,4 +1,5 @@
-"""The type check: mypy over the core subpackages, with setup.cfg's [mypy] settings.
+"""The type check: mypy over the core subpackages and the validation package, with
+setup.cfg's [mypy] settings.
 
 Runs in the core stage and the noble stage, so the annotations hold against numpy 2's
 stubs (and numba's, which 0.68 ships) and against numpy 1.26's (noble's numba 0.59 ships
@@ -21,13 +22,15 @@ ROOT = Path(__file__).resolve().parents[2]
 
 #: What is checked, under rheo_shaping/: the core but nodes/ and cli/ (the ROS side).
 CHECKED = ("params", "material", "identification", "sheet", "planning", "safety", "records",
-           "study", "diagnosis", "worlds", "gapwatch", "adaptive", "parallel.py", "units.py",
+           "study", "diagnosis", "gapwatch", "adaptive", "parallel.py", "units.py",
            "jsonable.py", "_lazy.py")
+#: Checked whole beside it: the validation package (its worlds, benchmark, campaigns).
+VALIDATION = "rheo_shaping_validation"
 
 
 def test_core_subpackages_type_check():
     """mypy finds no error in the checked part of the core."""
-    paths = [str(Path("rheo_shaping") / name) for name in CHECKED]
+    paths = [str(Path("rheo_shaping") / name) for name in CHECKED] + [VALIDATION]
     for path in paths:
         assert (ROOT / path).exists(), f"{path}: listed in CHECKED but missing"
     # mypy's cache outside the source tree (no test writes there: test/conftest.py), one per

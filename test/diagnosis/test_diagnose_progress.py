@@ -7,7 +7,7 @@ import math
 from types import SimpleNamespace
 
 from rheo_shaping.cli.diagnose import _Progress
-from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+from rheo_shaping_validation.benchmark import base_cell, make_case
 from rheo_shaping.diagnosis.engine import diagnose
 from rheo_shaping.diagnosis.evaluate import STAGES
 from rheo_shaping.diagnosis.result import Diagnosis

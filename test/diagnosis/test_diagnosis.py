@@ -15,7 +15,7 @@ from rheo_shaping.cli import main
 from rheo_shaping.params.config import load_cell
 from rheo_shaping.diagnosis import stats
 from rheo_shaping.diagnosis.baseline import CHAIN, SHEET
-from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+from rheo_shaping_validation.benchmark import base_cell, make_case
 from rheo_shaping.diagnosis.compare import RecordData, noise_level, residuals, simulate
 from rheo_shaping.diagnosis import Verdict, diagnose
 from rheo_shaping.diagnosis.evaluate import Task, run_batch

@@ -13,9 +13,9 @@ from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.planning.movement import synthesize_record
 from rheo_shaping.sheet.simulation import LaidSheet, run_scenario
-from rheo_shaping.worlds.dynamic import _polyline_length, laid_shape, run_world
-from rheo_shaping.worlds.params import LayParams
-from rheo_shaping.worlds.sensors import SensorParams, measure_world
+from rheo_shaping_validation.worlds.dynamic import _polyline_length, laid_shape, run_world
+from rheo_shaping_validation.worlds.params import LayParams
+from rheo_shaping_validation.worlds.sensors import SensorParams, measure_world
 
 LAY = LayParams(mode2=0.44, lift=5e-4, prestrain=0.0, let_go=0.25)
 
@@ -199,7 +199,7 @@ def test_auto_reading_settled_takes_the_start_whose_baseline_fits_better():
     (a settled sheet is a laid one that does not move): nothing rides on the choice.  A
     dynamic-world laying whose records moved 4.8, 2.0 and 1.6 noise units (median below
     ``MOVING``) fits far better from its first frames."""
-    from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+    from rheo_shaping_validation.benchmark import base_cell, make_case
     from rheo_shaping.diagnosis.engine import diagnose
     from rheo_shaping.diagnosis.report_text import markdown
     p = CellParams()

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from _support.json_same import differences
 from rheo_shaping.cli import main
-from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+from rheo_shaping_validation.benchmark import base_cell, make_case
 from rheo_shaping.records.bag import write_record
 
 FIXTURE = Path(__file__).resolve().parent / "fixtures" / "diagnose_json.json"

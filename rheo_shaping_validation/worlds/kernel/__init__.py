@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..._numba_cache import register
+from rheo_shaping._numba_cache import register
 
 register(Path(__file__).resolve().parent, "rheo_shaping_worlds")
 
