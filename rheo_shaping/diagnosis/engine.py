@@ -25,7 +25,7 @@
    the linearised model (piecewise linear in the effect's magnitude); the two
    best (by their likelihood-ratio p-value) are checked by simulation on the
    fit and holdout records.  Named: p (Bonferroni over the candidates) <=
-   ALPHA, and what it leaves is adequate (:func:`check.adequate`: excess
+   ALPHA, and what it leaves is adequate (:func:`adequacy.adequate`: excess
    within the effect-free null's 95 % quantile on fit and holdout records,
    plus the model's own discretisation error at the candidate, measured by
    re-running it refined, :func:`check.numerics`; and the holdout improves).
@@ -62,7 +62,8 @@ from .evaluate import Runner, apply
 from .initial_state import initial_summary, pool
 from .laid_length import laid_lengths
 from .figures import FloorReport, Noise
-from .options import DEFAULTS, BaselineMode, FloorKind, InitialMode, Options
+from .options import (DEFAULTS, BaselineMode, FloorKind, InitialMode, baseline_mode_of,
+                      floor_of, initial_mode_of)
 from .result import Diagnosis, Verdict, as_residuals, baseline_table, chain_correct
 from .stages import Nominal, baseline_stage, gap_stage, nominal_stage, sensor_stage
 from .verdict import (After, Candidates, VerdictStage, after_stage, candidates_stage,
@@ -96,8 +97,9 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
     within its tolerances either way."""
     if not records:
         raise ValueError("diagnose needs at least one record to fit")
-    opts = Options.of(initial_state, floor, baseline)
-    initial_state, floor, baseline = opts.initial_state, opts.floor, opts.baseline
+    initial_state = initial_mode_of(initial_state)
+    floor = floor_of(floor)
+    baseline = baseline_mode_of(baseline)
     sheet_lim = 1.0 if baseline is BaselineMode.CALIBRATED else 0.0
     scale = (1.0, 1.0)
     if reference:

@@ -45,20 +45,31 @@ class Options:
     def of(cls, initial_state: str = "auto", floor: str | Path = "model-form",
            baseline: str = "calibrated") -> Options:
         """The options of plain strings (a ValueError names the choices)."""
-        return cls(initial_state=_choice(InitialMode, initial_state, "initial_state"),
-                   floor=floor_of(floor), baseline=_choice(BaselineMode, baseline, "baseline"))
+        return cls(initial_state=initial_mode_of(initial_state), floor=floor_of(floor),
+                   baseline=baseline_mode_of(baseline))
 
 
 #: The defaults of :func:`~.engine.diagnose` and of ``rheo-shaping diagnose``.
 DEFAULTS = Options()
 
 
-def _choice(enum: type[StrEnum], value: str, what: str):
+def _choice(enum, value: str, what: str):
+    """``enum(value)``, or a ValueError that names ``what`` and the choices."""
     try:
         return enum(value)
     except ValueError:
         raise ValueError(f"{what} {value!r}: expected one of "
                          f"{', '.join(m.value for m in enum)}") from None
+
+
+def initial_mode_of(value: str) -> InitialMode:
+    """The :class:`InitialMode` of ``value`` (a ValueError names the choices)."""
+    return _choice(InitialMode, value, "initial_state")
+
+
+def baseline_mode_of(value: str) -> BaselineMode:
+    """The :class:`BaselineMode` of ``value`` (a ValueError names the choices)."""
+    return _choice(BaselineMode, value, "baseline")
 
 
 def floor_of(value: str | Path) -> FloorKind | Path:

@@ -9,10 +9,10 @@ from typing import Sequence
 import numpy as np
 
 from . import stats
+from .adequacy import adequate, needs_numerics
 from .baseline import CHAIN
 from .candidates import PAIRED, PROBES, Explanation, fit_pair, fit_single, rank_key
-from .check import (adequate, check, holdout_lengths, needs_numerics, numerics, refine_points,
-                    relinearise)
+from .check import check, holdout_lengths, numerics, refine_points, relinearise
 from .converge import converge, to_check
 from .context import Baseline, FitContext
 from .naming import lead_key
@@ -143,7 +143,7 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
 
     "Explains the gap": with the numerics floor (``rule`` None) significant (likelihood
     ratio, p <= ALPHA) and adequate (within the null plus the numerics allowance,
-    :func:`check.adequate`), the lead the best by (p, J).  With a model-form floor,
+    :func:`adequacy.adequate`), the lead the best by (p, J).  With a model-form floor,
     ``rule(explanation) -> bool`` (:func:`naming.judge`: with its prior, most of the
     baseline's excess on the fit and holdout records, and a remainder clearly below the best
     other explanation's) decides alone, the lead the checked effect of least effective

@@ -222,7 +222,8 @@ def test_numerics_allowance_is_the_added_refined_error_and_never_a_large_part_of
     less the baseline's (J_num_added), capped at GAP_SHARE of the baseline's excess; the
     totals J_num do not enter (docs/diagnosis.md)."""
     from rheo_shaping.diagnosis.candidates import Explanation
-    from rheo_shaping.diagnosis.check import GAP_SHARE, NUMERICS_FACTOR, ORDER, adequate
+    from rheo_shaping.diagnosis.adequacy import adequate
+    from rheo_shaping.diagnosis.check import GAP_SHARE, NUMERICS_FACTOR, ORDER
     assert NUMERICS_FACTOR == pytest.approx((1.0 / (1.0 - 2.0 ** -ORDER)) ** 2)
     base = Explanation((), {}, 2.0, J_num=0.05, J_num_holdout=0.05)    # excess 1.0
     J_bh = 2.0
