@@ -157,6 +157,7 @@ setup(
     entry_points={
         'console_scripts': [
             'rheo-shaping = rheo_shaping.cli:main',
+            'rheo-shaping-validation = rheo_shaping_validation.cli:main',
         ],
     },
 )

@@ -93,7 +93,7 @@ def run_case(d: dict, world: bool) -> dict:
     for name, adaptive in (("fixed", False), ("adaptive", True)):
         out[name] = summary(run_closed_loop(true, cell, replace(config, adaptive=adaptive)))
     if world:
-        from rheo_shaping.adaptive.world_loop import run_world_loop
+        from rheo_shaping_validation.world_loop import run_world_loop
         for name, adaptive in (("world_fixed", False), ("world_adaptive", True)):
             out[name] = summary(run_world_loop(true, cell, replace(config, adaptive=adaptive)))
     return out

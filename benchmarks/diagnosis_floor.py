@@ -2,7 +2,7 @@
 
 What the calibrated baseline leaves on records of a cell without any effect, when
 the records come from a simulator of another form than the sheet model (the dynamic
-world, ``rheo_shaping.worlds``: inertia, soft contact, the sheet laid in a drawn shape
+world, ``rheo_shaping_validation.worlds``: inertia, soft contact, the sheet laid in a drawn shape
 and released when the records begin, its own sensors), is the floor below which no gap
 is worth an effect's name (issue 26, point 3).  Each case: a cell whose written
 scenario and measurement chain are off within +-0.8 of their tolerances (the
@@ -24,7 +24,7 @@ tool-force RMS [N], and the noise, in ``rheo_shaping/data/diagnosis_floor.json``
 
 Each finished case is appended to ``FILE.partial.jsonl`` first; ``--assemble`` builds
 the data file from that (an interrupted run keeps its cases).  ``--variations all`` draws
-the world's form per case (issue 46, :mod:`rheo_shaping.worlds.forms`), and
+the world's form per case (issue 46, :mod:`rheo_shaping_validation.worlds.forms`), and
 ``--assemble --without V --out FILE_V`` (with ``FILE``'s partial file copied to
 ``FILE_V.partial.jsonl``) keeps only the cases with V off: the floor a held-out V is
 judged against.
@@ -54,7 +54,7 @@ def _with_n(rec, n: int):
 def one_case(shared: dict, index: int) -> list[dict]:
     """Case ``index`` at record length ``shared['process_time']``: a row per chain size and
     grouping (module-level: it pickles to a worker)."""
-    from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+    from rheo_shaping_validation.benchmark import base_cell, make_case
     from rheo_shaping.diagnosis.engine import diagnose
     T = shared["process_time"]
     t0 = time.monotonic()
@@ -69,7 +69,7 @@ def one_case(shared: dict, index: int) -> list[dict]:
             t1 = time.monotonic()
             diag = diagnose(recs[:nf], recs[nf:nf + nh], library=(), jobs=1,
                             initial_state="auto", floor="numerics")
-            gb = diag.gap_baseline
+            gb = diag.gap_baseline.as_json()
             rows.append({
                 "index": index, "process_time_s": T, "n_masses": n, "n_fit": nf,
                 "n_holdout": nh, "movements": case["movements"][:nf + nh], "lay": case["lay"],
@@ -78,7 +78,7 @@ def one_case(shared: dict, index: int) -> list[dict]:
                 "force_sys_N": gb.get("fit", {}).get("force_systematic_N"),
                 "profile_sys_holdout_m": gb.get("holdout", {}).get("profile_systematic_m"),
                 "force_sys_holdout_N": gb.get("holdout", {}).get("force_systematic_N"),
-                "noise": diag.noise, "initial": diag.initial_state, "form": case["form"],
+                "noise": diag.noise.as_json(), "initial": diag.initial_state, "form": case["form"],
                 "diagnosis_s": time.monotonic() - t1, "world_s": t_world})
     return rows
 
@@ -86,7 +86,7 @@ def one_case(shared: dict, index: int) -> list[dict]:
 def off(row: dict, variation: str) -> bool:
     """The case of ``row`` was drawn with ``variation`` off (rows of a run without
     variations have every one off)."""
-    from rheo_shaping.worlds.forms import FormParams
+    from rheo_shaping_validation.worlds.forms import FormParams
     form = row.get("form") or {}
     default = getattr(FormParams(), variation)
     return form.get(variation, default) == default
@@ -144,7 +144,7 @@ def main(argv=None) -> int:
     times = [float(x) for x in a.process_times.split(",")]
     ns = [int(x) for x in a.n_masses.split(",")]
     groupings = [tuple(int(v) for v in g.split("+")) for g in a.groupings.split(",")]
-    from rheo_shaping.worlds.forms import Variation, check_variations
+    from rheo_shaping_validation.worlds.forms import Variation, check_variations
     variations = [v.value for v in check_variations(
         [v.value for v in Variation] if a.variations == "all"
         else [x for x in a.variations.split(",") if x])]

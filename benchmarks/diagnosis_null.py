@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 
-from rheo_shaping.diagnosis.benchmark import run_benchmark
+from rheo_shaping_validation.benchmark import run_benchmark
 
 
 def main() -> None:

@@ -14,7 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from rheo_shaping.params.config import dump_cell, load_cell
-from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+from rheo_shaping_validation.benchmark import base_cell, make_case
 from rheo_shaping.diagnosis.engine import diagnose
 from rheo_shaping.planning.movement import synthesize_record
 
@@ -27,7 +27,8 @@ def main() -> None:
     ok = 0
     for i in range(n):
         case = make_case(2 * i + 2, KINDS[i % len(KINDS)], seed, base_cell())
-        d = diagnose(case["records"][:2], case["records"][2:], jobs=2)
+        d = diagnose(case["records"][:2], case["records"][2:], jobs=2, floor="numerics",
+                     initial_state="settled")
         with tempfile.TemporaryDirectory() as tmp:
             f = Path(tmp) / "corrected.yaml"
             f.write_text(dump_cell(d.corrected))
@@ -37,10 +38,12 @@ def main() -> None:
             cm = replace(cell, movement=replace(cell.movement, number=m))
             rec = synthesize_record(cm, seed=100 * seed + 10 * i + m, name=f"rt{i}-m{m}")[0]
             recs.append(replace(rec, scenario=cm))      # scenario.yaml = the written file
-        d2 = diagnose(recs[:2], recs[2:], jobs=2)
+        d2 = diagnose(recs[:2], recs[2:], jobs=2, floor="numerics",
+                      initial_state="settled")
         ok += d2.verdict == "none"
-        print(f"case {i}: truth {case['truth'] or '-'}; verdict {d.verdict}; records from the "
-              f"written file: {d2.verdict} (p_gap {d2.p_gap:.3g}, J - 1 = {d2.J_base - 1:.4f})",
+        print(f"case {i}: truth {case['truth'] or '-'}; verdict {d.verdict_name}; records "
+              f"from the written file: {d2.verdict_name} (p_gap {d2.p_gap:.3g}, "
+              f"J - 1 = {d2.J_base - 1:.4f})",
               flush=True)
     print(f"round trip `none`: {ok} of {n}")
 

@@ -1,6 +1,6 @@
 """What one diagnosis of three records costs: wall time and simulations, per kind of case.
 
-Cases (records without the inverse crime, ``rheo_shaping.diagnosis.benchmark.make_case``, two
+Cases (records without the inverse crime, ``rheo_shaping_validation.benchmark.make_case``, two
 fitted and one held out):
 
 * ``free``: effect-free records (seed 11, case 5);
@@ -36,7 +36,7 @@ CASES = {"free": ("none", 5, 11), "offset": ("single", 4, 4), "kelvin": ("single
 
 def records_of(name: str, base):
     """The three records of case ``name`` on the diagnosis cell ``base``."""
-    from rheo_shaping.diagnosis.benchmark import make_case
+    from rheo_shaping_validation.benchmark import make_case
     from rheo_shaping.planning.movement import synthesize_record
     from rheo_shaping.sheet.effects import EFFECTS
     if name in CASES:
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     if bad or args.repeat < 1:
         ap.error(f"--cases from {', '.join((*CASES, 'kelvin-file'))} (got {bad}); "
                  "--repeat >= 1")
-    from rheo_shaping.diagnosis.benchmark import base_cell
+    from rheo_shaping_validation.benchmark import base_cell
     from rheo_shaping.diagnosis.engine import diagnose
     from rheo_shaping.diagnosis.evaluate import default_executor
     base = base_cell(args.n_masses, args.process_time)
@@ -82,7 +82,9 @@ def main(argv: list[str] | None = None) -> int:
           f"N = {args.n_masses}, {args.process_time:g} s records, {args.jobs} workers")
     times: dict[str, list[float]] = {}
     with default_executor(args.jobs) as ex:
-        diagnose(records_of("free", base)[:1], executor=ex)          # warm the workers
+        # warm the workers
+        diagnose(records_of("free", base)[:1], executor=ex, floor="numerics",
+                 initial_state="settled")
         for name in names:
             try:
                 rec = records_of(name, base)
@@ -91,10 +93,11 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             for _ in range(args.repeat):
                 t0 = time.perf_counter()
-                d = diagnose(rec[:2], rec[2:], executor=ex)
+                d = diagnose(rec[:2], rec[2:], executor=ex, floor="numerics",
+                             initial_state="settled")
                 wall = time.perf_counter() - t0
                 times.setdefault(name, []).append(wall)
-                print(f"{name:12s} {d.verdict:18s} {wall:6.1f} s  {d.runs:4d} simulations  "
+                print(f"{name:12s} {d.verdict_name:18s} {wall:6.1f} s  {d.runs:4d} simulations  "
                       f"load {os.getloadavg()[0]:.1f}", flush=True)
     for name, ts in times.items():
         print(f"median {name:12s} {statistics.median(ts):6.1f} s over {len(ts)}")
@@ -104,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
 def dynamic_cases(args, indices: list[int]) -> int:
     """Time the dynamic-world benchmark's cases ``indices`` of ``args.seed`` as it diagnoses
     them (its library, floor and initial state), the records made before the clock starts."""
-    from rheo_shaping.diagnosis.benchmark import KINDS_PATTERN, base_cell, library_for, make_case
+    from rheo_shaping_validation.benchmark import KINDS_PATTERN, base_cell, library_for, make_case
     from rheo_shaping.diagnosis.engine import diagnose
     from rheo_shaping.diagnosis.evaluate import default_executor
     base = base_cell(args.n_masses, args.process_time)
@@ -123,7 +126,7 @@ def dynamic_cases(args, indices: list[int]) -> int:
                              executor=ex, floor="model-form", initial_state="auto")
                 wall = time.perf_counter() - t0
                 times.append(wall)
-                print(f"case {i:3d} {kind:14s} {d.verdict:22s} {wall:6.1f} s  {d.runs:4d} "
+                print(f"case {i:3d} {kind:14s} {d.verdict_name:22s} {wall:6.1f} s  {d.runs:4d} "
                       f"simulations  load {os.getloadavg()[0]:.1f}", flush=True)
     print(f"median {statistics.median(times):6.1f} s, max {max(times):6.1f} s over {len(times)}")
     return 0

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from rheo_shaping.diagnosis.floor import FLOOR_FILE, _q95
-from rheo_shaping.worlds.forms import FormParams, Variation
+from rheo_shaping_validation.worlds.forms import FormParams, Variation
 
 
 def on(row: dict, v: Variation) -> bool:

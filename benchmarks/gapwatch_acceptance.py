@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 
 from rheo_shaping.diagnosis.baseline import BASELINE_MODES
-from rheo_shaping.gapwatch.campaign import Case, default_shared, run_case
+from rheo_shaping_validation.gapwatch_campaign import Case, default_shared, run_case
 from rheo_shaping.gapwatch.floor import ResidualFloor
 from rheo_shaping.params.config import load_cell
 from rheo_shaping.params.node_params import GapWatchNodeParams

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from rheo_shaping.gapwatch.campaign import Case, default_shared
+from rheo_shaping_validation.gapwatch_campaign import Case, default_shared
 from rheo_shaping.gapwatch.floor import DEFAULT_FLOOR, ResidualFloor
 from rheo_shaping.params.config import load_cell
 from rheo_shaping.params.node_params import GapWatchNodeParams
@@ -69,7 +69,7 @@ def main() -> None:
 
 
 def _case_with_delta(shared, case):
-    from rheo_shaping.gapwatch import campaign
+    from rheo_shaping_validation import gapwatch_campaign as campaign
     return campaign.run_case(shared, case, keep_delta=True)
 
 

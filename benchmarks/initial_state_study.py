@@ -24,7 +24,7 @@ import numpy as np
 def before_contact_share(diag, data_by_name: dict) -> dict:
     """J - 1 of the baseline on the fit records and the share of it before contact."""
     from rheo_shaping.diagnosis.initial_state import contact_time
-    sp, sf = diag.noise["profile_m"], diag.noise["force_N"]
+    sp, sf = diag.noise.profile_m, diag.noise.force_N
     fit = set(diag.records)
     num_p = den_p = num_f = den_f = 0.0
     n_p = n_f = 0
@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
-    from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+    from rheo_shaping_validation.benchmark import base_cell, make_case
     from rheo_shaping.diagnosis.engine import diagnose
     base = base_cell(a.n_masses, a.process_time)
     rows = []
@@ -68,13 +68,13 @@ def main(argv=None) -> int:
         for mode in a.modes.split(","):
             t0 = time.monotonic()
             diag = diagnose(case["records"][:2], case["records"][2:], library=(),
-                            jobs=a.jobs, initial_state=mode)
+                            jobs=a.jobs, initial_state=mode, floor="numerics")
             row = {"index": index, "mode": mode, "movements": case["movements"],
                    "lay": case["lay"], "J_base": diag.J_base,
                    "J_base_holdout": diag.J_base_holdout, "p_gap": diag.p_gap,
                    "wall_s": time.monotonic() - t0,
                    **before_contact_share(diag, {})}
-            g = diag.gap_baseline.get("fit", {})
+            g = diag.gap_baseline.as_json()["fit"] or {}
             row["profile_sys_rms_m"] = g.get("profile_systematic_m")
             row["force_sys_rms_N"] = g.get("force_systematic_N")
             rows.append(row)

@@ -48,7 +48,7 @@ def name_of(row: dict, rule) -> str:
     Jb, Jbh = float(row["J_baseline"]), float(row["J_baseline_holdout"] or math.nan)
     lead = sorted(effects, key=lead_key(Jb, rule))[0]
     r = judge(lead, effects, Jb, Jbh, math.isfinite(Jbh), float(row["floor_q95"]), rule)
-    return lead.names[0] if r["most"] and r["clear"] else "unexplained"
+    return lead.names[0] if r.named else "unexplained"
 
 
 def check_row(row: dict) -> dict:

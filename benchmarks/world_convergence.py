@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The dynamic world (rheo_shaping.worlds) on the default cell, movements 1-4, 120 s:
+"""The dynamic world (rheo_shaping_validation.worlds) on the default cell, movements 1-4, 120 s:
 
 * its convergence: 50 vs 100 masses and dt vs dt/2 (at 50 masses), for the default laying
   and a drawn one, as the tool force's RMS difference [mN] against the load cell's noise
@@ -27,9 +27,9 @@ from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.simulation import run_scenario
 from rheo_shaping.study.reproduce import PAPER
-from rheo_shaping.worlds.dynamic import run_world
-from rheo_shaping.worlds.params import LayParams, WorldNumerics
-from rheo_shaping.worlds.verify import polyline_distance, run_gap
+from rheo_shaping_validation.worlds.dynamic import run_world
+from rheo_shaping_validation.worlds.params import LayParams, WorldNumerics
+from rheo_shaping_validation.worlds.verify import polyline_distance, run_gap
 
 LAYS = {"default": LayParams(), "drawn": LayParams(mode2=0.3, lift=1e-3, prestrain=-2e-3)}
 

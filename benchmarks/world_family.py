@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
 """The sizes of the dynamic world's form variations (issue 46, point 1;
-:mod:`rheo_shaping.worlds.forms`) against its default form, in the sensors' units.
+:mod:`rheo_shaping_validation.worlds.forms`) against its default form, in the sensors' units.
 
 For each variation at the low and the high end of its drawn range (a sign: +), on the
 default cell, movements given (default 1 and 3), 120 s, a drawn laying: the tool force's
 RMS difference [mN] and the profile's RMS distance [mm] to the default form's run (the
-same laying and numerics; :func:`rheo_shaping.worlds.verify.run_gap`).  The sensor
+same laying and numerics; :func:`rheo_shaping_validation.worlds.verify.run_gap`).  The sensor
 variations change no run: the load cell's filter is sized as the RMS of the filtered
 force minus the force [mN]; the tool's occlusion as the share of the points a frame loses
 while the tool touches the sheet, and the largest run of hidden sheet [mm].
@@ -24,11 +24,11 @@ import numpy as np
 
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
-from rheo_shaping.worlds.dynamic import run_world
-from rheo_shaping.worlds.forms import VARIATIONS, FormParams, Variation, low_pass
-from rheo_shaping.worlds.params import LayParams
-from rheo_shaping.worlds.sensors import SensorParams, _visible
-from rheo_shaping.worlds.verify import run_gap
+from rheo_shaping_validation.worlds.dynamic import run_world
+from rheo_shaping_validation.worlds.forms import VARIATIONS, FormParams, Variation, low_pass
+from rheo_shaping_validation.worlds.params import LayParams
+from rheo_shaping_validation.worlds.sensors import SensorParams, _visible
+from rheo_shaping_validation.worlds.verify import run_gap
 
 LAY = LayParams(mode2=0.3, lift=1e-3, prestrain=-2e-3)
 SENSOR = (Variation.LOAD_CELL_FILTER, Variation.TOOL_OCCLUSION)

@@ -1,9 +1,10 @@
 """Closed-loop shaping (issue 43): the online estimate of the batch's material from the run's
 samples, the re-plan of the rest of the movement from its pessimistic end, joined
-jerk-limited to the running plan, and the offline closed loop against the sheet model and
-the dynamic world.  Imports :mod:`rheo_shaping.params`, :mod:`rheo_shaping.sheet`,
-:mod:`rheo_shaping.planning`, :mod:`rheo_shaping.safety` (the monitor's threshold) and
-:mod:`rheo_shaping.worlds`.
+jerk-limited to the running plan, and the offline closed loop against the sheet model (the
+same loop against the dynamic world is the validation's:
+:mod:`rheo_shaping_validation.world_loop`).  Imports :mod:`rheo_shaping.params`,
+:mod:`rheo_shaping.sheet`, :mod:`rheo_shaping.planning` and :mod:`rheo_shaping.safety` (the
+monitor's threshold).
 """
 from .._lazy import lazy_api
 

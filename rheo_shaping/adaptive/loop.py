@@ -8,7 +8,8 @@ its tensions as the monitor node takes it.  Every ``sample_period`` a noisy
 :class:`~.observe.Sample` goes to the estimator; every ``refresh_period`` of process time
 and at each phase boundary the estimate is refreshed and, adaptive, the rest of the
 movement re-planned (:func:`~.replan.replan`).  A bad estimate falls back to the params
-file's choice.  :mod:`.world_loop` runs the same loop against the dynamic world.  No ROS.
+file's choice.  :mod:`rheo_shaping_validation.world_loop` runs the same loop against the
+dynamic world.  No ROS.
 """
 from __future__ import annotations
 

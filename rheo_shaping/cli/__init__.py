@@ -12,9 +12,11 @@ import argparse
 import importlib
 import sys
 
+__all__ = ["main", "build_parser", "UserError", "SUBCOMMANDS"]
+
 #: Subcommand modules, in the order ``--help`` lists them.
 SUBCOMMANDS = ("identify", "simulate", "reproduce", "cell", "record", "record-cell", "replay",
-               "import-csv", "diagnose", "diagnose-benchmark")
+               "import-csv", "diagnose")
 
 
 class UserError(Exception):

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from typing import Any
 from dataclasses import replace
 
-from ..diagnosis.baseline import BASELINE_MODES
+from ..diagnosis.options import DEFAULTS, BaselineMode, InitialMode
 from ..sheet.effects import EFFECT_NAMES
 from ..records.bag import RecordError, read_record
 from . import UserError
@@ -39,12 +40,13 @@ def add_parser(sub) -> None:
                    help="write the calibrated baseline plus the verdict's effect as a params file "
                         "(accepted by simulate, reproduce --params and the planner); the report "
                         "then shows F_max, SF, Delta and d_opt against the nominal cell")
-    p.add_argument("--initial-state", default="auto", choices=("auto", "laid", "settled"),
+    p.add_argument("--initial-state", default=DEFAULTS.initial_state.value,
+                   choices=[m.value for m in InitialMode],
                    help="how each record's model starts: laid (the first profile frame's sheet, "
                         "released then), settled (the scenario's drape settled before t = 0) or "
                         "auto (laid when the records show the sheet moving before the tool "
                         "touches; the default)")
-    p.add_argument("--floor", default="model-form", metavar="KIND",
+    p.add_argument("--floor", default=str(DEFAULTS.floor), metavar="KIND",
                    help="what a gap is judged against: model-form (the default: what the "
                         "baseline leaves on effect-free records of a simulator of another form, "
                         "calibrated per configuration), numerics (the model's own finer chain: "
@@ -55,7 +57,8 @@ def add_parser(sub) -> None:
     p.add_argument("--tolerance", nargs=2, type=float, metavar=("PROFILE_MM", "FORCE_N"),
                    help="practical tolerance: a baseline remainder below both (systematic "
                         "profile RMS [mm], tool-force RMS [N]) is not worth naming")
-    p.add_argument("--baseline", default="calibrated", choices=BASELINE_MODES,
+    p.add_argument("--baseline", default=DEFAULTS.baseline.value,
+                   choices=[m.value for m in BaselineMode],
                    help="the sheet knobs (material, mass, bonds, sag, cake) fitted within their "
                         "tolerances (calibrated, the default), or held as the scenario writes "
                         "them (held: the scenario is a cell already calibrated, for one by "
@@ -109,6 +112,11 @@ class _Progress:
             self.bar = None
 
 
+def _num(v: float | None, scale: float, digits: int) -> str:
+    """``v * scale`` to ``digits`` decimals, "n/a" when it is missing or not finite."""
+    return "n/a" if v is None or not math.isfinite(v) else f"{v * scale:.{digits}f}"
+
+
 def run(args: argparse.Namespace) -> int:
     library = EFFECT_NAMES
     if args.effects:
@@ -153,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
         from ..params.config import dump_cell
         from ..diagnosis.result import process_figures
         scen.write_text("# rheo-shaping diagnose: calibrated baseline + verdict "
-                        f"'{diag.verdict}' of {', '.join(diag.records)}\n"
+                        f"'{diag.verdict_name}' of {', '.join(diag.records)}\n"
                         + dump_cell(corrected))
         nominal = fit[0].scenario
         process = process_figures(replace(nominal, movement=replace(nominal.movement, number=4)),
@@ -167,27 +175,27 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result, default=float))
         return 0
-    print(f"verdict: {diag.verdict}")
+    print(f"verdict: {diag.verdict_name}")
     if diag.verdict_fit:
         for n, v in diag.verdict_fit.values.items():
             iv = diag.verdict_fit.interval[n]
             print(f"  {n} = "
                   + ", ".join(f"{x:.4g} [{lo:.4g}, {hi:.4g}]" for x, (lo, hi) in zip(v, iv)))
         print(f"  p = {diag.verdict_fit.p:.3g}")
-    fl = diag.floor or {}
-    if fl.get("source") and fl["source"] != "numerics":
-        b = fl["baseline"]
-        print(f"floor ({fl['source']}): 95 % bound J - 1 = {fl['q95_fit']:.4f}; the baseline "
-              f"leaves {b['J_minus_1']:.4f} ({b['noise_units']:.2f} noise units, profile "
-              f"{b['profile_systematic_m'] * 1e3:.3f} mm, tool force "
-              f"{b['force_systematic_N'] * 1e3:.2f} mN)"
-              + (": below the practical tolerance" if fl.get("below_tolerance") else ""))
-        if "verdict" in fl:
-            v = fl["verdict"]
-            print(f"  the verdict leaves {v['J_minus_1']:.4f} ({v['noise_units']:.2f} noise "
-                  f"units, profile {v['profile_systematic_m'] * 1e3:.3f} mm, tool force "
-                  f"{v['force_systematic_N'] * 1e3:.2f} mN): "
-                  + ("beyond the floor" if v["beyond_floor"] else "within the floor"))
+    fl = diag.floor
+    if fl.model_form:
+        b = fl.baseline
+        print(f"floor ({fl.source}): 95 % bound J - 1 = {fl.q95_fit:.4f}; the baseline "
+              f"leaves {b.J_minus_1:.4f} ({_num(b.noise_units, 1, 2)} noise units, profile "
+              f"{_num(b.profile_systematic_m, 1e3, 3)} mm, tool force "
+              f"{_num(b.force_systematic_N, 1e3, 2)} mN)"
+              + (": below the practical tolerance" if fl.below_tolerance else ""))
+        if fl.verdict is not None:
+            v = fl.verdict
+            print(f"  the verdict leaves {v.J_minus_1:.4f} ({_num(v.noise_units, 1, 2)} noise "
+                  f"units, profile {_num(v.profile_systematic_m, 1e3, 3)} mm, tool force "
+                  f"{_num(v.force_systematic_N, 1e3, 2)} mN): "
+                  + ("beyond the floor" if v.beyond_floor else "within the floor"))
     print(f"gap test: baseline J - 1 = {diag.J_base - 1:.4f}, p_gap = {diag.p_gap:.3g}; "
           f"{diag.baseline_took_text()}; "
           f"side: {diag.side['side']}")
@@ -198,11 +206,11 @@ def run(args: argparse.Namespace) -> int:
     for w in diag.where[:5]:
         print(f"  {w['rank']}. {w['kind']} {w['name']}: {w['relative']:.2f}")
     for grp in ("fit", "holdout"):
-        b, a = diag.gap_before.get(grp), diag.gap_after.get(grp)
-        if b and a:                 # the same groups before and after (gap.figures)
-            print(f"gap on {grp} records: profile RMS {b['profile_rms_m'] * 1e3:.3f} -> "
-                  f"{a['profile_rms_m'] * 1e3:.3f} mm, "
-                  f"gap beyond noise {b['gap']:.3f} -> {a['gap']:.3f}")
+        b, a = diag.gap_before.group(grp), diag.gap_after.group(grp)
+        if b is not None and a is not None:
+            print(f"gap on {grp} records: profile RMS {b.profile_rms_m * 1e3:.3f} -> "
+                  f"{a.profile_rms_m * 1e3:.3f} mm, "
+                  f"gap beyond noise {b.gap:.3f} -> {a.gap:.3f}")
     print(f"{diag.runs} simulations, {result['wall_time_s']:.0f} s"
           + (f"; report in {out}" if out else ""))
     return 0

@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from ..params.cell import CellParams
+from .options import BaselineMode
 
 
 @dataclass(frozen=True)
@@ -58,9 +59,10 @@ CHAIN: tuple[Knob, ...] = (
 
 KNOBS: dict[str, Knob] = {k.name: k for k in SHEET + CHAIN}
 
-#: How the sheet knobs are taken: fitted within their tolerances, or held as written (the
-#: scenario is a calibrated cell; the measurement chain is fitted either way).
-BASELINE_MODES: tuple[str, ...] = ("calibrated", "held")
+#: How the sheet knobs are taken (:class:`.options.BaselineMode`): fitted within their
+#: tolerances, or held as written (the scenario is a calibrated cell; the measurement chain
+#: is fitted either way).
+BASELINE_MODES: tuple[str, ...] = tuple(m.value for m in BaselineMode)
 
 
 def written(params: CellParams, name: str) -> float:

@@ -25,7 +25,7 @@
    the linearised model (piecewise linear in the effect's magnitude); the two
    best (by their likelihood-ratio p-value) are checked by simulation on the
    fit and holdout records.  Named: p (Bonferroni over the candidates) <=
-   ALPHA, and what it leaves is adequate (:func:`check.adequate`: excess
+   ALPHA, and what it leaves is adequate (:func:`adequacy.adequate`: excess
    within the effect-free null's 95 % quantile on fit and holdout records,
    plus the model's own discretisation error at the candidate, measured by
    re-running it refined, :func:`check.numerics`; and the holdout improves).
@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 from concurrent.futures import Executor
 from dataclasses import replace
+from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
@@ -55,54 +56,60 @@ import numpy as np
 from ..records.record import Record
 from ..sheet.effects import EFFECT_NAMES
 from . import floor as fl_mod, naming as naming_mod, stats
-from .baseline import BASELINE_MODES
 from .compare import RecordData, residuals
 from .context import Baseline, FitContext
 from .evaluate import Runner, apply
 from .initial_state import initial_summary, pool
 from .laid_length import laid_lengths
-from .result import Diagnosis, as_residuals, baseline_table, chain_correct
+from .figures import FloorReport, Noise
+from .options import (DEFAULTS, BaselineMode, FloorKind, InitialMode, baseline_mode_of,
+                      floor_of, initial_mode_of)
+from .result import Diagnosis, Verdict, as_residuals, baseline_table, chain_correct
 from .stages import Nominal, baseline_stage, gap_stage, nominal_stage, sensor_stage
-from .verdict import After, Candidates, Verdict, after_stage, candidates_stage, verdict_stage
+from .verdict import (After, Candidates, VerdictStage, after_stage, candidates_stage,
+                      verdict_stage)
 
 
 def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
              library: Sequence[str] = EFFECT_NAMES, jobs: int | None = None,
              progress: Callable[[int], None] | None = None,
-             executor: Executor | None = None, initial_state: str = "settled",
-             floor: str = "numerics", reference: Sequence[Record] = (),
+             executor: Executor | None = None,
+             initial_state: InitialMode | str = DEFAULTS.initial_state,
+             floor: FloorKind | str | Path = DEFAULTS.floor, reference: Sequence[Record] = (),
              tolerance: tuple[float, float] | None = None,
-             baseline: str = "calibrated") -> Diagnosis:
+             baseline: BaselineMode | str = DEFAULTS.baseline) -> Diagnosis:
     """Diagnose the gap between ``records`` (fitted) and their scenario; check on ``holdout``.
 
-    ``initial_state``: how each record's model starts (:mod:`.initial_state`: ``settled``,
-    the scenario's drape settled before t = 0; ``laid``, the first frame's sheet released;
-    ``auto``, laid when the records show the sheet moving before the tool touches).
-    ``floor``: what the gap and the adequacy are judged against (:mod:`.floor`:
-    ``numerics``, the stored finer-chain null; ``model-form``, the dynamic world's
-    calibration for this configuration, scaled to ``reference`` records' remainder when
-    given; or a calibration file's path).  ``tolerance`` (profile [m], tool force [N]): a
-    baseline remainder below both is not worth naming (``none``).  ``baseline``:
+    The switches and their defaults (:data:`.options.DEFAULTS`, the command's too):
+    ``initial_state``: how each record's model starts (:class:`.options.InitialMode`:
+    ``settled``, the scenario's drape settled before t = 0; ``laid``, the first frame's sheet
+    released; ``auto``, the default, laid when the records show the sheet moving before the
+    tool touches).  ``floor``: what the gap and the adequacy are judged against
+    (:class:`.options.FloorKind`, :mod:`.floor`: ``numerics``, the stored finer-chain null;
+    ``model-form``, the default, the dynamic world's calibration for this configuration,
+    scaled to ``reference`` records' remainder when given; or a calibration file's path).
+    ``tolerance`` (profile [m], tool force [N]): a baseline remainder below both is not
+    worth naming (``none``).  ``baseline``:
     ``calibrated`` (the sheet knobs fitted within their tolerances, :mod:`.baseline`) or
     ``held`` (kept as written: the scenario is a cell already calibrated, for one a
     commissioning diagnosis corrected, and the question is what changed since; the gap
-    watch's question).  The measurement chain is fitted within its tolerances either way."""
+    watch's question; :class:`.options.BaselineMode`).  The measurement chain is fitted
+    within its tolerances either way."""
     if not records:
         raise ValueError("diagnose needs at least one record to fit")
-    if baseline not in BASELINE_MODES:
-        raise ValueError(f"baseline {baseline!r}: expected one of {', '.join(BASELINE_MODES)}")
-    sheet_lim = 1.0 if baseline == "calibrated" else 0.0
-    if floor not in fl_mod.KINDS and not str(floor).endswith(".json"):
-        raise ValueError(f"floor {floor!r}: expected one of {', '.join(fl_mod.KINDS)} or a "
-                         "calibration file (.json)")
+    initial_state = initial_mode_of(initial_state)
+    floor = floor_of(floor)
+    baseline = baseline_mode_of(baseline)
+    sheet_lim = 1.0 if baseline is BaselineMode.CALIBRATED else 0.0
     scale = (1.0, 1.0)
     if reference:
         if len(reference) < 2:
             raise ValueError("--reference needs at least two effect-free records (one is "
                              "held out)")
         ref = diagnose(reference[:-1], reference[-1:], library=(), jobs=jobs,
-                       executor=executor, initial_state=initial_state, baseline=baseline)
-        path = floor if str(floor).endswith(".json") else fl_mod.FLOOR_FILE
+                       executor=executor, initial_state=initial_state,
+                       floor=FloorKind.NUMERICS, baseline=baseline)
+        path = floor if isinstance(floor, Path) else fl_mod.FLOOR_FILE
         scale = fl_mod.reference_scale(ref, reference[0].scenario.sheet.n_masses,
                                        float(round(max(r.duration for r in reference))), path)
     library = tuple(library)
@@ -134,10 +141,10 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         chain_c = sensor_stage(ctx, base)
         cands = candidates_stage(ctx, base, gap, chain_c, library)
 
-        judged: dict[int, dict] = {}                 # id(explanation) -> naming.judge's
+        judged: dict[int, naming_mod.Naming] = {}   # id(explanation) -> naming.judge's
         q95 = fl.quantile()
 
-        def naming_of(c) -> dict:
+        def naming_of(c) -> naming_mod.Naming:
             if id(c) not in judged:
                 judged[id(c)] = naming_mod.judge(c, cands.effects, base.J, base.J_h,
                                                  bool(ctx.hold_d), q95)
@@ -145,20 +152,18 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
 
         def clear(c) -> bool:
             """Most of the excess on fit and holdout records, clearly the best."""
-            n = naming_of(c)
-            return n["most"] and n["clear"]
+            return naming_of(c).named
         rule = None if fl.source == "numerics" else clear
         verdict = verdict_stage(ctx, base, gap, chain_c, cands, library, rule)
         named = verdict.fit or (chain_c if verdict.chain_side else None)
         naming = naming_of(named) if rule is not None and named is not None else None
         after = after_stage(ctx, base, verdict, chain_c)
         runs = run.runs
-    diag = _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs)
-    diag.initial_state = initial_summary(data, choice)
-    diag.baseline_mode = baseline
-    diag.floor = _floor_report(fl, diag, named, naming, below, tolerance, ctx.sp,
-                               ctx.sf, base.solver.A, cands.responses, base.parts)
-    return diag
+    floor_rep = _floor_report(fl, base, named, naming, below, tolerance, ctx.sp, ctx.sf,
+                              cands.responses)
+    return _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs,
+                     floor=floor_rep, initial_state=initial_summary(data, choice),
+                     baseline_mode=baseline)
 
 
 def _start(data: list, nf: int, run: Runner, sheet_lim: float) -> tuple:
@@ -181,9 +186,9 @@ def _floor(spec, data, nf: int, nh: int, sp: float, sf: float) -> "fl_mod.Floor"
     """The floor this diagnosis is judged against (``spec``: (kind or file, reference
     scale, from reference records))."""
     kind, scale, from_ref = spec
-    if kind == "numerics":
+    if kind is FloorKind.NUMERICS:
         return fl_mod.numerics_floor()
-    path = kind if str(kind).endswith(".json") else fl_mod.FLOOR_FILE
+    path = kind if isinstance(kind, Path) else fl_mod.FLOOR_FILE
     sc = data[0].record.scenario
     T = float(round(max(d.record.duration for d in data)))
     src = (f"reference records (the stored dynamic-world floor scaled by {scale[0]:.2f} in "
@@ -191,41 +196,38 @@ def _floor(spec, data, nf: int, nh: int, sp: float, sf: float) -> "fl_mod.Floor"
     return fl_mod.stored_floor(sc.sheet.n_masses, T, nf, nh, sp, sf, path, scale, src)
 
 
-def _floor_report(floor, diag: Diagnosis, verdict_fit, naming, below_tol: bool, tolerance,
-                  sp: float, sf: float, A, responses, parts_B: dict) -> dict:
+def _floor_report(floor, base: Baseline, verdict_fit, naming, below_tol: bool, tolerance,
+                  sp: float, sf: float, responses) -> FloorReport:
     """The floor, what the baseline and the verdict leave against it, and the model-form
     part of the verdict's interval."""
-    out = floor.as_dict()
-    out["baseline"] = fl_mod.remainder(diag.J_base, parts_B, sp, sf, floor)
-    if math.isfinite(diag.J_base_holdout):
-        out["baseline_holdout"] = {"J_minus_1": diag.J_base_holdout - 1.0,
-                                   "floor_q95": floor.quantile(True),
-                                   "beyond_floor": bool(diag.J_base_holdout - 1.0
-                                                        > floor.quantile(True))}
-    out["below_tolerance"] = below_tol
-    out["tolerance"] = None if tolerance is None else {"profile_m": tolerance[0],
-                                                       "force_N": tolerance[1]}
-    out["naming"] = naming
+    q_h = floor.quantile(True)
+    out: dict = {}
     if verdict_fit is not None:
         out["verdict"] = fl_mod.remainder(verdict_fit.J, verdict_fit.J_parts, sp, sf, floor)
         if math.isfinite(verdict_fit.J_holdout):
-            out["verdict_holdout"] = {"J_minus_1": verdict_fit.J_holdout - 1.0,
-                                      "floor_q95": floor.quantile(True),
-                                      "beyond_floor": bool(verdict_fit.J_holdout - 1.0
-                                                           > floor.quantile(True))}
+            out["verdict_holdout"] = fl_mod.holdout_remainder(verdict_fit.J_holdout, floor)
         if floor.source != "numerics" and responses:
             # the model-form discrepancy is at least the floor's, and at least what the
             # named effect leaves on the fit records when that is beyond the floor
             q = fl_mod.discrepancy_size(floor.quantile(), verdict_fit.J)
             out["model_form_interval_width"] = fl_mod.model_form_interval(
-                verdict_fit, q, A, responses)
+                verdict_fit, q, base.solver.A, responses)
             out["model_form_discrepancy"] = q
-    return out
+    return FloorReport(
+        source=floor.source, config=floor.config, cases=int(floor.fit.size),
+        q95_fit=floor.quantile(), q95_holdout=q_h, q95_profile_m=floor.profile_sys_m,
+        q95_force_N=floor.force_sys_N,
+        baseline=fl_mod.remainder(base.J, base.parts, sp, sf, floor),
+        baseline_holdout=(fl_mod.holdout_remainder(base.J_h, floor)
+                          if math.isfinite(base.J_h) else None),
+        below_tolerance=below_tol, tolerance=tolerance, naming=naming, **out)
 
 
 def _assemble(ctx: FitContext, nominal: Nominal, base: Baseline, p_gap: float, rp: tuple,
-              cands: Candidates, verdict: Verdict, after: After, runs: int) -> Diagnosis:
-    """The :class:`Diagnosis` of the stages' results: gap figures, where, the signature."""
+              cands: Candidates, verdict: VerdictStage, after: After, runs: int,
+              **rest) -> Diagnosis:
+    """The :class:`Diagnosis` of the stages' results: gap figures, where, the signature
+    (``rest``: its floor, initial states and baseline mode)."""
     from . import gap, where as where_mod
     from .signature import describe, partial_shares
     data, fit_d, hold_d, nf, n_s = ctx.data, ctx.fit_d, ctx.hold_d, ctx.nf, ctx.n_s
@@ -242,19 +244,24 @@ def _assemble(ctx: FitContext, nominal: Nominal, base: Baseline, p_gap: float, r
     after_res = ([chain_correct(as_residuals(d, o, base_runs[i]), o, after.u_c) for i, (d, o) in
                   enumerate(zip(data, after.outs))] if vfc else base_res)
     fit_idx, hold_idx = tuple(range(nf)), tuple(range(nf, len(data)))
-    diag = Diagnosis(verdict.name, verdict.fit, cands.effects, verdict.pairs, [], {}, {}, {},
-                     {"profile_m": sp, "force_N": sf}, nominal.J0, nominal.J0_h, base.J,
-                     base.J_h, baseline_tab, verdict.side, p_gap, base.n_eff,
-                     [d.record.name for d in fit_d], [d.record.name for d in hold_d], runs,
-                     corrected=corrected, numerics_base=cands.base_c, J_replay=rp)
-    diag.where = where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf)
-    diag.gap_before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
-    before = diag.gap_before
-    diag.gap_baseline = gap.figures(data, base_res, fit_idx, hold_idx, sp, sf, before=before)
-    diag.gap_after = gap.figures(data, after_res, fit_idx, hold_idx, sp, sf, before=before)
+    before = gap.figures(data, nom_res, fit_idx, hold_idx, sp, sf)
+    signature = None
     if verdict.name not in ("none", "measurement chain"):
-        diag.signature = describe(fit_d, base_res[:nf], base_runs[:nf], sp, sf, base.u_c,
-                                  partial_shares(cands.effects, base.J))
-    diag.residual_maps = [(d, nom_res[i], after_res[i], nominal.outs[i].run)
-                          for i, d in enumerate(data)]
-    return diag
+        signature = describe(fit_d, base_res[:nf], base_runs[:nf], sp, sf, base.u_c,
+                             partial_shares(cands.effects, base.J))
+    named = tuple(verdict.fit.names) if verdict.fit is not None else ()
+    kind = (Verdict.PAIR if len(named) > 1 else Verdict.EFFECT) if named else \
+        Verdict(verdict.name)
+    return Diagnosis(
+        verdict=kind, named=named, verdict_fit=verdict.fit, effects=cands.effects,
+        pairs=verdict.pairs, where=where_mod.rank(fit_d, base_res[:nf], base_runs[:nf], sp, sf),
+        gap_before=before,
+        gap_baseline=gap.figures(data, base_res, fit_idx, hold_idx, sp, sf, before=before),
+        gap_after=gap.figures(data, after_res, fit_idx, hold_idx, sp, sf, before=before),
+        noise=Noise(profile_m=sp, force_N=sf), J0=nominal.J0, J0_holdout=nominal.J0_h,
+        J_base=base.J, J_base_holdout=base.J_h, baseline=baseline_tab, side=verdict.side,
+        p_gap=p_gap, n_eff=base.n_eff, records=[d.record.name for d in fit_d],
+        holdout=[d.record.name for d in hold_d], runs=runs, signature=signature,
+        corrected=corrected, numerics_base=cands.base_c, J_replay=rp,
+        residual_maps=[(d, nom_res[i], after_res[i], nominal.outs[i].run)
+                       for i, d in enumerate(data)], **rest)

@@ -4,7 +4,7 @@ world that differs from the model in form (issue 26, point 3).
 A real cell never is the model: the stored numerics null (``stats.NULL_FILE``, a finer
 chain of the model itself) measures numerics only, so every difference of form reads
 as a gap there.  The floor is the baseline's excess J - 1 on effect-free records of the
-dynamic world (``rheo_shaping.worlds``: inertia, soft contact with friction, the sheet
+dynamic world (``rheo_shaping_validation.worlds``: inertia, soft contact with friction, the sheet
 laid and released, its own sensors), calibrated by ``benchmarks/diagnosis_floor.py``
 into ``rheo_shaping/data/diagnosis_floor.json`` per configuration (diagnosis chain size,
 record length, fit and holdout record counts).
@@ -45,10 +45,9 @@ from pathlib import Path
 import numpy as np
 
 from . import stats
+from .figures import Remainder
 
 FLOOR_FILE = Path(__file__).resolve().parent.parent / "data" / "diagnosis_floor.json"
-#: The floors a diagnosis can be judged against (``diagnose --floor``).
-KINDS = ("model-form", "numerics")
 CALIBRATE = ("python benchmarks/diagnosis_floor.py --n-masses {n} --process-times {T:g} "
              "--groupings {nf}+1 --cases 24 --out FILE, then diagnose --floor FILE")
 
@@ -190,9 +189,9 @@ def reference_scale(ref_diag, n_masses: int, process_time: float,
     """Factors (profile, force) from the stored remainders' medians to what the baseline left
     on the user's effect-free reference records (``ref_diag``: their diagnosis)."""
     cfgs = select(n_masses, process_time, len(ref_diag.records), 0, path)
-    g = ref_diag.gap_baseline.get("fit", {})
-    ref_p = g.get("profile_systematic_m") or 0.0
-    ref_f = g.get("force_systematic_N") or 0.0
+    g = ref_diag.gap_baseline.fit
+    ref_p = (g.profile_systematic_m if g is not None else 0.0) or 0.0
+    ref_f = (g.force_systematic_N if g is not None else 0.0) or 0.0
     med_p = float(np.median(np.concatenate([np.nan_to_num(c["profile_sys_m"]) for c in cfgs])))
     med_f = float(np.median(np.concatenate([np.nan_to_num(c["force_sys_N"]) for c in cfgs])))
     return (max(ref_p / med_p, 1.0) if med_p > 0 else 1.0,
@@ -212,15 +211,22 @@ def within_tolerance(parts: dict, sp: float, sf: float,
 
 
 def remainder(J: float, parts: dict, sp: float, sf: float, floor: Floor,
-              holdout: bool = False) -> dict:
+              holdout: bool = False) -> Remainder:
     """What is left, in noise units, m and N, against the floor's 95 % quantile."""
     q = floor.quantile(holdout)
     sys_p = sp * math.sqrt(max(parts.get("profile", 1.0) - 1.0, 0.0)) if parts else math.nan
     sys_f = (sf * math.sqrt(max(parts.get("tool force", 1.0) - 1.0, 0.0))
              if parts and "tool force" in parts else math.nan)
-    return {"J_minus_1": J - 1.0, "noise_units": math.sqrt(max(J - 1.0, 0.0)),
-            "profile_systematic_m": sys_p, "force_systematic_N": sys_f,
-            "floor_q95": q, "beyond_floor": bool(J - 1.0 > q)}
+    return Remainder(J_minus_1=J - 1.0, noise_units=math.sqrt(max(J - 1.0, 0.0)),
+                     profile_systematic_m=sys_p, force_systematic_N=sys_f, floor_q95=q,
+                     beyond_floor=bool(J - 1.0 > q))
+
+
+def holdout_remainder(J_h: float, floor: Floor) -> Remainder:
+    """What is left on the holdout records (excess alone) against the floor's holdout
+    quantile."""
+    q = floor.quantile(True)
+    return Remainder(J_minus_1=J_h - 1.0, floor_q95=q, beyond_floor=bool(J_h - 1.0 > q))
 
 
 def discrepancy_size(q95: float, J_named: float) -> float:

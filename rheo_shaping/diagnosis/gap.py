@@ -21,20 +21,24 @@ import math
 
 import numpy as np
 
+from .figures import GapFigures, GapGroups
 
-def _group(data, res, idx, sp, sf) -> dict | None:
+
+def _group(data, res, idx, sp, sf, before: GapFigures | None = None,
+           after: bool = False) -> GapFigures | None:
     if not idx:
         return None
     prof = np.concatenate([res[i].profile for i in idx])
     forces = [res[i].force for i in idx if res[i].force is not None]
     length = float(np.mean([np.sum(res[i].run.rest_length) for i in idx]))
-    out = {"records": len(idx),
-           "profile_rms_m": float(np.sqrt(np.mean(prof ** 2))),
-           "profile_max_m": float(np.max(np.abs(prof))),
-           "profile_max_rel": float(np.max(np.abs(prof)) / length),
-           "profile_systematic_m": float(math.sqrt(max(np.mean(prof ** 2) - sp ** 2, 0.0))),
-           "delta_error_m": float(np.mean([abs(res[i].delta_measured - res[i].delta_model)
-                                           for i in idx]))}
+    out: dict = {
+        "records": len(idx),
+        "profile_rms_m": float(np.sqrt(np.mean(prof ** 2))),
+        "profile_max_m": float(np.max(np.abs(prof))),
+        "profile_max_rel": float(np.max(np.abs(prof)) / length),
+        "profile_systematic_m": float(math.sqrt(max(np.mean(prof ** 2) - sp ** 2, 0.0))),
+        "delta_error_m": float(np.mean([abs(res[i].delta_measured - res[i].delta_model)
+                                        for i in idx]))}
     J_p = float(np.mean(prof ** 2) / sp ** 2)
     J = J_p
     if forces:
@@ -44,16 +48,15 @@ def _group(data, res, idx, sp, sf) -> dict | None:
         J = 0.5 * (J_p + float(np.mean(f ** 2) / sf ** 2))
     out["J"] = float(J)
     out["gap"] = float(math.sqrt(max(out["J"] - 1.0, 0.0)))
-    return out
+    if after and before is not None:
+        out["shrink"] = float(1.0 - out["gap"] / before.gap) if before.gap > 0 else math.nan
+    return GapFigures(**out)
 
 
-def figures(data, res, fit_idx, hold_idx, sp, sf, before: dict | None = None) -> dict:
-    """``{"fit": {...}, "holdout": {...} or None}``; with ``before``, each also gets ``shrink``."""
-    out = {"fit": _group(data, res, fit_idx, sp, sf),
-           "holdout": _group(data, res, hold_idx, sp, sf)}
-    if before is not None:
-        for key, g in out.items():
-            b = before.get(key)
-            if g is not None and b is not None:
-                g["shrink"] = float(1.0 - g["gap"] / b["gap"]) if b["gap"] > 0 else None
-    return out
+def figures(data, res, fit_idx, hold_idx, sp, sf, before: GapGroups | None = None
+            ) -> GapGroups:
+    """The fit and holdout groups' figures; with ``before``, each also gets ``shrink``."""
+    b = before or GapGroups()
+    after = before is not None
+    return GapGroups(fit=_group(data, res, fit_idx, sp, sf, b.fit, after),
+                     holdout=_group(data, res, hold_idx, sp, sf, b.holdout, after))

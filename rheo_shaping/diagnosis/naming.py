@@ -101,8 +101,39 @@ def effective_share(J: float, J_base: float, cost: float) -> float:
     return 1.0 - _rem(J) / (J_base - 1.0) - cost
 
 
+@dataclass(frozen=True, kw_only=True)
+class Naming:
+    """The naming rule's figures for one lead (:func:`judge`): its effective shares (N3),
+    the prior's cost (N2), the best rival and the remainders' ratio (N1), and the verdict."""
+
+    explained_fit: float            # e on the fit records (N3)
+    explained_holdout: float        # e on the holdout records (nan: none)
+    prior_cost: float               # pi, share of the baseline's excess (N2)
+    runner_up: str | None           # the best other explanation's name
+    runner_up_explained_fit: float | None
+    remainder_ratio: float          # rho (N1; inf: no rival)
+    most: bool                      # e >= rule.most on fit and holdout records
+    clear: bool                     # rho >= rule.ratio
+    rule: NamingRule
+
+    @property
+    def named(self) -> bool:
+        """Most of the excess, clearly the best: the lead is named."""
+        return self.most and self.clear
+
+    def as_json(self) -> dict:
+        return {"explained_fit": self.explained_fit,
+                "explained_holdout": self.explained_holdout, "prior_cost": self.prior_cost,
+                "runner_up": self.runner_up,
+                "runner_up_explained_fit": self.runner_up_explained_fit,
+                "remainder_ratio": self.remainder_ratio, "most": self.most,
+                "clear": self.clear, "rule": {"most": self.rule.most,
+                                              "ratio": self.rule.ratio,
+                                              "prior": self.rule.prior}}
+
+
 def judge(lead, effects: Sequence, J_base: float, J_base_h: float, has_holdout: bool,
-          q95: float, rule: NamingRule = RULE) -> dict:
+          q95: float, rule: NamingRule = RULE) -> Naming:
     """Is ``lead`` named?  ``effects``: the other candidates (those sharing a name with the
     lead are not its rivals; unchecked or failed ones neither); ``q95``: the floor's 95 %
     quantile of J - 1 on the fit records.  Returns the figures and ``most``, ``clear``."""
@@ -121,13 +152,13 @@ def judge(lead, effects: Sequence, J_base: float, J_base_h: float, has_holdout: 
         else math.inf
     most = fit >= rule.most and (not has_holdout or not math.isfinite(J_base_h)
                                  or hold >= rule.most)
-    return {"explained_fit": fit, "explained_holdout": hold, "prior_cost": cost,
-            "runner_up": "+".join(runner.names) if runner is not None else None,
-            "runner_up_explained_fit": (effective_share(runner.J, J_base,
-                                                        rule.prior * prior_cost(runner.values))
-                                        if runner is not None else None),
-            "remainder_ratio": ratio, "most": bool(most), "clear": bool(ratio >= rule.ratio),
-            "rule": {"most": rule.most, "ratio": rule.ratio, "prior": rule.prior}}
+    return Naming(explained_fit=fit, explained_holdout=hold, prior_cost=cost,
+                  runner_up="+".join(runner.names) if runner is not None else None,
+                  runner_up_explained_fit=(effective_share(runner.J, J_base,
+                                                           rule.prior * prior_cost(runner.values))
+                                           if runner is not None else None),
+                  remainder_ratio=ratio, most=bool(most), clear=bool(ratio >= rule.ratio),
+                  rule=rule)
 
 
 def lead_key(J_base: float, rule: NamingRule = RULE):

@@ -1,10 +1,11 @@
-"""What a diagnosis says: the :class:`Diagnosis`, its JSON, and the corrected cell's process
-figures."""
+"""What a diagnosis says: the :class:`Verdict`, the :class:`Diagnosis` and its JSON, and the
+corrected cell's process figures."""
 from __future__ import annotations
 
 import math
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
+from enum import StrEnum
 from typing import Sequence
 
 import numpy as np
@@ -15,40 +16,58 @@ from .baseline import CHAIN, SHEET, values as knob_values
 from .candidates import Explanation, rank_key
 from .compare import RecordData
 from .evaluate import Outcome
+from .figures import FloorReport, GapGroups, Noise
+from .options import BaselineMode
 
 
-@dataclass
+class Verdict(StrEnum):
+    """What a diagnosis says (its value is the JSON's ``verdict`` where it names no effect)."""
+
+    NONE = "none"                           # no gap beyond the floor (or the tolerance)
+    EFFECT = "effect"                       # one library effect explains it
+    PAIR = "pair"                           # two library effects together explain it
+    MEASUREMENT_CHAIN = "measurement chain"  # the chain beyond its tolerances explains it
+    UNEXPLAINED = "unexplained"             # a gap nothing of the library explains
+
+
+@dataclass(frozen=True, kw_only=True)
 class Diagnosis:
-    """Everything the report and the JSON say."""
+    """Everything the report and the JSON say (:func:`~.engine.diagnose`)."""
 
-    verdict: str
-    verdict_fit: Explanation | None
-    effects: list[Explanation]
-    pairs: list[Explanation]
-    where: list[dict]
-    gap_before: dict
-    gap_after: dict
-    gap_baseline: dict
-    noise: dict
-    J0: float
+    verdict: Verdict
+    named: tuple[str, ...] = ()     # the effect or the pair's effects (EFFECT, PAIR)
+    verdict_fit: Explanation | None  # the named explanation (EFFECT, PAIR)
+    effects: list[Explanation]      # each library effect's candidate
+    pairs: list[Explanation]        # the pairs tried (none unless no single one explains)
+    where: list[dict]               # observables and phases, largest remainder first
+    gap_before: GapGroups           # the nominal model's gap figures
+    gap_baseline: GapGroups         # the calibrated baseline's
+    gap_after: GapGroups            # the verdict's (the baseline's when it names nothing)
+    noise: Noise
+    J0: float                       # nominal balanced misfit, fit records (1: noise)
     J0_holdout: float
-    J_base: float
+    J_base: float                   # calibrated baseline's, fit records
     J_base_holdout: float
     baseline: dict                  # knob -> {value, written, u, tolerance, unit, outside}
     side: dict                      # {"side": ..., "p_chain": ..., "chain_outside": [...]}
-    p_gap: float
-    n_eff: dict
-    records: list[str]
-    holdout: list[str]
-    runs: int
-    signature: dict | None = None
+    p_gap: float                    # the gap test's p-value
+    n_eff: dict                     # effective sample sizes
+    records: list[str]              # fit records' names
+    holdout: list[str]              # holdout records' names
+    runs: int                       # simulations run
+    floor: FloorReport              # the floor the verdict was judged against
+    initial_state: dict             # how each record's model started (initial_state.py)
+    baseline_mode: BaselineMode = BaselineMode.CALIBRATED
+    signature: dict | None = None   # the residual's signature (a gap left unnamed)
     corrected: CellParams | None = None
     residual_maps: list = field(default_factory=list)
     numerics_base: Explanation | None = None   # the baseline's run against its refined run
     J_replay: tuple = (None, None)   # draws of the model's own replay misfit (fit, holdout)
-    initial_state: dict | None = None  # how each record's model started (initial_state.py)
-    floor: dict | None = None        # the model-form floor the verdict was judged against
-    baseline_mode: str = "calibrated"  # the sheet knobs fitted, or "held" as written
+
+    @property
+    def verdict_name(self) -> str:
+        """The verdict in words: the effect (``a+b`` for a pair), else the verdict's value."""
+        return "+".join(self.named) if self.named else self.verdict.value
 
     def explained(self, fr: Explanation, holdout: bool = False) -> float:
         """Fraction of the baseline's excess misfit the candidate removes."""
@@ -93,7 +112,7 @@ class Diagnosis:
                     "value_shift_refined": fr.value_shift}
         ranked = sorted(self.effects + self.pairs, key=rank_key)
         vf = self.verdict_fit
-        return {"verdict": self.verdict,
+        return {"verdict": self.verdict_name,
                 "verdict_params": {n: list(v) for n, v in vf.values.items()} if vf else None,
                 "verdict_interval": ({n: [list(iv) for iv in ivs]
                                       for n, ivs in vf.interval.items()}
@@ -107,12 +126,15 @@ class Diagnosis:
                              for k, v in zip(("fit", "holdout"), self.J_replay)},
                 "n_eff": self.n_eff, "effects": [eff(f, i + 1) for i, f in enumerate(ranked)],
                 "signature": self.signature, "where": self.where,
-                "gap_before": self.gap_before, "gap_baseline": self.gap_baseline,
-                "gap_after": self.gap_after, "noise": self.noise, "records": self.records,
+                "gap_before": self.gap_before.as_json(),
+                "gap_baseline": self.gap_baseline.as_json(),
+                "gap_after": self.gap_after.as_json(), "noise": self.noise.as_json(),
+                "records": self.records,
                 "holdout": self.holdout, "simulations": self.runs,
                 "J_numerics_baseline": self.numerics_json(),
-                "initial_state": _finite(self.initial_state), "floor": _finite(self.floor),
-                "baseline_mode": self.baseline_mode}
+                "initial_state": _finite(self.initial_state),
+                "floor": _finite(self.floor.as_json()),
+                "baseline_mode": self.baseline_mode.value}
 
     def numerics_json(self) -> dict | None:
         """The baseline's numerics misfit (None when no candidate was checked)."""

@@ -9,10 +9,10 @@ from typing import Sequence
 import numpy as np
 
 from . import stats
+from .adequacy import adequate, needs_numerics
 from .baseline import CHAIN
 from .candidates import PAIRED, PROBES, Explanation, fit_pair, fit_single, rank_key
-from .check import (adequate, check, holdout_lengths, needs_numerics, numerics, refine_points,
-                    relinearise)
+from .check import check, holdout_lengths, numerics, refine_points, relinearise
 from .converge import converge, to_check
 from .context import Baseline, FitContext
 from .naming import lead_key
@@ -124,7 +124,7 @@ def pairs_stage(ctx: FitContext, base: Baseline, gap: GapTest,
 
 
 @dataclass(frozen=True)
-class Verdict:
+class VerdictStage:
     """Stage 7: what the diagnosis says and the explanation it rests on."""
 
     name: str                       # an effect (or pair), "none", "measurement chain", ...
@@ -135,7 +135,7 @@ class Verdict:
 
 
 def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explanation,
-                  cands: Candidates, library: Sequence[str], rule=None) -> Verdict:
+                  cands: Candidates, library: Sequence[str], rule=None) -> VerdictStage:
     """Stage 7: name the best single effect if it is significant and explains the gap and
     beats the chain's hypothesis; else the chain's hypothesis if it does; else the best pair;
     else ``unexplained`` (``none`` when no gap is left).  The chain's hypothesis with a
@@ -143,7 +143,7 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
 
     "Explains the gap": with the numerics floor (``rule`` None) significant (likelihood
     ratio, p <= ALPHA) and adequate (within the null plus the numerics allowance,
-    :func:`check.adequate`), the lead the best by (p, J).  With a model-form floor,
+    :func:`adequacy.adequate`), the lead the best by (p, J).  With a model-form floor,
     ``rule(explanation) -> bool`` (:func:`naming.judge`: with its prior, most of the
     baseline's excess on the fit and holdout records, and a remainder clearly below the best
     other explanation's) decides alone, the lead the checked effect of least effective
@@ -207,7 +207,7 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
                                 "values": {k.name: float(v * k.tolerance) for k, v in
                                            zip(CHAIN, chain_c.fitted_u[n_s:])}},
             "p_gap": gap.p, "timing": timing}
-    return Verdict(name, verdict_fit, pairs, chain_side, side)
+    return VerdictStage(name, verdict_fit, pairs, chain_side, side)
 
 
 @dataclass(frozen=True)
@@ -220,7 +220,7 @@ class After:
     u_c: np.ndarray
 
 
-def after_stage(ctx: FitContext, base: Baseline, verdict: Verdict,
+def after_stage(ctx: FitContext, base: Baseline, verdict: VerdictStage,
                 chain_c: Explanation) -> After:
     """Stage 8: the verdict's runs on the fit and holdout records, for the gap figures."""
     fit = verdict.fit or (chain_c if verdict.chain_side else None)

@@ -97,7 +97,9 @@ def diagnose_record(record_dir: str, out_dir: str, baseline: str = "held") -> di
         from ..diagnosis.report import write
         from ..records.bag import read_record
         rec = read_record(record_dir)
-        diag = diagnose([rec], jobs=1, baseline=baseline)
+        # the model's own records: its sheet settled, judged against its numerics
+        diag = diagnose([rec], jobs=1, baseline=baseline, initial_state="settled",
+                        floor="numerics")
         paths = write(diag, Path(out_dir))
         fit = diag.verdict_fit
         params = {} if fit is None else {k: [float(x) for x in v] for k, v in fit.values.items()}
@@ -105,7 +107,7 @@ def diagnose_record(record_dir: str, out_dir: str, baseline: str = "held") -> di
         moved = {k: [b.get("value"), b.get("written"), b.get("unit", ""), b.get("u")]
                  for k, b in diag.baseline.items()
                  if isinstance(b, dict) and abs(b.get("u") or 0.0) >= BASELINE_SHOWN}
-        v = Verdict(diag.verdict, params, None if fit is None else float(fit.p), report,
+        v = Verdict(diag.verdict_name, params, None if fit is None else float(fit.p), report,
                     str(record_dir), time.monotonic() - t0, baseline=moved,
                     p_gap=float(diag.p_gap))
     except Exception as exc:  # noqa: BLE001 - a failed diagnosis is reported, not raised

@@ -6,3 +6,6 @@ entry points), ``ros_params`` (ROS parameters declared from the schema),
 for ``rheo-shaping cell``).  See docs/ros.md.  The physics core (everything
 outside this subpackage) must not import anything from here.
 """
+
+#: Nothing to import: each node is an executable (``main``), started by its launcher.
+__all__: list[str] = []

@@ -20,10 +20,11 @@ from _support.source_tree import user_cache
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def require_mypy_clean(names: tuple[str, ...]) -> None:
+def require_mypy_clean(names: tuple[str, ...], extra: tuple[str, ...] = ()) -> None:
     """Fail the test with mypy's report unless mypy finds no error in ``names`` (paths
-    under rheo_shaping/, each of which must exist)."""
-    paths = [str(Path("rheo_shaping") / name) for name in names]
+    under rheo_shaping/) and ``extra`` (paths from the repository's root), each of which
+    must exist."""
+    paths = [str(Path("rheo_shaping") / name) for name in names] + list(extra)
     for path in paths:
         assert (ROOT / path).exists(), f"{path}: listed to be type-checked but missing"
     checkout = hashlib.sha256(str(ROOT).encode()).hexdigest()[:12]

@@ -58,3 +58,41 @@ def test_every_name_in_the_table_exists_in_its_subpackage():
                 continue
             missing.append(f"{unit}/: `{token}`")
     assert not missing, "named in docs/architecture.md but not in the code: " + ", ".join(missing)
+
+
+VALIDATION_ROW = re.compile(r"^\| `rheo_shaping_validation/(\w+)(/|\.py)` \| (.*) \| (.*) \|$")
+
+
+def test_every_name_in_the_validation_table_exists_in_its_module():
+    """The same for the validation package's table: a name is its module's (or package's),
+    or one defined elsewhere in the validation or the product."""
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    rows = [m.groups() for m in map(VALIDATION_ROW.match, text.splitlines()) if m]
+    assert {r[0] for r in rows} >= {"worlds", "benchmark", "gapwatch_campaign"}
+    val = ROOT / "rheo_shaping_validation"
+    everywhere = _defined(val) | _defined(PKG)
+    missing = []
+    for unit, kind, owns, _ in rows:
+        path = val / unit if kind == "/" else val / f"{unit}.py"
+        assert path.exists(), f"docs/architecture.md names {path.name}, which is not there"
+        defined = _defined(path) if path.is_dir() else _defined_file(path)
+        for token in re.findall(r"`([A-Za-z_][\w.]*)`", owns):
+            if re.search(r"\.(yaml|json|py|csv|md)$", token):
+                continue
+            parts = token.split(".")
+            if all(p in defined for p in parts) or (len(parts) == 1 and token in everywhere):
+                continue
+            missing.append(f"{unit}: `{token}`")
+    assert not missing, "named in docs/architecture.md but not in the code: " + ", ".join(missing)
+
+
+def _defined_file(path: Path) -> set[str]:
+    """:func:`_defined` of one module."""
+    names = {path.stem}
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names |= {n.id for t in targets for n in ast.walk(t) if isinstance(n, ast.Name)}
+    return names

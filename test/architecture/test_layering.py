@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[2] / "rheo_shaping"
+#: The validation package beside it: the worlds, the benchmark, the campaigns.
+VALIDATION = PKG.parent / "rheo_shaping_validation"
 
 #: Top-level module names that are ROS: rclpy, its launch tools and message packages.
 ROS_ROOTS = {"rclpy", "rosidl_runtime_py", "launch", "launch_ros", "ament_index_python",
@@ -159,7 +161,7 @@ def test_docs_architecture_lists_every_import_between_subpackages():
     graph = _graph()
     missing = []
     for src in ("params", "material", "identification", "sheet", "planning", "records",
-                "study", "safety", "diagnosis", "worlds", "adaptive", "parallel", "units"):
+                "study", "safety", "diagnosis", "adaptive", "parallel", "units"):
         assert src in allowed, f"docs/architecture.md has no row for {src}"
         used = {d for d in graph.get(src, {}) if d not in ROS_ROOTS and d not in ("_lazy",)}
         missing += [f"{src} -> {d}" for d in sorted(used - allowed[src])]
@@ -195,3 +197,66 @@ def test_every_lazy_public_name_resolves_to_its_definition():
             if home is not None and not home.startswith(name):
                 bad.append(f"{name}.{attr} is defined in {home}")
     assert not bad, "lazy public names that do not resolve: " + "; ".join(bad)
+
+
+def _packages() -> list[str]:
+    """Every package of rheo_shaping and of the validation (each folder with an
+    ``__init__.py``), dotted."""
+    return sorted(".".join(p.parent.relative_to(PKG.parent).parts)
+                  for root in (PKG, VALIDATION) for p in root.rglob("__init__.py"))
+
+
+def test_every_package_declares_its_public_api():
+    """Each package's ``__init__`` declares ``__all__`` (read from the source: the ROS side
+    is checked without rclpy), and in the core each name it lists resolves."""
+    import importlib
+    pkgs = _packages()
+    assert {"rheo_shaping.diagnosis", "rheo_shaping.nodes", "rheo_shaping.cli",
+            "rheo_shaping_validation.benchmark"} <= set(pkgs)
+    bad = []
+    for name in pkgs:
+        init = PKG.parent / Path(*name.split(".")) / "__init__.py"
+        tree = ast.parse(init.read_text())
+        declared = any(isinstance(n, (ast.Assign, ast.AnnAssign)) and "__all__" in
+                       ast.unparse(n.targets[0] if isinstance(n, ast.Assign) else n.target)
+                       for n in tree.body)
+        if not declared:
+            bad.append(f"{name}: no __all__")
+            continue
+        if _unit(name) in ROS_SIDE:
+            continue
+        pkg = importlib.import_module(name)
+        bad += [f"{name}.{attr} does not resolve" for attr in pkg.__all__
+                if not hasattr(pkg, attr)]
+    assert not bad, "packages without a public API: " + "; ".join(bad)
+
+
+def test_the_diagnosis_public_face():
+    """``from rheo_shaping.diagnosis import diagnose, Diagnosis, Verdict``: the verdict an
+    enum whose values are the JSON's, the diagnosis frozen and built by keyword."""
+    import dataclasses
+    import enum
+    from rheo_shaping.diagnosis import DEFAULTS, Diagnosis, Verdict, diagnose
+    assert issubclass(Verdict, enum.StrEnum)
+    assert {v.value for v in Verdict} == {"none", "effect", "pair", "measurement chain",
+                                          "unexplained"}
+    params = dataclasses.fields(Diagnosis)
+    assert Diagnosis.__dataclass_params__.frozen
+    assert all(f.kw_only for f in params)
+    assert callable(diagnose) and DEFAULTS.floor == "model-form"
+
+
+def test_the_product_imports_nothing_of_the_validation():
+    """``rheo_shaping`` (what a cell runs) imports nothing from ``rheo_shaping_validation``
+    (what it is measured with), at module level or inside functions; the validation imports
+    no ROS and no node."""
+    assert (VALIDATION / "benchmark" / "world.py").is_file()       # sees the validation
+    bad = [f"{p.relative_to(PKG.parent)} imports {name}" for p in sorted(PKG.rglob("*.py"))
+           for name in _imports(p) if name.split(".")[0] == VALIDATION.name]
+    assert not bad, "the product imports the validation: " + "; ".join(bad)
+    ros = [f"{p.relative_to(PKG.parent)} imports {name}" for p in sorted(VALIDATION.rglob("*.py"))
+           for name in _imports(p) if name.split(".")[0] in ROS_ROOTS
+           or name.startswith("rheo_shaping.nodes")]
+    assert not ros, "the validation imports ROS: " + "; ".join(ros)
+    assert any(name.startswith("rheo_shaping.diagnosis") for p in VALIDATION.rglob("*.py")
+               for name in _imports(p))                           # the walk reads it

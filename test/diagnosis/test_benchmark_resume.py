@@ -7,9 +7,10 @@ from dataclasses import replace
 
 import pytest
 
-from rheo_shaping.diagnosis.benchmark import (DRAWS, _case_task, against_target, base_cell,
-                                              run_benchmark, summarise)
-from rheo_shaping.diagnosis.checkpoint import append_partial, read_partial
+from rheo_shaping_validation.benchmark import (DRAWS, against_target, base_cell, run_benchmark,
+                                               summarise)
+from rheo_shaping_validation.benchmark.run import _case_task
+from rheo_shaping_validation.benchmark.checkpoint import append_partial, read_partial
 
 
 def test_cases_already_done_are_not_run_again_and_new_ones_are_kept(tmp_path):

@@ -7,7 +7,7 @@ import math
 from types import SimpleNamespace
 
 from rheo_shaping.cli.diagnose import _Progress
-from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+from rheo_shaping_validation.benchmark import base_cell, make_case
 from rheo_shaping.diagnosis.engine import diagnose
 from rheo_shaping.diagnosis.evaluate import STAGES
 from rheo_shaping.diagnosis.result import Diagnosis
@@ -32,7 +32,8 @@ class Log:
 def test_each_stage_is_announced_with_its_total_before_its_simulations():
     case = make_case(1, "none", 7, base_cell(31, 70.0))
     log = Log()
-    d = diagnose(case["records"][:2], case["records"][2:], jobs=2, progress=log)
+    d = diagnose(case["records"][:2], case["records"][2:], jobs=2, progress=log,
+                 floor="numerics", initial_state="settled")
     ks = [s[0] for s in log.stages]
     names = [s[2] for s in log.stages]
     assert ks == sorted(set(ks)), ks       # a settled cell: no laid sheet's stages
@@ -79,6 +80,6 @@ def test_baseline_of_a_record_that_already_fits_says_so():
 
 
 def test_the_report_writes_it_as_a_sentence_with_its_symbols():
-    from rheo_shaping.diagnosis.report import _sentence
+    from rheo_shaping.diagnosis.report_text import _sentence
     assert _sentence("the baseline took 5 % (J - 1: 2 -> 1)") == \
         "The baseline took 5 % (J - 1: 2 -> 1)."

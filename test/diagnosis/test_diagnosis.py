@@ -15,9 +15,9 @@ from rheo_shaping.cli import main
 from rheo_shaping.params.config import load_cell
 from rheo_shaping.diagnosis import stats
 from rheo_shaping.diagnosis.baseline import CHAIN, SHEET
-from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+from rheo_shaping_validation.benchmark import base_cell, make_case
 from rheo_shaping.diagnosis.compare import RecordData, noise_level, residuals, simulate
-from rheo_shaping.diagnosis.engine import diagnose
+from rheo_shaping.diagnosis import Verdict, diagnose
 from rheo_shaping.diagnosis.evaluate import Task, run_batch
 from rheo_shaping.diagnosis.linear import Solver, Stack
 from rheo_shaping.diagnosis.where import PHASES, phases
@@ -67,12 +67,13 @@ def test_a_noise_free_force_is_weighed_at_the_floor_not_ignored():
     from rheo_shaping.diagnosis.stages import MIN_FORCE_NOISE
     ms = MeasurementParams(wrench_noise=0.0)
     rec, _ = synthesize_record(cell(4, process_time=30.0, n_masses=15), ms, seed=3)
-    d = diagnose([rec], library=(), jobs=1)
-    assert d.noise["force_N"] == MIN_FORCE_NOISE
-    assert d.noise["profile_m"] == pytest.approx(ms.profile_noise, rel=0.15)
+    d = diagnose([rec], library=(), jobs=1, floor="numerics", initial_state="settled")
+    assert d.noise.force_N == MIN_FORCE_NOISE
+    assert d.noise.profile_m == pytest.approx(ms.profile_noise, rel=0.15)
     no_force, _ = synthesize_record(cell(4, process_time=30.0, n_masses=15),
                                     replace(ms, wrench=False), seed=3)
-    assert diagnose([no_force], library=(), jobs=1).noise["force_N"] == 1.0
+    assert diagnose([no_force], library=(), jobs=1,
+                    floor="numerics", initial_state="settled").noise.force_N == 1.0
 
 
 def test_phases_follow_the_movement():
@@ -140,7 +141,8 @@ def _case(kind: str, index: int, seed: int):
 def test_effect_free_records_from_a_finer_chain_give_none():
     case = _case("none", 1, 7)
     assert case["records"][0].scenario.sheet.n_masses == N_MASSES
-    d = diagnose(case["records"][:2], case["records"][2:], jobs=2)
+    d = diagnose(case["records"][:2], case["records"][2:], jobs=2,
+                 floor="numerics", initial_state="settled")
     assert d.J0 > 1.2                      # the written scenario alone does not fit ...
     assert d.J_base - 1.0 < 0.5 * (d.J0 - 1.0)   # ... the calibrated baseline does
     assert d.verdict == "none" and d.p_gap > stats.ALPHA
@@ -152,14 +154,16 @@ def test_effect_free_records_from_a_finer_chain_give_none():
 def test_tool_offset_is_named_with_its_strength_and_shrinks_the_holdout_gap():
     case = _case("single", 4, 3)
     rec = case["records"]
-    d = diagnose(rec[:2], rec[2:], library=("tool_offset", "mass_error", "kelvin_c1"), jobs=2)
+    d = diagnose(rec[:2], rec[2:], library=("tool_offset", "mass_error", "kelvin_c1"), jobs=2,
+                 floor="numerics", initial_state="settled")
     true = case["truth"][0]
     assert true[0] == "tool_offset"
-    assert d.verdict == "tool_offset"
+    assert d.verdict is Verdict.EFFECT and d.named == ("tool_offset",)
+    assert d.verdict_name == "tool_offset"
     assert d.verdict_fit.p <= stats.ALPHA and d.p_gap <= stats.ALPHA
     for v, t in zip(d.verdict_fit.values["tool_offset"], true[1]):
         assert abs(v - t) < 0.3e-3
-    assert d.gap_after["holdout"]["shrink"] >= 0.7
+    assert d.gap_after.holdout.shrink >= 0.7
     out = d.to_json()
     keys = {"verdict", "verdict_p", "p_gap", "side", "baseline", "effects", "gap_baseline"}
     assert keys <= set(out)
@@ -169,7 +173,8 @@ def test_an_effect_outside_the_library_is_unexplained_with_a_signature():
     case = _case("single", 0, 3)                     # friction_mould
     assert case["truth"][0][0] == "friction_mould"
     rec = case["records"]
-    d = diagnose(rec[:2], rec[2:], library=("tool_offset", "mass_error"), jobs=2)
+    d = diagnose(rec[:2], rec[2:], library=("tool_offset", "mass_error"), jobs=2,
+                 floor="numerics", initial_state="settled")
     assert d.p_gap <= stats.ALPHA
     assert d.verdict == "unexplained"
     sig = d.signature
@@ -217,7 +222,8 @@ def test_numerics_allowance_is_the_added_refined_error_and_never_a_large_part_of
     less the baseline's (J_num_added), capped at GAP_SHARE of the baseline's excess; the
     totals J_num do not enter (docs/diagnosis.md)."""
     from rheo_shaping.diagnosis.candidates import Explanation
-    from rheo_shaping.diagnosis.check import GAP_SHARE, NUMERICS_FACTOR, ORDER, adequate
+    from rheo_shaping.diagnosis.adequacy import adequate
+    from rheo_shaping.diagnosis.check import GAP_SHARE, NUMERICS_FACTOR, ORDER
     assert NUMERICS_FACTOR == pytest.approx((1.0 / (1.0 - 2.0 ** -ORDER)) ** 2)
     base = Explanation((), {}, 2.0, J_num=0.05, J_num_holdout=0.05)    # excess 1.0
     J_bh = 2.0
@@ -256,8 +262,9 @@ def test_a_strong_kelvin_creep_is_named_through_its_own_jacobian_and_numerics():
     (name, (true,)), = case["truth"]
     assert name == "kelvin_c1"
     rec = case["records"]
-    d = diagnose(rec[:2], rec[2:], library=("kelvin_c1", "power_law", "mass_error"), jobs=2)
-    assert d.verdict == "kelvin_c1"
+    d = diagnose(rec[:2], rec[2:], library=("kelvin_c1", "power_law", "mass_error"), jobs=2,
+                 floor="numerics", initial_state="settled")
+    assert d.verdict_name == "kelvin_c1"
     vf = d.verdict_fit
     assert vf.J - 1.0 > stats.null_quantile()             # the null alone would refuse it
     assert vf.J_num > d.numerics_base.J_num                # the effect raises the numerics
@@ -311,14 +318,15 @@ def test_a_kelvin_cell_round_trips_to_none_and_still_sees_a_real_gap():
             out.append(replace(rec, scenario=w))
         return out
     rec = records(written)
-    d = diagnose(rec[:2], rec[2:], jobs=2)
+    d = diagnose(rec[:2], rec[2:], jobs=2, floor="numerics", initial_state="settled")
     assert stats.gap_p_value(d.J_base - 1.0) <= stats.ALPHA        # the stored null refuses
     assert d.J_replay[0] is not None and d.J_replay[0].size == 8
     assert d.verdict == "none" and d.p_gap > stats.ALPHA
     off = EFFECTS["tool_offset"].apply(written, (1.5e-3, 0.0))
     rec = records(off)
-    d = diagnose(rec[:2], rec[2:], library=("tool_offset", "mass_error"), jobs=2)
-    assert d.p_gap <= stats.ALPHA and d.verdict == "tool_offset"
+    d = diagnose(rec[:2], rec[2:], library=("tool_offset", "mass_error"), jobs=2,
+                 floor="numerics", initial_state="settled")
+    assert d.p_gap <= stats.ALPHA and d.verdict_name == "tool_offset"
 
 
 def test_a_held_baseline_keeps_the_sheet_knobs_as_written():
@@ -330,8 +338,9 @@ def test_a_held_baseline_keeps_the_sheet_knobs_as_written():
     truth = replace(written, material=replace(written.material, k1=1.08 * written.material.k1))
     rec, _ = synthesize_record(truth, MeasurementParams(wrench_noise=0.003), seed=5)
     rec = replace(rec, scenario=written)
-    cal = diagnose([rec], library=(), jobs=1)
-    held = diagnose([rec], library=(), jobs=1, baseline="held")
+    cal = diagnose([rec], library=(), jobs=1, floor="numerics", initial_state="settled")
+    held = diagnose([rec], library=(), jobs=1, baseline="held",
+                    floor="numerics", initial_state="settled")
     assert cal.baseline["material.k1"]["u"] == pytest.approx(0.8, abs=0.25)
     assert cal.baseline_mode == "calibrated" and held.baseline_mode == "held"
     assert all(held.baseline[k.name]["u"] == 0.0 for k in SHEET)

@@ -138,7 +138,7 @@ def _verdict(lead: Explanation, chain: Explanation, model_form: bool, others=())
 
     def clear(c):
         n = judge(c, effects, base.J, base.J_h, True, 0.05)
-        return n["most"] and n["clear"]
+        return n.most and n.clear
     return verdict_stage(ctx, base, GapTest(0.01, (None, None)), chain, cands, ["x"],
                          clear if model_form else None)
 

@@ -13,9 +13,9 @@ from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.planning.movement import synthesize_record
 from rheo_shaping.sheet.simulation import LaidSheet, run_scenario
-from rheo_shaping.worlds.dynamic import _polyline_length, laid_shape, run_world
-from rheo_shaping.worlds.params import LayParams
-from rheo_shaping.worlds.sensors import SensorParams, measure_world
+from rheo_shaping_validation.worlds.dynamic import _polyline_length, laid_shape, run_world
+from rheo_shaping_validation.worlds.params import LayParams
+from rheo_shaping_validation.worlds.sensors import SensorParams, measure_world
 
 LAY = LayParams(mode2=0.44, lift=5e-4, prestrain=0.0, let_go=0.25)
 
@@ -199,15 +199,15 @@ def test_auto_reading_settled_takes_the_start_whose_baseline_fits_better():
     (a settled sheet is a laid one that does not move): nothing rides on the choice.  A
     dynamic-world laying whose records moved 4.8, 2.0 and 1.6 noise units (median below
     ``MOVING``) fits far better from its first frames."""
-    from rheo_shaping.diagnosis.benchmark import base_cell, make_case
+    from rheo_shaping_validation.benchmark import base_cell, make_case
     from rheo_shaping.diagnosis.engine import diagnose
-    from rheo_shaping.diagnosis.report import markdown
+    from rheo_shaping.diagnosis.report_text import markdown
     p = CellParams()
     p = replace(p, sheet=replace(p.sheet, n_masses=15))
     own = [synthesize_record(replace(p, movement=replace(p.movement, number=m,
                                                          process_time=30.0)), seed=m)[0]
            for m in (4, 1)]
-    d = diagnose(own, library=(), jobs=1, initial_state="auto")
+    d = diagnose(own, library=(), jobs=1, initial_state="auto", floor="numerics")
     both = d.initial_state["compared"]
     assert both["laid_J"] == pytest.approx(both["settled_J"], rel=0.01)   # measured 0.2 %
     assert d.J_base == min(both.values())
@@ -216,7 +216,7 @@ def test_auto_reading_settled_takes_the_start_whose_baseline_fits_better():
     assert {s.mode for s in ist.pool([ist.estimate(r, "auto") for r in case["records"]],
                                      True)} == {"settled"}
     d = diagnose(case["records"][:2], case["records"][2:], library=(), jobs=1,
-                 initial_state="auto")
+                 initial_state="auto", floor="numerics")
     both = d.initial_state["compared"]
     assert d.initial_state["mode"] == "laid" and d.J_base == both["laid_J"]
     assert both["laid_J"] - 1.0 < 0.8 * (both["settled_J"] - 1.0)  # measured 0.73 vs 1.67

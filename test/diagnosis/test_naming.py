@@ -26,14 +26,14 @@ def test_issue_46s_power_law_against_a_40_percent_mass_error_is_named():
     lead = ex("power_law", (0.72,), 1.01, 1.02)
     mass = ex("mass_error", (-0.40,), 1.21)
     r = judge(lead, [lead, mass], 2.0, 2.0, True, 0.05)
-    assert r["most"] and r["clear"]
-    assert r["prior_cost"] == 0.0
-    assert r["remainder_ratio"] == pytest.approx((0.21 + 0.36 + 0.05) / (0.01 + 0.05))
+    assert r.most and r.clear
+    assert r.prior_cost == 0.0
+    assert r.remainder_ratio == pytest.approx((0.21 + 0.36 + 0.05) / (0.01 + 0.05))
     # the same with any of the thresholds moved by +-20 %
     for name in ("most", "ratio", "prior"):
         for f in (0.8, 1.2):
             rr = judge(lead, [lead, mass], 2.0, 2.0, True, 0.05, moved(RULE, name, f))
-            assert rr["most"] and rr["clear"], (name, f)
+            assert rr.most and rr.clear, (name, f)
 
 
 def test_an_implausible_size_loses_to_a_plausible_one_that_explains_as_much():
@@ -47,7 +47,7 @@ def test_an_implausible_size_loses_to_a_plausible_one_that_explains_as_much():
     fric = ex("friction_tool", (0.4,), 1.2, 1.2)
     assert sorted([mass, fric], key=lead_key(2.0))[0] is fric
     alone = judge(mass, [mass], 2.0, 2.0, True, 0.05)
-    assert alone["explained_fit"] == pytest.approx(0.8 - 0.36) and not alone["most"]
+    assert alone.explained_fit == pytest.approx(0.8 - 0.36) and not alone.most
     # every prior range holds the benchmark's realistic draws (a drawn effect pays nothing)
     for name, e in EFFECTS.items():
         top = tuple(hi for _, hi in e.realistic)
@@ -65,18 +65,18 @@ def test_the_rule_is_continuous_in_the_remainders_no_knife_edge_at_a_margin_of_s
     for J in (1.0099, 1.0100, 1.0101):
         lead = ex("power_law", (0.72,), J, 1.02)
         r = judge(lead, [lead, runner], 2.0, 2.0, True, 0.05)
-        ratios.append(r["remainder_ratio"])
-        assert r["clear"]
+        ratios.append(r.remainder_ratio)
+        assert r.clear
     assert max(ratios) / min(ratios) < 1.01
     # a close runner-up: refused, and for every threshold +-20 %
     lead = ex("friction_tool", (0.3,), 1.5, 1.5)
     close = ex("thinning", (1.0,), 1.6)
     r = judge(lead, [lead, close], 3.0, 3.0, True, 0.05)
-    assert r["most"] and not r["clear"]
+    assert r.most and not r.clear
     for name in ("most", "ratio", "prior"):
         for f in (0.8, 1.2):
             assert not judge(lead, [lead, close], 3.0, 3.0, True, 0.05,
-                             moved(RULE, name, f))["clear"]
+                             moved(RULE, name, f)).clear
 
 
 def test_moved_thresholds_and_bad_rules():

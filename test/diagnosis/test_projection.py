@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from rheo_shaping.diagnosis.benchmark import base_cell
+from rheo_shaping_validation.benchmark import base_cell
 from rheo_shaping.diagnosis.compare import RecordData, polylines_at, simulate
 from rheo_shaping.diagnosis.kernel import project
 from rheo_shaping.planning.movement import synthesize_record

@@ -25,7 +25,7 @@ def report(tmp_path_factory):
                                                                    process_time=30.0)), (400.0,))
     recs = [replace(synthesize_record(truth, MeasurementParams(), seed=s, name=f"r{s}")[0],
                     scenario=replace(truth, effects=p.effects)) for s in (1, 2)]
-    diag = diagnose(recs[:1], recs[1:], jobs=2)
+    diag = diagnose(recs[:1], recs[1:], jobs=2, floor="numerics", initial_state="settled")
     out = tmp_path_factory.mktemp("report")
     with saved_figures() as kept:
         files = write(diag, out)
@@ -65,7 +65,7 @@ def test_the_force_figure_has_x_and_z_for_each_record(report):
 
 def test_the_noise_band_is_the_load_cells_noise_in_the_axis_units(report):
     diag, figs, _, _ = report
-    sf_mN = diag.noise["force_N"] * 1e3
+    sf_mN = diag.noise.force_N * 1e3
     for ax in figs["force_residual.png"].axes:
         (band,) = [p for p in ax.patches if "noise" in p.get_label()]
         ys = band.get_path().transformed(band.get_patch_transform()).vertices[:, 1] \

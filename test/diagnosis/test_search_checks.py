@@ -17,9 +17,9 @@ from rheo_shaping.diagnosis.engine import diagnose
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.effects import EFFECTS, EFFECT_NAMES
-from rheo_shaping.worlds.forms import FormParams
-from rheo_shaping.worlds.params import LayParams
-from rheo_shaping.worlds.sensors import world_record
+from rheo_shaping_validation.worlds.forms import FormParams
+from rheo_shaping_validation.worlds.params import LayParams
+from rheo_shaping_validation.worlds.sensors import world_record
 
 FORM = FormParams(mould_softness=300.0, tool_softness=100.0, thickness_variation=0.08,
                   thickness_seed=11)

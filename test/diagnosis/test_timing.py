@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rheo_shaping.diagnosis.baseline import CHAIN
-from rheo_shaping.diagnosis.benchmark import base_cell
+from rheo_shaping_validation.benchmark import base_cell
 from rheo_shaping.diagnosis.compare import RecordData
 from rheo_shaping.diagnosis.evaluate import Task, run_task
 from rheo_shaping.diagnosis.timing import (LAG_GRID_S, PROFILE_SHARE, driven_points, lag_check,

@@ -196,7 +196,7 @@ def test_the_diagnosis_at_warn_holds_the_model_cell_and_names_a_mass_error():
     the model cell's sheet knobs (``diagnosis_baseline: held``): a mass 27.5 % off is named
     ``mass_error`` (a calibrated baseline took it as k1, c2 and the mass at its bound and
     said ``none``, docs/gapwatch.md)."""
-    from rheo_shaping.gapwatch.campaign import Case, default_shared, run_case
+    from rheo_shaping_validation.gapwatch_campaign import Case, default_shared, run_case
     cell = load_cell(CELL_FILE)
     out = run_case(default_shared(cell), Case("mass_error", 1, diagnose=True))
     (true,) = out["values"]

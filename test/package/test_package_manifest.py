@@ -46,7 +46,9 @@ TEST_WITHOUT_KEY = {"colcon_core", "mcap", "mcap_ros2"}
 #: Domains that can never be a maintainer's address (RFC 2606, RFC 6761).
 RESERVED_DOMAINS = (".invalid", ".example", ".test", ".localhost", "example.com", "example.net",
                     "example.org")
-CONSOLE_SCRIPTS = {"rheo-shaping": "rheo_shaping.cli:main"}
+#: The product's command and the validation's (rheo_shaping_validation, beside the product).
+CONSOLE_SCRIPTS = {"rheo-shaping": "rheo_shaping.cli:main",
+                   "rheo-shaping-validation": "rheo_shaping_validation.cli:main"}
 #: The nodes' executables: setup.py's LAUNCHER (``scripts``), not console_scripts wrappers.
 NODES = ("simulator", "planner", "monitor", "simulator_managed", "planner_managed",
          "monitor_managed", "lifecycle_manager", "gap_watch")
@@ -104,7 +106,8 @@ def test_every_module_the_tests_use_is_a_test_dependency():
             elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
                 used.add(node.module.split(".")[0])
     third_party = {m for m in used if m not in sys.stdlib_module_names
-                   and m not in ("rheo_shaping", "_support") and m not in MODULE_KEYS
+                   and m not in ("rheo_shaping", "rheo_shaping_validation", "_support")
+                   and m not in MODULE_KEYS
                    and m not in PIP_ONLY}
     assert {"pytest", "hypothesis", "flake8", "mypy"} <= third_party, "the scan works"
     for module in sorted(third_party - TEST_WITHOUT_KEY):
@@ -142,10 +145,12 @@ def test_license_file_is_the_license_package_xml_and_setup_py_name():
 
 
 def _third_party_imports() -> dict[str, set[str]]:
-    """Top-level modules imported anywhere in rheo_shaping/ (and launch/) -> files."""
+    """Top-level modules imported anywhere in rheo_shaping/, rheo_shaping_validation/ (setup.py
+    installs both) and launch/ -> files."""
     import sys
     found: dict[str, set[str]] = {}
-    files = [*(REPO / "rheo_shaping").rglob("*.py"), *(REPO / "launch").glob("*.py")]
+    files = [*(REPO / "rheo_shaping").rglob("*.py"),
+             *(REPO / "rheo_shaping_validation").rglob("*.py"), *(REPO / "launch").glob("*.py")]
     for path in files:
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
             names = []
@@ -155,7 +160,8 @@ def _third_party_imports() -> dict[str, set[str]]:
                 names = [node.module]
             for name in names:
                 top = name.split(".")[0]
-                if top not in sys.stdlib_module_names and top != "rheo_shaping":
+                if top not in sys.stdlib_module_names and top not in ("rheo_shaping",
+                                                                      "rheo_shaping_validation"):
                     found.setdefault(top, set()).add(str(path.relative_to(REPO)))
     return found
 

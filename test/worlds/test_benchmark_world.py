@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rheo_shaping.cli import main
-from rheo_shaping.diagnosis.benchmark import (WORLDS, against_target, base_cell, make_case,
-                                              run_benchmark)
+from rheo_shaping_validation.benchmark import (WORLDS, against_target, base_cell, make_case,
+                                               run_benchmark)
+from rheo_shaping_validation.cli import main
 from rheo_shaping.params.cell import EffectsParams
 from rheo_shaping.sheet.effects import EFFECTS
-from rheo_shaping.worlds.forms import FormParams
-from rheo_shaping.worlds.params import WORLD_EFFECTS
+from rheo_shaping_validation.worlds.forms import FormParams
+from rheo_shaping_validation.worlds.params import WORLD_EFFECTS
 
 
 def test_unknown_world_is_a_one_line_error(capsys):
@@ -80,12 +80,12 @@ def test_the_world_runs_without_the_sheet_model():
     import sys
     code = ("import sys, numpy as np\n"
             "from rheo_shaping.params.cell import CellParams\n"
-            "from rheo_shaping.worlds.dynamic import run_world\n"
-            "from rheo_shaping.worlds.sensors import measure_world\n"
+            "from rheo_shaping_validation.worlds.dynamic import run_world\n"
+            "from rheo_shaping_validation.worlds.sensors import measure_world\n"
             "class Still:\n"
             "    def position(self, t): return np.array([0.0345, 0.0595])\n"
             "run = run_world(CellParams(), Still(), t_end=0.5)\n"
-            "from rheo_shaping.worlds.sensors import SensorParams\n"
+            "from rheo_shaping_validation.worlds.sensors import SensorParams\n"
             "measure_world(run, Still(), SensorParams(), np.random.default_rng(0))\n"
             "bad = [m for m in sys.modules if m.startswith(('rheo_shaping.sheet', "
             "'rheo_shaping.records.measurement', 'rheo_shaping.diagnosis'))]\n"

@@ -1,5 +1,5 @@
-"""The dynamic world's contact against Coulomb's law (rheo_shaping.worlds.kernel): a flat
-tool (a 20 x 10 mm rounded rectangle) pressed onto a strip lying on the workplane and slid
+"""The dynamic world's contact against Coulomb's law (rheo_shaping_validation.worlds.kernel): a
+flat tool (a 20 x 10 mm rounded rectangle) pressed onto a strip lying on the workplane and slid
 along it.  While it slides the force on the tool leans back by exactly mu_tool
 (F_x / F_z = -mu), the strip stuck to the workplane (mu_mould 1.2); without friction there
 is no drag; the normal force is the penalty law's."""
@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from rheo_shaping.worlds import kernel as K
+from rheo_shaping_validation.worlds import kernel as K
 
 R_SPHERE = 2e-3          # m, half the sheet's thickness
 HALF_W, HALF_H, CORNER = 10e-3, 5e-3, 1e-3    # m, the tool

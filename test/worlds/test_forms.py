@@ -1,4 +1,5 @@
-"""The dynamic world's form variations (issue 46, point 1; rheo_shaping.worlds.forms): off is
+"""The dynamic world's form variations (issue 46, point 1;
+rheo_shaping_validation.worlds.forms): off is
 the world of issue 26 bit for bit; each, switched on at the high end of its drawn range,
 moves what it should by the size docs/diagnosis.md states ("A family of worlds",
 ``benchmarks/world_family.py``, movement 1, 120 s, the drawn laying below) within a factor
@@ -13,13 +14,13 @@ import pytest
 
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
-from rheo_shaping.worlds.dynamic import run_world
-from rheo_shaping.worlds.forms import (VARIATIONS, FormParams, Variation, case_form,
-                                       check_variations, draw_form, low_pass,
-                                       thickness_profile)
-from rheo_shaping.worlds.params import LayParams
-from rheo_shaping.worlds.sensors import SensorParams, _visible, measure_world
-from rheo_shaping.worlds.verify import run_gap
+from rheo_shaping_validation.worlds.dynamic import run_world
+from rheo_shaping_validation.worlds.forms import (VARIATIONS, FormParams, Variation, case_form,
+                                                  check_variations, draw_form, low_pass,
+                                                  thickness_profile)
+from rheo_shaping_validation.worlds.params import LayParams
+from rheo_shaping_validation.worlds.sensors import SensorParams, _visible, measure_world
+from rheo_shaping_validation.worlds.verify import run_gap
 
 LAY = LayParams(mode2=0.3, lift=1e-3, prestrain=-2e-3)
 #: docs/diagnosis.md's sizes at the high end (movement 1, 120 s): tool force RMS [mN],

@@ -1,4 +1,5 @@
-"""The dynamic world's link law (rheo_shaping.worlds.kernel: backward Euler of paper Eq. 2)
+"""The dynamic world's link law (rheo_shaping_validation.worlds.kernel: backward Euler of
+paper Eq. 2)
 against the paper's closed forms through one link: Eq. 5 (a pull at constant speed) and
 Eq. 7-8 (creep under a constant force), Maxwell and with a Kelvin-Voigt c1."""
 from __future__ import annotations
@@ -8,7 +9,7 @@ import pytest
 
 from rheo_shaping.material.closed_forms import creep_elongation, tensile_force
 from rheo_shaping.material.three_element import ThreeElement
-from rheo_shaping.worlds.kernel import link_affine, link_update
+from rheo_shaping_validation.worlds.kernel import link_affine, link_update
 
 MAXWELL = ThreeElement(k1=95.0, c1=0.0, c2=1.30e3)          # the paper's fondant (0.1 m)
 KELVIN = ThreeElement(k1=95.0, c1=800.0, c2=1.30e3)         # with kelvin_c1 = 800 N s/m

@@ -1,4 +1,4 @@
-"""The dynamic world (rheo_shaping.worlds): its convergence below one sensor noise unit,
+"""The dynamic world (rheo_shaping_validation.worlds): its convergence below one sensor noise unit,
 the paper's Table 2, the static balance of the settled sheet, its sensors, and that it
 holds every effect (the library's and its own)."""
 from __future__ import annotations
@@ -12,11 +12,11 @@ from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.sheet.effects import EFFECTS, EFFECT_NAMES
 from rheo_shaping.study.reproduce import PAPER
-from rheo_shaping.worlds.dynamic import WorldRun, laid_shape, run_world, scenario_length
-from rheo_shaping.worlds.params import (WORLD_EFFECTS, WORLD_EFFECT_NAMES, LayParams,
-                                        WorldEffects, WorldNumerics, draw_lay)
-from rheo_shaping.worlds.sensors import SensorParams, measure_world
-from rheo_shaping.worlds.verify import run_gap
+from rheo_shaping_validation.worlds.dynamic import WorldRun, laid_shape, run_world, scenario_length
+from rheo_shaping_validation.worlds.params import (WORLD_EFFECTS, WORLD_EFFECT_NAMES, LayParams,
+                                                   WorldEffects, WorldNumerics, draw_lay)
+from rheo_shaping_validation.worlds.sensors import SensorParams, measure_world
+from rheo_shaping_validation.worlds.verify import run_gap
 
 NOISE = SensorParams()
 LAID = LayParams(mode2=0.3, lift=1e-3, prestrain=-2e-3)      # a laying off the default
@@ -138,7 +138,7 @@ def test_sensors_and_their_errors():
 
 
 def test_tool_tilt_rotates_the_cross_section_about_the_reference_point():
-    from rheo_shaping.worlds.dynamic import tool_vertices
+    from rheo_shaping_validation.worlds.dynamic import tool_vertices
     p = cell(1)
     v0, r0 = tool_vertices(p)
     v1, r1 = tool_vertices(p, 0.01)

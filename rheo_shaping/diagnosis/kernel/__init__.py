@@ -11,3 +11,5 @@ from ..._numba_cache import register
 register(Path(__file__).resolve().parent, "rheo_shaping_diagnosis")
 
 from .project import project  # noqa: E402,F401
+
+__all__ = ["project"]

@@ -19,18 +19,18 @@ from pathlib import Path
 
 import numpy as np
 
-from ..diagnosis.baseline import SHEET, with_sheet
-from ..params.node_params import GapWatchNodeParams
-from ..params.cell import CellParams
-from ..planning.movement import movement_plan
-from ..planning.movement import synthesize_record
-from ..records.measurement import MeasurementParams
-from ..records.bag import read_record, write_record
-from ..sheet.effects import EFFECTS, nominal
-from ..sheet.simulation import RunResult, run_scenario
-from .feed import diagnose_record, watch_record
-from .floor import ResidualFloor
-from .residuals import signed_distance
+from rheo_shaping.diagnosis.baseline import SHEET, with_sheet
+from rheo_shaping.params.node_params import GapWatchNodeParams
+from rheo_shaping.params.cell import CellParams
+from rheo_shaping.planning.movement import movement_plan
+from rheo_shaping.planning.movement import synthesize_record
+from rheo_shaping.records.measurement import MeasurementParams
+from rheo_shaping.records.bag import read_record, write_record
+from rheo_shaping.sheet.effects import EFFECTS, nominal
+from rheo_shaping.sheet.simulation import RunResult, run_scenario
+from rheo_shaping.gapwatch.feed import diagnose_record, watch_record
+from rheo_shaping.gapwatch.floor import ResidualFloor
+from rheo_shaping.gapwatch.residuals import signed_distance
 
 
 @dataclass(frozen=True)

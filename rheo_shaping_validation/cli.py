@@ -1,13 +1,13 @@
-"""``rheo-shaping diagnose-benchmark``: the diagnosis scored on stand-in records with withheld
-effects."""
+"""``rheo-shaping-validation diagnose-benchmark``: the diagnosis scored on stand-in records
+with withheld effects."""
 from __future__ import annotations
 
 import argparse
 import json
 import sys
 
-from . import UserError
-from .common import add_executor_arguments, executor_from_args, output_path
+from rheo_shaping.cli import UserError
+from rheo_shaping.cli.common import add_executor_arguments, executor_from_args, output_path
 
 
 def add_parser(sub) -> None:
@@ -59,7 +59,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.n < 1:
         raise UserError(f"--n = {args.n} is invalid: expected at least 1 case")
-    from ..diagnosis.benchmark import WORLDS, against_target, run_benchmark
+    from .benchmark import WORLDS, against_target, run_benchmark
     if args.world not in WORLDS:
         raise UserError(f"--world = {args.world!r} is unknown: expected one of "
                         f"{', '.join(WORLDS)}")
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.process_time > 10.0:
         raise UserError(f"--process-time = {args.process_time} s is invalid: expected > 10 s")
     partial = None if save is None else str(save) + ".partial.jsonl"
-    from ..worlds.forms import Variation, check_variations
+    from .worlds.forms import Variation, check_variations
 
     def listed(text: str, option: str) -> tuple:
         names = [v.value for v in Variation] if text == "all" else \
@@ -127,3 +127,24 @@ def run(args: argparse.Namespace) -> int:
     for name, pe in out["per_effect"].items():
         print(f"  {name:16s} {pe['correct']}/{pe['cases']}")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``rheo-shaping-validation COMMAND ...`` (``python -m rheo_shaping_validation``): the
+    validation's commands; a user's mistake prints one line and exits 2."""
+    parser = argparse.ArgumentParser(
+        prog="rheo-shaping-validation",
+        description="rheo_shaping's validation: the diagnosis scored on records of stand-in "
+                    "worlds (docs/diagnosis.md).")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    add_parser(sub)
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except UserError as exc:
+        print(f"rheo-shaping-validation {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130

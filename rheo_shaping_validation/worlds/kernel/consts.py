@@ -1,7 +1,7 @@
 """The world kernel's numba options, packed-parameter indices and limits."""
 from __future__ import annotations
 
-from ..._numba_cache import NUMBA_OPTIONS
+from rheo_shaping._numba_cache import NUMBA_OPTIONS
 
 
 #: The numba options of every compiled function (``@njit(**JIT)``): the package's one set.

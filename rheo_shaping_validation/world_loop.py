@@ -1,4 +1,4 @@
-"""The closed loop against the dynamic world (:mod:`rheo_shaping.worlds`): another model
+"""The closed loop against the dynamic world (:mod:`rheo_shaping_validation.worlds`): another model
 form than the estimator's and re-planner's sheet (inertia, soft contact, the sheet laid and
 released at t = 0), to show the estimate survives a model-form gap.
 
@@ -15,17 +15,18 @@ import math
 
 import numpy as np
 
-from ..params.cell import CellParams
-from ..planning.scenarios import ScenarioPlan
-from ..planning.stopping import stop_from_state
-from ..sheet.metrics import residual_gap
-from ..worlds import LayParams, WorldNumerics, WorldRun, run_world
-from .estimator import Estimator
-from .join import splice
-from .loop import LoopConfig, LoopEvent, LoopResult, monitor_threshold, replan_limits
-from .observe import Sample, noisy
-from .replan import ReplanLimits, ReplanStatus, replan
-from .schedule import Schedule, fixed_schedule
+from rheo_shaping.params.cell import CellParams
+from rheo_shaping.planning.scenarios import ScenarioPlan
+from rheo_shaping.planning.stopping import stop_from_state
+from rheo_shaping.sheet.metrics import residual_gap
+from rheo_shaping_validation.worlds import LayParams, WorldNumerics, WorldRun, run_world
+from rheo_shaping.adaptive.estimator import Estimator
+from rheo_shaping.adaptive.join import splice
+from rheo_shaping.adaptive.loop import (LoopConfig, LoopEvent, LoopResult, monitor_threshold,
+                                        replan_limits)
+from rheo_shaping.adaptive.observe import Sample, noisy
+from rheo_shaping.adaptive.replan import ReplanLimits, ReplanStatus, replan
+from rheo_shaping.adaptive.schedule import Schedule, fixed_schedule
 
 
 def _world(true_cell: CellParams, sched: Schedule, lay: LayParams,

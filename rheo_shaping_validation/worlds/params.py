@@ -4,7 +4,7 @@ it holds that the diagnosis's library does not (frozen dataclasses, SI units).
 The library's effects (friction on mould and tool, bending, Kelvin c1, power law,
 thinning, tool offset, mass error) are read from ``CellParams.effects`` with the
 same names and meanings as the sheet model's (docs/diagnosis.md); the world
-implements each of them itself (:mod:`rheo_shaping.worlds.kernel`).
+implements each of them itself (:mod:`rheo_shaping_validation.worlds.kernel`).
 """
 from __future__ import annotations
 

@@ -4,15 +4,15 @@ An independent simulator of the same cell as :mod:`rheo_shaping.sheet` (none of
 its code): point masses on three-element links (paper Eq. 2, backward Euler
 per step), a soft penalty contact with damping and Coulomb friction (stick
 springs that slip at mu F_n) on cake, workplane and tool, air damping, gravity,
-and the sheet laid in a drawn shape (:class:`~rheo_shaping.worlds.params.LayParams`)
+and the sheet laid in a drawn shape (:class:`~rheo_shaping_validation.worlds.params.LayParams`)
 and released from rest when the process starts, so it falls, settles and creeps
 onto the mould while the tool approaches.  The compiled step is
-:mod:`rheo_shaping.worlds.kernel`.
+:mod:`rheo_shaping_validation.worlds.kernel`.
 
 Effects: the library's (``CellParams.effects``: friction_mould, friction_tool,
 bending, kelvin_c1, power_law, thinning, tool_offset, mass_error) and the
-world's own (:class:`~rheo_shaping.worlds.params.WorldEffects`).  Its form's variations
-(:class:`~rheo_shaping.worlds.forms.FormParams`, all off by default): the release swept
+world's own (:class:`~rheo_shaping_validation.worlds.params.WorldEffects`).  Its form's variations
+(:class:`~rheo_shaping_validation.worlds.forms.FormParams`, all off by default): the release swept
 along the sheet, a soft mould and a soft tool pad, a hand-rolled thickness, the damping.
 """
 from __future__ import annotations
@@ -23,7 +23,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..params.cell import CellParams
+from rheo_shaping.params.cell import CellParams
 from . import kernel as K
 from .forms import FormParams, thickness_profile
 from .params import LayParams, WorldEffects, WorldNumerics
@@ -185,7 +185,7 @@ def run_world(params: CellParams, path, t_end: float | None = None,
               form: FormParams = FormParams()) -> WorldRun:
     """Release the laid sheet at t = 0 and run the tool on ``path`` (``position(t)`` [m],
     the commanded reference point) to ``t_end`` [s] (default the process time), in the
-    world's ``form`` (its variations, :mod:`~rheo_shaping.worlds.forms`; default: none).
+    world's ``form`` (its variations, :mod:`~rheo_shaping_validation.worlds.forms`; default: none).
 
     Raises RuntimeError when the step fails (not positive definite, non-finite)."""
     t_end = params.movement.process_time if t_end is None else float(t_end)

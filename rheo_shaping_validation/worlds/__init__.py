@@ -6,7 +6,7 @@ variations of its form (issue 46), a family of worlds drawn per case.
 Imports :mod:`rheo_shaping.params`, :mod:`rheo_shaping.records` (the ``Record`` type) and
 :mod:`rheo_shaping.units`; nothing of :mod:`rheo_shaping.sheet`.
 """
-from .._lazy import lazy_api
+from rheo_shaping._lazy import lazy_api
 
 __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'params': ['WorldNumerics', 'LayParams', 'WorldEffects', 'WORLD_EFFECTS',

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..._numba_cache import register
+from rheo_shaping._numba_cache import register
 
 register(Path(__file__).resolve().parent, "rheo_shaping_worlds")
 
@@ -49,3 +49,9 @@ from .links import (add_block, link_affine, link_constants, link_update,  # noqa
                     pb_factor, pb_solve)
 from .assemble import add_contact, assemble  # noqa: E402,F401
 from .run import run_chain  # noqa: E402,F401
+
+#: The compiled step's entry points (the packed-parameter indices of ``consts`` are
+#: reached as attributes, ``kernel.X_N``).
+__all__ = ["cake_gap", "obstacle_gap", "polygon_gap", "push_out", "add_block", "link_affine",
+           "link_constants", "link_update", "pb_factor", "pb_solve", "add_contact", "assemble",
+           "run_chain"]

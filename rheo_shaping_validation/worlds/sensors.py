@@ -8,7 +8,7 @@ gives the sheet's force on the tool (``wrench_rate``, noise ``wrench_noise``),
 each through its chain errors (the diagnosis's ``CHAIN`` knobs: vision offset,
 load-cell bias, gain and lag) and the world's sensor effects (camera scale,
 load-cell drift) and the form's sensor variations (the load cell's own low-pass, the
-sheet hidden by the tool, :mod:`~rheo_shaping.worlds.forms`).  The result is the
+sheet hidden by the tool, :mod:`~rheo_shaping_validation.worlds.forms`).  The result is the
 :class:`~rheo_shaping.records.record.Record` the diagnosis reads.  Written apart from
 :mod:`rheo_shaping.records.measurement`.
 """
@@ -18,8 +18,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..params.cell import CellParams, EffectsParams
-from ..records.record import Record
+from rheo_shaping.params.cell import CellParams, EffectsParams
+from rheo_shaping.records.record import Record
 from .dynamic import WorldRun, tool_vertices
 from .forms import FormParams, low_pass
 from .params import WorldEffects
@@ -112,7 +112,7 @@ def measure_world(run: WorldRun, path, sensors: SensorParams, rng: np.random.Gen
 
 
 def world_record(params: CellParams, path, rng: np.random.Generator, **kw) -> tuple:
-    """Convenience: :func:`~rheo_shaping.worlds.dynamic.run_world` then
+    """Convenience: :func:`~rheo_shaping_validation.worlds.dynamic.run_world` then
     :func:`measure_world`; keyword arguments ``lay``, ``extra``, ``numerics``, ``sensors``,
     ``chain``, ``name``, ``form``.  Returns (record, run)."""
     from .dynamic import run_world
