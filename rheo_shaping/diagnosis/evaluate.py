@@ -163,10 +163,21 @@ class Runner:
             self.executor.shutdown()
 
     def __enter__(self):
+        # the stages' own linear algebra on one BLAS thread while the workers simulate
+        # (:func:`.linear.blas_single_thread`)
+        from .linear import blas_single_thread
+        self._blas = blas_single_thread()
+        self._blas.__enter__()
         return self
 
     def __exit__(self, *exc):
-        self.close()
+        try:
+            self.close()
+        finally:
+            blas = getattr(self, "_blas", None)
+            if blas is not None:
+                self._blas = None
+                blas.__exit__(None, None, None)
 
 
 def run_batch(tasks: Sequence[Task], executor: Executor | None = None,
