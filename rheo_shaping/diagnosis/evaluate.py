@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import Executor
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -128,6 +129,7 @@ class Runner:
         self.progress = progress
         self.runs = 0
         self._k = 0                 # the stage under way (1-based; 0 before the first)
+        self._blas: AbstractContextManager | None = None   # held between enter and exit
 
     def stage(self, name: str, total: int | None = None) -> None:
         """Stage ``name`` of :data:`STAGES` begins, with ``total`` simulations when known
@@ -174,9 +176,8 @@ class Runner:
         try:
             self.close()
         finally:
-            blas = getattr(self, "_blas", None)
+            blas, self._blas = self._blas, None
             if blas is not None:
-                self._blas = None
                 blas.__exit__(None, None, None)
 
 
