@@ -187,7 +187,12 @@ def refine_points(cands: list[Explanation], ctx: FitContext, base: Baseline, *, 
                   responses: dict, steps: int = REFINE_STEPS) -> None:
     """Up to ``steps`` chord steps of each effect candidate (its own Jacobian of the sheet
     knobs when :func:`relinearise` made one, else the baseline's), each simulated and kept
-    only when it lowers J on the fit records."""
+    only when it lowers J on the fit records.
+
+    A step is kept on the fit records alone, so the steps run there alone; the holdout
+    records run once, at each candidate's last kept point (:func:`_holdout_at_last`), with
+    what the steps leave the same as when every step ran them too."""
+    kept: dict = {}                       # id(candidate) -> its kept points, before each
     for _ in range(steps):
         points = []
         for c in cands:
@@ -199,7 +204,48 @@ def refine_points(cands: list[Explanation], ctx: FitContext, base: Baseline, *, 
                 points.append((c, *step))
         if not points:
             break
-        simulate_points(points, ctx, base, m=m, first=False)
+        simulate_points(points, ctx, base, m=m, first=False, kept=kept)
+    _holdout_at_last(cands, ctx, kept)
+
+
+def _snapshot(c: Explanation) -> tuple:
+    """What a kept chord step changes in candidate ``c`` (to go back to it)."""
+    s = c.search
+    return (c.J, c.J_parts, c.values, c.LR, c.p, c.J_holdout, c.baseline_u,
+            {n: list(iv) for n, iv in c.interval.items()}, s.z_raw, s.zh_raw, s.prev)
+
+
+def _restore(c: Explanation, snap: tuple) -> None:
+    s = c.search
+    (c.J, c.J_parts, c.values, c.LR, c.p, c.J_holdout, c.baseline_u, c.interval, s.z_raw,
+     s.zh_raw, s.prev) = snap
+
+
+def _holdout_at_last(cands: list[Explanation], ctx: FitContext, kept: dict) -> None:
+    """The holdout records' runs at the last kept point of each candidate whose chord steps
+    ran on the fit records alone (:func:`refine_points`): its holdout residual and
+    J_holdout.  Where a holdout record does not run there, the point is given back (a step
+    whose runs fail is not kept) and the one before is taken, down to the point the steps
+    began from (whose holdout runs ran)."""
+    H, n_s = ctx.H, ctx.n_s
+    todo = [c for c in cands if kept.get(id(c))]
+    while todo and H is not None:
+        tasks = []
+        for c in todo:
+            cand = tuple((n, c.values[n]) for n in c.names)
+            tasks += [Task(d, apply(ctx.params(d, c.fitted_u[:n_s]), cand)) for d in ctx.hold_d]
+        outs = ctx.run(tasks)
+        nh, again = len(ctx.hold_d), []
+        for i, c in enumerate(todo):
+            o = outs[i * nh:(i + 1) * nh]
+            if all_ok(o):
+                c.search.zh_raw = H.z(o)
+                c.J_holdout = H.J_with_chain(c.search.zh_raw, c.fitted_u[n_s:])
+                continue
+            _restore(c, kept[id(c)].pop())
+            if kept[id(c)]:
+                again.append(c)
+        todo = again
 
 
 def relinearise(cands: list[Explanation], ctx: FitContext) -> None:
@@ -222,18 +268,22 @@ def relinearise(cands: list[Explanation], ctx: FitContext) -> None:
         c.search.prev, c.search.damp = None, 1.0
 
 
-def simulate_points(points, ctx: FitContext, base: Baseline, *, m: int, first: bool) -> None:
+def simulate_points(points, ctx: FitContext, base: Baseline, *, m: int, first: bool,
+                    kept: dict | None = None) -> None:
     """Run each (candidate, sheet u, values) point on the fit and holdout records and take
     it as the candidate's evidence (the first time always; later only when J drops, else
-    the candidate's step is halved)."""
+    the candidate's step is halved).  With ``kept`` (a later point only), the fit records
+    alone: each point taken is noted in ``kept[id(candidate)]`` (what the candidate was
+    before it) and its holdout runs are left to :func:`_holdout_at_last`."""
     G, H, nf = ctx.G, ctx.H, ctx.nf
+    data = ctx.fit_d if kept is not None and not first else ctx.data
     tasks = []
     for c, u_sheet, vals in points:
         cand = tuple((n, vals[n]) for n in c.names)
-        for d in ctx.data:
+        for d in data:
             tasks.append(Task(d, apply(ctx.params(d, u_sheet), cand)))
     outs = ctx.run(tasks)
-    nd = len(ctx.data)
+    nd = len(data)
     for i, (c, u_sheet, vals) in enumerate(points):
         o = outs[i * nd:(i + 1) * nd]
         if not all_ok(o):
@@ -249,6 +299,8 @@ def simulate_points(points, ctx: FitContext, base: Baseline, *, m: int, first: b
         if not first and not J < c.J:
             s.damp *= 0.5
             continue
+        if kept is not None and not first:
+            kept.setdefault(id(c), []).append(_snapshot(c))
         if not first:
             s.prev = (s.z_raw, c.baseline_u[:len(u_sheet)].copy(), dict(c.values))
         for n in c.names:
@@ -259,7 +311,7 @@ def simulate_points(points, ctx: FitContext, base: Baseline, *, m: int, first: b
         c.J, c.J_parts, s.z_raw, c.values = J, G.stack.J_parts(zc), z_raw, dict(vals)
         c.LR = stats.likelihood_ratio(base.parts, c.J_parts, base.n_eff)
         c.p = stats.bonferroni_p(c.LR, c.k, m)
-        if H is not None:
+        if H is not None and len(o) > nf:
             s.zh_raw = H.z(o[nf:])
             c.J_holdout = H.J_with_chain(s.zh_raw, uc)
         c.baseline_u = np.r_[u_sheet, uc]

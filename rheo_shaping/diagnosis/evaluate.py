@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import Executor
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -128,6 +129,7 @@ class Runner:
         self.progress = progress
         self.runs = 0
         self._k = 0                 # the stage under way (1-based; 0 before the first)
+        self._blas: AbstractContextManager | None = None   # held between enter and exit
 
     def stage(self, name: str, total: int | None = None) -> None:
         """Stage ``name`` of :data:`STAGES` begins, with ``total`` simulations when known
@@ -163,10 +165,20 @@ class Runner:
             self.executor.shutdown()
 
     def __enter__(self):
+        # the stages' own linear algebra on one BLAS thread while the workers simulate
+        # (:func:`.linear.blas_single_thread`)
+        from .linear import blas_single_thread
+        self._blas = blas_single_thread()
+        self._blas.__enter__()
         return self
 
     def __exit__(self, *exc):
-        self.close()
+        try:
+            self.close()
+        finally:
+            blas, self._blas = self._blas, None
+            if blas is not None:
+                blas.__exit__(None, None, None)
 
 
 def run_batch(tasks: Sequence[Task], executor: Executor | None = None,

@@ -94,7 +94,13 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
         need = [c for c in need if needs_numerics(c, base.J_h, has_h, gap.replay)]
     if need:
         numerics(need + [base_c], ctx, base, responses)
-    holdout_lengths(checked, ctx)
+    # the holdout's own rest lengths (each record's first seconds, refitted under the
+    # candidate's cell: 17 short runs a record) for the candidates that can lead the verdict:
+    # the first by (checked, p, J) and the first by the effective remainder
+    # (:func:`verdict_stage`); what the others leave on the holdout is judged nowhere
+    leads = ({id(sorted(effects, key=key)[0]) for key in (rank_key, lead_key(base.J))}
+             if effects else set())
+    holdout_lengths([c for c in checked if id(c) in leads], ctx)
     return Candidates(effects, responses, m, base_c)
 
 

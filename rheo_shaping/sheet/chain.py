@@ -359,7 +359,24 @@ class SheetModel:
         return energy, grad, kb
 
 
+#: :func:`_reach` of the shapes already measured (shapes are frozen, compared by value).
+_REACH: dict = {}
+
+
 def _reach(shape) -> float:
     """Largest distance [m] of a shape's outline from its reference point."""
+    try:
+        hit = _REACH.get(shape)
+    except TypeError:                   # a shape that cannot be a key: measured every time
+        hit, shape_key = None, None
+    else:
+        shape_key = shape
+    if hit is not None:
+        return hit
     outline = shape.outline(256)
-    return float(np.max(np.hypot(outline[:, 0], outline[:, 1])))
+    value = float(np.max(np.hypot(outline[:, 0], outline[:, 1])))
+    if shape_key is not None:
+        if len(_REACH) >= 64:
+            _REACH.clear()
+        _REACH[shape_key] = value
+    return value

@@ -30,7 +30,7 @@ from .metrics import (PeakTension, RunSummary, contact_tension, peak_tension, re
                       safety_factor)
 from ..params.cell import CellParams
 from .chain import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState, StepRecord
-from .paths import ToolPath
+from .paths import PolylinePath, ToolPath
 from .tools import tool_shape
 
 #: Order of the obstacles in :attr:`SheetState.contact`.
@@ -322,6 +322,47 @@ def _fine_start(dts: np.ndarray, poses: np.ndarray, t0: float, pose0, span: floa
     return np.array(out_dt, float), np.array(out_pose, float).reshape(-1, 2)
 
 
+#: Whole-run step schedules already planned (:func:`_whole_schedule`), by what they depend on.
+_SCHEDULES: dict = {}
+
+
+def _whole_schedule(sim: Simulation, path: ToolPath, knots: list, t_end: float,
+                    laid: LaidSheet | None) -> tuple[np.ndarray, np.ndarray]:
+    """The steps of a whole run from ``sim``'s state through ``knots`` to ``t_end`` [s]:
+    (dt (K,) [s], tool pose at the end of each step (K, 2) [m]), the fall after a ``laid``
+    sheet's release cut into inertial steps.  The schedule depends on the tool path, the
+    solver's step limits and the start only, never on the sheet: a polyline path's is kept
+    (the diagnosis runs the same record's path hundreds of times) and handed out as it is
+    (the kernel only reads it)."""
+    s0, sp = sim.state, sim.params.solver
+    key = None
+    if isinstance(path, PolylinePath):
+        key = (np.asarray(path.times, float).tobytes(), np.asarray(path.points, float).tobytes(),
+               float(t_end), sp.dt, sp.dt_still,
+               sp.max_tool_step, float(s0.t), np.asarray(s0.tool, float).tobytes(),
+               None if laid is None else (laid.release_time, sp.dt_settle))
+        hit = _SCHEDULES.get(key)
+        if hit is not None:
+            return hit
+    parts, t, pose = [], s0.t, s0.tool
+    for k in knots:
+        dts, poses = sim.schedule(k, path.position(k), path.position, (t, pose))
+        parts.append((dts, poses))
+        for dt in dts:        # the clock as the steps keep it
+            t = t + dt
+        if len(dts):
+            pose = poses[-1]
+    dts = np.concatenate([d for d, _ in parts])
+    poses = np.concatenate([q for _, q in parts]).reshape(-1, 2)
+    if laid is not None:      # the fall after the release: inertial steps
+        dts, poses = _fine_start(dts, poses, s0.t, s0.tool, laid.release_time, sp.dt_settle)
+    if key is not None:
+        if len(_SCHEDULES) >= 32:
+            _SCHEDULES.clear()
+        _SCHEDULES[key] = (dts, poses)
+    return dts, poses
+
+
 def run_scenario(params: CellParams, path: ToolPath, t_end: float | None = None,
                  progress: Callable[[float], None] | None = None,
                  laid: LaidSheet | None = None) -> RunResult:
@@ -334,20 +375,7 @@ def run_scenario(params: CellParams, path: ToolPath, t_end: float | None = None,
     knots = [k for k in np.asarray(path.knots(), float) if s0.t < k < t_end] + [t_end]
     wall = time.perf_counter()
     if progress is None:          # the whole path in one kernel call
-        parts, t, pose = [], s0.t, s0.tool
-        for k in knots:
-            dts, poses = sim.schedule(k, path.position(k), path.position, (t, pose))
-            parts.append((dts, poses))
-            for dt in dts:        # the clock as the steps keep it
-                t = t + dt
-            if len(dts):
-                pose = poses[-1]
-        dts = np.concatenate([d for d, _ in parts])
-        poses = np.concatenate([q for _, q in parts]).reshape(-1, 2)
-        if laid is not None:      # the fall after the release: inertial steps
-            dts, poses = _fine_start(dts, poses, s0.t, s0.tool, laid.release_time,
-                                     params.solver.dt_settle)
-        recs = [sim.advance_path(dts, poses)]
+        recs = [sim.advance_path(*_whole_schedule(sim, path, knots, t_end, laid))]
     else:
         if laid is not None:
             raise ValueError("run_scenario: a laid sheet runs without a progress callback")
