@@ -166,8 +166,8 @@ class Runner:
 
     def __enter__(self):
         # the stages' own linear algebra on one BLAS thread while the workers simulate
-        # (:func:`.linear.blas_single_thread`)
-        from .linear import blas_single_thread
+        # (:func:`.blas.blas_single_thread`)
+        from .blas import blas_single_thread
         self._blas = blas_single_thread()
         self._blas.__enter__()
         return self

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from rheo_shaping.diagnosis.linear import _blas_thread_calls, blas_single_thread
+from rheo_shaping.diagnosis.blas import _blas_thread_calls, blas_single_thread
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.sheet import simulation
 from rheo_shaping.sheet.paths import PolylinePath
