@@ -206,11 +206,11 @@ def run(args: argparse.Namespace) -> int:
     for w in diag.where[:5]:
         print(f"  {w['rank']}. {w['kind']} {w['name']}: {w['relative']:.2f}")
     for grp in ("fit", "holdout"):
-        b, a = diag.gap_before.group(grp), diag.gap_after.group(grp)
-        if b is not None and a is not None:
-            print(f"gap on {grp} records: profile RMS {b.profile_rms_m * 1e3:.3f} -> "
-                  f"{a.profile_rms_m * 1e3:.3f} mm, "
-                  f"gap beyond noise {b.gap:.3f} -> {a.gap:.3f}")
+        before, after = diag.gap_before.group(grp), diag.gap_after.group(grp)
+        if before is not None and after is not None:
+            print(f"gap on {grp} records: profile RMS {before.profile_rms_m * 1e3:.3f} -> "
+                  f"{after.profile_rms_m * 1e3:.3f} mm, "
+                  f"gap beyond noise {before.gap:.3f} -> {after.gap:.3f}")
     print(f"{diag.runs} simulations, {result['wall_time_s']:.0f} s"
           + (f"; report in {out}" if out else ""))
     return 0
