@@ -100,7 +100,10 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
         # no /shaping/checked: the EventsExecutor passes no message info, and nothing can
         # stall between nodes that share this process
         monitor = MonitorNode(context=context, parameter_overrides=[
-            *sim_time, Parameter("acknowledge", value=False), *common,
+            *sim_time, Parameter("acknowledge", value=False),
+            # one executor: the simulator steps only when the monitor can judge, so stale
+            # data is judged on the cell's clock (a busy machine slows this cell)
+            Parameter("stale_clock", value="cell"), *common,
             *extra.get("monitor", ())])
         nodes.append(monitor)
         planner = PlannerNode(context=context,

@@ -271,8 +271,9 @@ class MonitorNodeParams:
         "auto", "the clock max_data_age is judged on: 'auto', the cell's (simulated) clock when "
         "on simulated time and acknowledging (the simulator steps only on this monitor's "
         "acknowledgements: a starved machine slows the cell, it does not move the tool "
-        "unwatched), else the wall's; 'wall': always the wall's (a real cell)",
-        choices=("auto", "wall"))
+        "unwatched), else the wall's; 'cell': the cell's whenever on simulated time (the "
+        "one-process cell: simulator and monitor share one executor, neither runs without the "
+        "other); 'wall': always the wall's (a real cell)", choices=("auto", "cell", "wall"))
     max_stamp_age: float = param(
         2.0, "oldest header stamp accepted on /sheet/profile and /tool/wrench, against the "
         "node's clock (a source replaying old data); older: abort. On simulated time keep it "

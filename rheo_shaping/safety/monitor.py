@@ -35,9 +35,12 @@ from ..units import NS
 
 
 def stale_on_cell_clock(settings: MonitorNodeParams, sim_time: bool) -> bool:
-    """Judge staleness on the cell's clock: ``stale_clock`` 'auto', on simulated time, and
-    acknowledging (the simulator then steps only on this monitor's acknowledgements)."""
-    return settings.stale_clock == "auto" and sim_time and settings.acknowledge
+    """Judge staleness on the cell's clock: on simulated time, with ``stale_clock`` 'cell'
+    (simulator and monitor on one executor) or 'auto' and acknowledging (the simulator then
+    steps only on this monitor's acknowledgements)."""
+    if not sim_time or settings.stale_clock == "wall":
+        return False
+    return settings.stale_clock == "cell" or settings.acknowledge
 
 
 #: In a lockstep cell, the wall time [in max_data_age] after which a stream counts as stale

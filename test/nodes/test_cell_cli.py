@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import time
 
 import pytest
 
@@ -22,9 +21,7 @@ def _run(*args, timeout=120):
 
 
 def test_cell_runs_the_default_movement_4_and_matches_the_core():
-    t0 = time.monotonic()
     proc = _run("--json")
-    wall = time.monotonic() - t0
     assert proc.returncode == 0, proc.stdout + proc.stderr
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     cell = base_cell()
@@ -34,7 +31,6 @@ def test_cell_runs_the_default_movement_4_and_matches_the_core():
     assert out["F_max"] == pytest.approx(offline.F_max, rel=0.02)
     assert out["delta"] == pytest.approx(offline.delta, abs=0.2e-3)
     assert out["SF"] == pytest.approx(cell.material.F_break / out["F_max"])
-    assert wall < 60.0
 
 
 def test_cell_prints_progress_and_the_figures():

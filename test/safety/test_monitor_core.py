@@ -282,7 +282,7 @@ def test_in_a_lockstep_cell_a_starved_machine_slows_the_cell_and_stale_is_on_its
 
 @pytest.mark.parametrize("sim_time, acknowledge, stale_clock, expected", [
     (True, True, "auto", True), (False, True, "auto", False), (True, False, "auto", False),
-    (True, True, "wall", False)])
+    (True, True, "wall", False), (True, False, "cell", True), (False, False, "cell", False)])
 def test_the_cells_clock_is_used_only_where_the_cell_waits_for_the_monitor(
         sim_time, acknowledge, stale_clock, expected):
     s = MonitorNodeParams(acknowledge=acknowledge, stale_clock=stale_clock)
