@@ -246,7 +246,8 @@ class MonitorNode(Node):
     def _on_contact(self, msg: Float64) -> None:
         if self._owner_refuses(T.CONTACT_TENSION.contract):
             return
-        self.core.on_contact(msg.data, self._steady.now().nanoseconds)
+        self.core.on_contact(msg.data, self._steady.now().nanoseconds,
+                             self.get_clock().now().nanoseconds)
 
     def _on_stamped(self, topic: str, msg) -> None:
         steady = self._steady.now().nanoseconds

@@ -162,9 +162,12 @@ class TensionMonitor:
         self._check(self.tension, f"link {self.link}")
         self._check_trend(self.tension, clock)
 
-    def on_contact(self, value: float, steady: int) -> None:
-        """The tension [N] at the tool contact."""
+    def on_contact(self, value: float, steady: int, clock: int = 0) -> None:
+        """The tension [N] at the tool contact, received at ``steady`` and the node clock
+        ``clock`` [ns] (0: not known; the newest one seen is taken)."""
         topic = self.tension_topics[1]
+        if clock > 0:
+            self._clock_seen = clock
         self._received(topic, steady)
         value = float(value)
         if not math.isfinite(value):

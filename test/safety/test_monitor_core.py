@@ -280,6 +280,20 @@ def test_in_a_lockstep_cell_a_starved_machine_slows_the_cell_and_stale_is_on_its
     assert h.aborts == [f"stale data: no {TENSIONS} for 0.510 s (max_data_age 0.5 s)"]
 
 
+def test_on_the_cells_clock_a_sample_is_aged_from_the_clock_it_arrived_at():
+    """A contact sample read before its step's tensions, 0.45 s of cell time after the last
+    tick, is 0.1 s old 0.1 s later (not 0.55 s: the clock of the tick before)."""
+    h = Harness(max_data_age=0.5)
+    h.mon.cell_clock = True
+    h.make_ready()
+    h.clock += int(0.45 * NS)
+    h.steady += int(0.02 * NS)
+    h.mon.on_contact(0.05, h.steady, h.clock)
+    h.mon.on_tensions([0.05, 0.1], h.steady, h.clock)
+    h.clock += int(0.1 * NS)
+    assert h.mon.tick(h.steady, h.clock) and not h.aborts
+
+
 @pytest.mark.parametrize("sim_time, acknowledge, stale_clock, expected", [
     (True, True, "auto", True), (False, True, "auto", False), (True, False, "auto", False),
     (True, True, "wall", False), (True, False, "cell", True), (False, False, "cell", False)])
