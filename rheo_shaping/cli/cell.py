@@ -65,8 +65,6 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as exc:
         raise UserError(f"the cell needs ROS 2 (rclpy): {exc}; use the full venv "
                         f"(python3 dev.py setup, then .venv/bin/rheo-shaping cell)") from None
-    from rclpy.parameter import Parameter
-
     from ..params.schema import ParameterError
     say = None if (args.quiet or args.json) else (lambda msg: print(msg, flush=True))
     try:
@@ -76,8 +74,7 @@ def run(args: argparse.Namespace) -> int:
                           log_level="info" if args.verbose else "warn",
                           namespace=ros_namespace(args.namespace),
                           clock_topic=args.clock_topic,
-                          overrides=({"planner": [Parameter("adaptive", value=True)]}
-                                     if args.adaptive else None))
+                          adaptive=args.adaptive)
     except ParameterError as exc:
         raise UserError(str(exc)) from None
     except Exception as exc:   # rcl refuses the params file, etc.

@@ -63,10 +63,11 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
              progress: Callable[[str], None] | None = print, progress_period: float = 10.0,
              overrides: dict[str, Sequence[Parameter]] | None = None,
              log_level: str = "warn", namespace: str = "",
-             clock_topic: str = CLOCK.name) -> CellResult:
+             clock_topic: str = CLOCK.name, adaptive: bool = False) -> CellResult:
     """Run the cell once; returns its figures (raises ParameterError for bad parameters).
 
-    ``overrides`` maps a node name to extra parameters for it; ``log_level``
+    ``overrides`` maps a node name to extra parameters for it; ``adaptive`` turns the
+    planner's closed loop on (its parameter ``adaptive``); ``log_level``
     (debug, info, warn, error) is the nodes' logging threshold; ``namespace``
     (e.g. ``/cell2``) moves every node, topic and service of the cell there (``-r
     __ns:=NS``); ``clock_topic`` is where the simulator's clock goes: the absolute
@@ -84,7 +85,9 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
     if clock_topic != CLOCK.name:
         args += [*CLOCK_REMAP]
     common = [] if movement is None else [Parameter("movement.number", value=int(movement))]
-    extra = overrides or {}
+    extra = {k: list(v) for k, v in (overrides or {}).items()}
+    if adaptive:                        # the planner's closed loop (docs/closed-loop.md)
+        extra["planner"] = [Parameter("adaptive", value=True), *extra.get("planner", ())]
     sim_params = [Parameter("real_time_factor", value=float(real_time_factor)),
                   Parameter("step_period", value=SIM_STEP / float(real_time_factor)),
                   Parameter("progress_period", value=0.0), *common, *extra.get("simulator", ())]

@@ -242,8 +242,9 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         """Why the plan may not start now (twins, cell, clocks); "" if it may."""
         if not self.presence.settled:
             return "starting up: checking that no other planner of this name runs"
-        if self.streamer is None and self._adaptive_refusal():
-            return self._adaptive_refusal()
+        starting = self._adaptive_refusal() if self.streamer is None else ""
+        if starting:
+            return starting
         if self.settings.check_cell:
             why = self.cell_check.mismatch()
             if why is None:
