@@ -26,7 +26,9 @@ Arguments (docs/ros.md, "Launch"):
   ``lifecycle_manager``, which brings them up in order and down to a safe state when one
   fails (docs/ros.md, "Managed start-up");
 * ``gap_watch``: ``true`` also starts the gap watch (the model beside the cell,
-  docs/gapwatch.md), its settings from ``/**/gap_watch`` of the params file.
+  docs/gapwatch.md), its settings from ``/**/gap_watch`` of the params file;
+* ``adaptive``: ``true`` the planner's closed loop (its ``adaptive`` parameter: it learns
+  the batch's material while it shapes and re-plans the rest, docs/closed-loop.md).
 
 Values given here reach the nodes as ``-p`` on their command line, which beats the
 params file's node sections (rheo_shaping/nodes/ros_params.py).
@@ -54,6 +56,8 @@ def _nodes(context):
     follow = ['-p', f"use_sim_time:={'true' if sim_time else 'false'}"]
     simulator_args = [] if sim_time else ['-p', 'real_time_factor:=1.0',
                                           '-p', 'publish_clock:=false']
+    adaptive = LaunchConfiguration('adaptive').perform(context).lower() in ('true', '1')
+    planner_args = follow + (['-p', 'adaptive:=true'] if adaptive else [])
     clock_topic = LaunchConfiguration('clock_topic').perform(context)
     if clock_topic not in CLOCK_TOPICS:
         raise RuntimeError(f"clock_topic:={clock_topic!r}: expected one of "
@@ -69,7 +73,7 @@ def _nodes(context):
                  ros_arguments=simulator_args, **common),
             Node(executable='monitor_managed', name='monitor', ros_arguments=follow,
                  **common),
-            Node(executable='planner_managed', name='planner', ros_arguments=follow,
+            Node(executable='planner_managed', name='planner', ros_arguments=planner_args,
                  **common),
             Node(executable='lifecycle_manager', name='lifecycle_manager', ros_arguments=follow,
                  **common),    # the cell's clock: one stamp source
@@ -79,7 +83,8 @@ def _nodes(context):
             Node(executable='simulator', name='simulator', ros_arguments=simulator_args,
                  **common),
             Node(executable='monitor', name='monitor', ros_arguments=follow, **common),
-            Node(executable='planner', name='planner', ros_arguments=follow, **common),
+            Node(executable='planner', name='planner', ros_arguments=planner_args,
+                 **common),
         ]
     return cell + [
         Node(executable='gap_watch', name='gap_watch', ros_arguments=follow,
@@ -115,5 +120,8 @@ def generate_launch_description():
         DeclareLaunchArgument(
             'gap_watch', default_value='false',
             description='true: also start the gap watch (the model beside the cell)'),
+        DeclareLaunchArgument(
+            'adaptive', default_value='false',
+            description="true: the planner's closed loop (learns the batch, re-plans)"),
         OpaqueFunction(function=_nodes),
     ])

@@ -1,4 +1,4 @@
-"""Closed-loop shaping (issue 43): the online estimate of the batch's material from the run's
+"""Closed-loop shaping: the online estimate of the batch's material from the run's
 samples, the re-plan of the rest of the movement from its pessimistic end, joined
 jerk-limited to the running plan, and the offline closed loop against the sheet model (the
 same loop against the dynamic world is the validation's:
@@ -17,4 +17,5 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'loop': ['run_closed_loop', 'LoopConfig', 'LoopResult', 'monitor_threshold'],
     'online': ['OnlineShaper', 'OnlineConfig', 'OnlineStep', 'Reason'],
     'worker': ['ShaperProcess'],
+    'streamed': ['StreamedLoop', 'Refresh'],
 })

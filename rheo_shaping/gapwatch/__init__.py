@@ -10,4 +10,5 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'watch': ['GapWatch', 'Status', 'signed_distance'],
     'feed': ['watch_record', 'Verdict', 'diagnose_record', 'DiagnosisJobs'],
     'queue': ['SampleQueue'],
+    'session': ['WatchSession', 'Report'],
 })

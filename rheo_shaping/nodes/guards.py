@@ -19,7 +19,7 @@ from ..params.fingerprint import cell_mismatch
 from ..params.cell import CellParams
 from ..safety.clock_guard import ClockGuard
 from ..safety.command_gate import UNNAMED, Publisher
-from ..safety.one_of_each import Announcement, settle_refusal, settle_time, twin_reason
+from ..safety.one_of_each import Announcement, PresenceWatch
 from ..safety.owners import StreamOwner, Trust, owner_name
 from ..units import NS
 from . import topics as T
@@ -153,83 +153,65 @@ class CellCheck:
 
 class Presence:
     """Announces the node on ``/shaping/presence``; calls ``on_twin(reason)`` when an older
-    node of the same name is up (this one must then yield)."""
+    node of the same name is up (this one must then yield).  The decisions are the core's
+    :class:`~rheo_shaping.safety.one_of_each.PresenceWatch`; this asks the graph."""
 
     def __init__(self, node: Node, on_twin: Callable[[str], None],
                  acting: Callable[[], bool] | None = None):
         """``acting``: whether the node has begun to act (default: once it has settled);
         from then on an announcement never makes it quit."""
-        self._acting = acting or (lambda: self._settled)
-        self.mine = Announcement(time.time_ns(), os.getpid(), socket.gethostname(),
-                                 node.get_fully_qualified_name())
         self._node = node
         self._on_twin = on_twin
-        self.twin = ""
-        self._younger: set[Announcement] = set()   # same-name nodes that started after this
-        self._settled: bool = False
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._t0 = self._start = self._steady.now().nanoseconds
-        self._settle_s = settle_time(None)
-        self._peer_s: float | None = None           # start -> the graph showed another node
-        self._graph: frozenset[str] = frozenset()   # the graph's nodes, and when they changed
-        self._graph_changed = self._start
+        self.core = PresenceWatch(Announcement(time.time_ns(), os.getpid(), socket.gethostname(),
+                                               node.get_fully_qualified_name()),
+                                  self._steady.now().nanoseconds)
+        self._acting = acting or (lambda: self.core.settled)
+        self.mine = self.core.mine
         self._peer_timer = node.create_timer(0.05, self._look_for_peers, clock=self._steady)
         self._pub = node.create_publisher(T.PRESENCE.type, T.PRESENCE.name, T.PRESENCE.qos)
         node.create_subscription(T.PRESENCE.type, T.PRESENCE.name, self._on, T.PRESENCE.qos)
         self._pub.publish(String(data=self.mine.message()))
 
+    @property
+    def twin(self) -> str:
+        return self.core.twin
+
     def discovered(self) -> None:
         """Discovery has just reached the rest of the cell (its first latched message came):
-        the settle time (:func:`~rheo_shaping.safety.one_of_each.settle_time`: at least as
-        long as discovery took to show this node any other node) counts from now, so a
-        twin's announcement that discovery brings with the same wave arrives before this
-        node acts."""
-        if not self._settled:
+        the settle time counts from now (core: PresenceWatch.discovered)."""
+        if not self.core.settled:
             self._look_for_peers()
-            self._settle_s = settle_time(self._peer_s)
-            self._t0 = self._steady.now().nanoseconds
+            self.core.discovered(self._steady.now().nanoseconds)
 
     def _look_for_peers(self) -> None:
-        """How long discovery took to show this node another node of the graph (the measure
-        of discovery on this machine now, not of the other node's own start-up), and when
-        the graph's set of nodes last changed (until this node has settled)."""
-        if self._settled:
+        """The graph's nodes, until this node has settled."""
+        if self.core.settled:
             self._node.destroy_timer(self._peer_timer)
             return
-        now = self._steady.now().nanoseconds
-        names = frozenset(f"{s.rstrip('/')}/{n}"
-                          for n, s in self._node.get_node_names_and_namespaces())
-        if names != self._graph:
-            self._graph, self._graph_changed = names, now
-        if self._peer_s is None and names - {self.mine.node}:
-            self._peer_s = (now - self._start) / NS
+        self.core.seen(frozenset(f"{s.rstrip('/')}/{n}"
+                                 for n, s in self._node.get_node_names_and_namespaces()),
+                       self._steady.now().nanoseconds)
 
     @property
     def settled(self) -> bool:
-        """Whether this node knows it is the only (or the oldest) node of its name: at least
-        the settle time after its start, and every other node of its name in the graph
-        has announced itself as younger.  Latches once true."""
-        if self._settled:
-            return True
-        if self.twin or (self._steady.now().nanoseconds - self._t0) / NS < self._settle_s:
-            return False
+        """Whether this node knows it is the only (or the oldest) node of its name (core:
+        PresenceWatch.settle).  Latches once true."""
+        now = self._steady.now().nanoseconds
+        if not self.core.due(now):
+            return self.core.settled
         ns, _, name = self.mine.node.rpartition("/")
 
         def is_mine(n: str, s: str) -> bool:
             return n == name and (s.rstrip("/") or "") == ns
         writers = self._node.get_publishers_info_by_topic(self._pub.topic_name)
-        why = settle_refusal(
-            same_nodes=sum(is_mine(n, s) for n, s in self._node.get_node_names_and_namespaces()),
-            same_writers=sum(is_mine(w.node_name, w.node_namespace) for w in writers),
-            unnamed_writers=sum(w.node_name == UNNAMED for w in writers),
-            younger=len(self._younger),
-            past_settle_s=(self._steady.now().nanoseconds - self._t0) / NS - self._settle_s,
-            graph_still_s=(self._steady.now().nanoseconds - self._graph_changed) / NS,
-            settle_s=self._settle_s)
-        self._settled = not why
+        why = self.core.settle(
+            now, sum(is_mine(n, s) for n, s in self._node.get_node_names_and_namespaces()),
+            sum(is_mine(w.node_name, w.node_namespace) for w in writers),
+            sum(w.node_name == UNNAMED for w in writers))
         if why:
             self._node.get_logger().info(f"waiting: {why}", throttle_duration_sec=5.0)
-        return self._settled
+        return self.core.settled
 
     def _on(self, msg: String) -> None:
         other = Announcement.parse(msg.data)
@@ -237,16 +219,11 @@ class Presence:
             self._node.get_logger().warning(f"ignored a malformed {T.PRESENCE.contract}: "
                                             f"{msg.data[:80]!r}", throttle_duration_sec=5.0)
             return
-        if other.node == self.mine.node and self.mine < other:
-            self._younger.add(other)
-        why = twin_reason(self.mine, other)
-        if why and self._acting():
-            # a running node never quits on an announcement: an older twin is found before
-            # a node acts (the settle time), so an "older" one now is a forgery or a clock
+        acting = self._acting()
+        why, yields = self.core.heard(other, acting)
+        if why and acting:
             self._node.get_logger().error(f"ignored: {why} (announced after this node "
                                           f"started to act: it runs on)",
                                           throttle_duration_sec=5.0)
-            return
-        if why and not self.twin:
-            self.twin = why
+        if yields:
             self._on_twin(why)

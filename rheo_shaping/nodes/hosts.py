@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from ..safety.command_gate import CommandGate
     from ..safety.watchdog import Freshness
     from ..sheet.metrics import PeakTension, RunSummary
-    from ..sheet.setpoints import SetpointRun
+    from ..sheet.setpoints import SetpointRun, SimClock
     from ..sheet.simulation import Simulation
     from .guards import OwnedStream, Presence
     from .ros_params import SchemaParameters
@@ -87,12 +87,9 @@ class SimulatorHost(Protocol):
     # the run (the core's SetpointRun) and the cell it runs
     run: SetpointRun
     _run_cell: CellParams
-    _t_ns: int
+    timeline: SimClock              # its simulated time and the step policy's counts
     _pending: bool
     _sim_clock: bool
-    _waits: int
-    _clock_holds: int
-    _late_steps: int
 
     @property
     def sim(self) -> Simulation: ...

@@ -16,7 +16,6 @@ lifecycle) or down (deactivate in reverse order, then clean up).
 """
 from __future__ import annotations
 
-import json
 import sys
 from functools import partial
 
@@ -31,6 +30,7 @@ from std_srvs.srv import Trigger
 from ..params.node_params import LifecycleManagerParams
 from ..safety.lifecycle import CELL_ORDER, CellLifecycle, Step
 from ..safety.clock_guard import ClockGuard
+from ..safety.manager import Requests, cell_status
 from ..safety.watchdog import StallGuard
 from ..params.wire import WireError, read_fields
 from ..units import NS
@@ -62,8 +62,7 @@ class LifecycleManagerNode(Node):
                                   ready_timeout=s.heartbeat_timeout)
         self._change_state = {}
         self._reset: dict = {}              # each node's ~/reset (a recovery clears latches)
-        self._calls: dict[str, tuple[str, Future, int]] = {}   # node -> (transition, future, t)
-        self._waiting: dict[str, tuple[str, int]] = {}         # asked, service not seen yet
+        self.requests = Requests(s.transition_timeout)   # asked, sent, out of time (core)
         # each heartbeat only from its node, /shaping/ready only from the monitor
         # (by name: a restarted node beats while the killed one's writer is in the graph)
         self._beat_src = {name: OwnedStream(self, f"{name}/heartbeat", name, strict=False)
@@ -154,6 +153,7 @@ class LifecycleManagerNode(Node):
         was = self.core.phase
         for step in self.core.steps(now, self._guard.previous if stalled else None):
             self._do(step, now)
+        self._collect(now)                      # the new requests sent at once if they can
         if self.core.phase == "failed" and was != "failed":
             self.get_logger().error(f"the cell failed: {self.core.reason}; the tool holds, the "
                                     f"planner is deactivated")
@@ -169,61 +169,32 @@ class LifecycleManagerNode(Node):
             self.pub_abort.publish(String(data=f"lifecycle_manager: {step.reason}"))
             return
         self.get_logger().info(f"{step.action} {step.node}")
-        self._waiting[step.node] = (step.action, now)
-        self._send(step.node, now)
+        self.requests.ask(step.node, step.action, now)
 
-    def _send(self, name: str, now: int) -> None:
-        """Send a waiting transition once its service is seen (a request acts: sent once)."""
-        transition, asked = self._waiting[name]
-        client = (self._reset if transition == "reset" else self._change_state)[name]
-        if not client.service_is_ready():
-            return
-        del self._waiting[name]
+    def _client(self, name: str, transition: str):
+        return (self._reset if transition == "reset" else self._change_state)[name]
+
+    def _call(self, name: str, transition: str) -> Future:
         request = (Trigger.Request() if transition == "reset"
                    else ChangeState.Request(transition=Transition(label=transition)))
-        self._calls[name] = (transition, client.call_async(request), asked)
+        return self._client(name, transition).call_async(request)
 
     def _collect(self, now: int) -> None:
-        """Replies that came, requests whose service showed up, and those out of time."""
-        limit = self.settings.transition_timeout * NS
-        for name in list(self._waiting):
-            self._send(name, now)
-        for name, (transition, asked) in list(self._waiting.items()):
-            if now - asked > limit:
-                del self._waiting[name]
-                self.core.answered(name, transition, False,
-                                   f"no {name}/change_state service within "
-                                   f"{self.settings.transition_timeout:g} s")
-        for name, (transition, future, asked) in list(self._calls.items()):
-            if future.done():
-                del self._calls[name]
-                result = future.result()
-                ok = bool(result and result.success)
-                why = getattr(result, "message", "") or "the node refused it (its log says why)"
-                self.core.answered(name, transition, ok, "" if ok else why, steady_ns=now)
-            elif now - asked > limit:
-                del self._calls[name]
-                (self._reset if transition == "reset" else self._change_state)[
-                    name].remove_pending_request(future)
-                self.core.answered(name, transition, False,
-                                   f"no reply within {self.settings.transition_timeout:g} s")
+        """Requests whose service showed up, replies that came, those out of time (core)."""
+        for a in self.requests.collect(
+                now, lambda name, tr: self._client(name, tr).service_is_ready(), self._call,
+                lambda name, tr, future: self._client(name, tr).remove_pending_request(future)):
+            self.core.answered(a.node, a.transition, a.ok, a.why, steady_ns=now)
 
     def _publish_status(self, waiting: str, now: int) -> None:
-        status = json.dumps({"phase": self.core.phase, "reason": self.core.reason,
-                             "waiting_for": waiting,
-                             "nodes": {n: s.state for n, s in self.core.seen.items()}})
-        if status != self._status:
-            self._status = status
-            self.pub_status.publish(String(data=status))
+        text, level, message, values = cell_status(
+            self.core.phase, self.core.reason, waiting,
+            {n: s.state for n, s in self.core.seen.items()})
+        if text != self._status:
+            self._status = text
+            self.pub_status.publish(String(data=text))
         if self._last_diag is None or now - self._last_diag >= NS:
             self._last_diag = now
-            phase = self.core.phase
-            level = {"failed": "ERROR", "active": "OK", "starting": "WARN",
-                     "held": "ERROR"}.get(phase, "WARN")
-            message = {"failed": f"failed: {self.core.reason}", "held": self.core.reason,
-                       "starting": f"starting: waiting for {waiting}" if waiting else "starting"
-                       }.get(phase, phase)
-            values = {n: s.state or "unseen" for n, s in self.core.seen.items()}
             name = m.status_name(self.get_namespace(), "lifecycle_manager")
             self.pub_diag.publish(m.diagnostics_msg(self.get_clock().now().nanoseconds,
                                                     name, level, message, values,

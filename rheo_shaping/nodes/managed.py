@@ -48,7 +48,8 @@ from ..units import NS
 from .hosts import ManagedMixin
 from .monitor import MonitorNode
 from .rclpy_private import clock_subscription, lifecycle_label, release_state_machine
-from .planner import MOVING, PlannerNode
+from ..planning.states import MOVING
+from .planner import PlannerNode
 from .simulator import SimulatorNode
 from . import topics as T
 from .spin import run_node

@@ -135,7 +135,7 @@ def hardware_id(namespace: str) -> str:
 
 #: Each node's diagnostic task (the part of a status name after ``node: ``).
 TASKS = {"simulator": "sheet", "monitor": "tension", "lifecycle_manager": "cell lifecycle",
-         "gap_watch": "model gap"}
+         "gap_watch": "model gap", "planner": "closed loop"}
 
 
 def status_name(namespace: str, node: str) -> str:

@@ -50,6 +50,7 @@ from ..safety.abort_budget import abort_horizon, monitor_abort_ratio
 from ..safety.acknowledge import Acknowledgements
 from ..safety.clock_guard import ClockGuard
 from ..safety.monitor import TensionMonitor, stale_on_cell_clock
+from ..safety.one_of_each import cell_refusal
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
@@ -263,22 +264,15 @@ class MonitorNode(Node):
         raise Yielded(reason)
 
     def _not_yet(self) -> str:
-        """Why this monitor may not report ready (cell, clocks, twins); aborts on a cell that
+        """Why this monitor may not report ready (core: cell_refusal); aborts on a cell that
         is not its own or a second clock."""
-        if not self.presence.settled:
-            return "starting up: checking that no other monitor of this name runs"
-        if self.settings.check_cell:
-            why = self.cell_check.mismatch()
-            if why is None:
-                return (f"waiting for the simulator's cell on {T.CELL.contract} (check_cell "
-                        f"false for a cell without one)")
-            if why:
-                self._abort(f"monitor: {why}")
-                return why
-        clocks = second_clock(self)
-        if clocks:
-            self._abort(f"monitor: {clocks}")
-        return ""
+        why, fault = cell_refusal(
+            "monitor", self.presence.settled, self.settings.check_cell,
+            self.cell_check.mismatch() if self.presence.settled else None,
+            second_clock(self) if self.presence.settled else "", T.CELL.contract)
+        if fault:
+            self._abort(f"monitor: {why}")
+        return why
 
     def _on_watchdog(self) -> None:
         now = self._steady.now().nanoseconds

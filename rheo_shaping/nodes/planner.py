@@ -51,10 +51,11 @@ from ..params.cell import CellParams
 from ..planning.plans import MotionLimits, Plan
 from ..planning.movement import approach_plan, autostart_refusal, movement_plan
 from ..params.schema import ParameterError
-from ..planning.run_state import SetpointGrid, lead_limit
-from ..planning.states import MOVING
+from ..planning.run_state import (Heartbeat, SetpointGrid, executed_ns, interlock, lead_limit,
+                                  lead_wait, reset_refusal, start_reply, stop_run)
 from ..planning.stopping import TrajectoryStreamer
 from ..safety.clock_guard import ClockGuard
+from ..safety.one_of_each import cell_refusal
 from ..safety.watchdog import StallGuard
 from . import messages as m
 from . import topics as T
@@ -204,19 +205,10 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         return self.get_clock().now().nanoseconds
 
     def _monitor_ok(self) -> tuple[bool, str]:
-        if not self.settings.wait_for_monitor:
-            return True, ""
-        if self._ready_rx is None:
-            return False, "no ready heartbeat from the monitor yet"
-        age = (self._steady.now().nanoseconds - self._ready_rx) / NS
-        if age > self.settings.monitor_timeout:
-            return False, f"no ready heartbeat from the monitor for {age:.2f} s"
-        if not self._ready:
-            return False, "the monitor reports not ready"
-        trust = self._ready_src.trust()
-        if not trust.trusted:
-            return False, trust.reason
-        return True, ""
+        return interlock(Heartbeat(
+            required=self.settings.wait_for_monitor, received_ns=self._ready_rx,
+            now_ns=self._steady.now().nanoseconds, timeout=self.settings.monitor_timeout,
+            ready=self._ready, untrusted=self._ready_src.trust().reason))
 
     # -- callbacks ------------------------------------------------------------------
     def _on_ready(self, msg: Bool) -> None:
@@ -239,22 +231,15 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         raise Yielded(reason)
 
     def _refusal(self) -> str:
-        """Why the plan may not start now (twins, cell, clocks); "" if it may."""
-        if not self.presence.settled:
-            return "starting up: checking that no other planner of this name runs"
-        starting = self._adaptive_refusal() if self.streamer is None else ""
-        if starting:
-            return starting
-        if self.settings.check_cell:
-            why = self.cell_check.mismatch()
-            if why is None:
-                return (f"waiting for the simulator's cell on {T.CELL.contract} (the "
-                        f"fingerprint of every cell parameter; check_cell false for a cell "
-                        f"without one)")
-            if why:
-                return why
-        # (a second /shaping/ready publisher: _monitor_ok, the interlock)
-        return second_clock(self)
+        """Why the plan may not start now (twins, the closed loop's worker, cell, clocks;
+        core: cell_refusal); "" if it may.  (A second /shaping/ready publisher: the
+        interlock, _monitor_ok.)"""
+        settled = self.presence.settled
+        starting = self._adaptive_refusal() if settled and self.streamer is None else ""
+        return starting or cell_refusal(
+            "planner", settled, self.settings.check_cell,
+            self.cell_check.mismatch() if settled else None,
+            second_clock(self) if settled else "", T.CELL.contract)[0]
 
     def _tool_away(self) -> str:
         """Why autostart is unsafe (:func:`~rheo_shaping.planning.movement.autostart_refusal`)."""
@@ -270,62 +255,36 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         if self.aborted:
             return
         self.aborted, self.abort_reason = True, reason
-        now = self._now_ns()
-        if self.streamer is not None and self.streamer.state in ("running", "done", "retracting"):
-            was = self.streamer.state
-            # The stop starts from where the tool is: the executed pose's time (at most
-            # max_lead behind the newest set-point), on the plan's exact state there; the
-            # set-points sent after it are superseded by the stop's, sent again from there,
-            # so the stream stays continuous in position, velocity and acceleration.
-            t = self._executed_ns(now)
-            self.streamer.abort(t / NS, reason)
-            abort_time = self.streamer.abort_time
-            assert abort_time is not None           # abort() gives it
-            t = int(round(abort_time * NS))
-            grid = self.grid            # the run's grid (the streamer runs only with one)
-            if grid is not None and grid.last_ns is not None and t < grid.last_ns:
-                for t_send in grid.rewind(t):
-                    self._publish_setpoint(t_send)
-            stop = self.streamer.stop_plan
-            self.get_logger().error(
-                f"ABORT ({reason}): stopping from {was} at {t / NS:.6f} s, at rest in "
-                f"{stop.duration if stop else 0.0:.6f} s"
-                + (", then retracting to home" if was != "retracting" else ", then holding"))
-            self._stream()
-        else:
+        stop = stop_run(self.streamer, self.grid, reason, self._executed_ns(self._now_ns()))
+        if stop is None:
             self.get_logger().error(f"ABORT ({reason}) before the start: the plan will not run "
                                     f"(~/reset to re-arm)")
+        else:
+            sends, what = stop
+            for t_send in sends:
+                self._publish_setpoint(t_send)
+            self.get_logger().error(f"ABORT ({reason}): {what}")
+            self._stream()
         self._update_state()
 
     def _executed_ns(self, now: int) -> int:
-        """The time of the executed tool pose during the run [ns] (the newest set-point's
-        when no pose of the run has arrived)."""
-        last = self._last_cmd_ns if self._last_cmd_ns is not None else now
-        pose = self._pose_ns
-        if pose is None or self._t0_ns is None or pose < self._t0_ns:
-            return last
-        return min(pose, last)
+        """The time of the executed tool pose during the run [ns] (core: executed_ns)."""
+        return executed_ns(now, self._last_cmd_ns, self._pose_ns, self._t0_ns)
 
     def _on_start(self, request, response):
-        if self.streamer is not None:
-            response.success = False
-            response.message = f"already started ({self._state}); ~/reset first"
-        elif self.aborted:
-            response.success = False
-            response.message = f"aborted ({self.abort_reason}); ~/reset first"
-        else:
+        response.success, response.message = start_reply(
+            None if self.streamer is None else self._state,
+            self.abort_reason if self.aborted else None, self.presence.settled)
+        if response.success:
             self._start_requested = True
             if self._tool_away() and self._tool_pose is not None:   # away: a pose is known
                 self._hold = self._tool_pose.copy()          # the plan approaches from there
-            response.success, response.message = True, "start requested: waiting for the interlock"
-            if not self.presence.settled:     # served only if no older planner of this name
-                response.message += " (starting up: checking that no other planner runs)"
         return response
 
     def _on_reset(self, request, response):
-        if self.streamer is not None and self.streamer.state in MOVING:
-            response.success = False
-            response.message = f"refused: the tool is moving ({self.streamer.state})"
+        why = reset_refusal(None if self.streamer is None else self.streamer.state)
+        if why:
+            response.success, response.message = False, why
             return response
         if self.streamer is not None and self.streamer.plan is not None:
             t = (self._last_cmd_ns or self._now_ns()) / NS
@@ -360,12 +319,9 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
             return
         now = self._now_ns()
         limit = lead_limit(self.grid.t0_ns, self._pose_ns, self.settings.max_lead)
-        note = ""
-        if now > limit:
-            note = (f"set-points wait for the tool: /tool/pose at {(self._pose_ns or 0) / NS:.3f}"
-                    f" s, clock {now / NS:.3f} s (max_lead {self.settings.max_lead:g} s)")
-            if not self._lead_note:
-                self.get_logger().warning(note, throttle_duration_sec=5.0)
+        note = lead_wait(now, limit, self._pose_ns, self.settings.max_lead)
+        if note and not self._lead_note:
+            self.get_logger().warning(note, throttle_duration_sec=5.0)
         self._lead_note = note
         self._adaptive_tick()                   # a finished re-plan first, then the set-points
         skipped = self.grid.skipped

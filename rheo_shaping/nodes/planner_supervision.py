@@ -10,7 +10,8 @@ from rclpy.publisher import Publisher
 from std_msgs.msg import String
 
 from ..params.schema import ParameterError
-from ..planning.run_state import SetpointGrid, StartInputs, running_decision, start_decision
+from ..planning.run_state import (SetpointGrid, StartFacts, reported_state, running_decision,
+                                  start_decision, start_inputs, start_lead)
 from ..planning.stopping import TrajectoryStreamer
 from ..safety.one_of_each import commander_refusal
 from ..safety.watchdog import StallGuard
@@ -58,20 +59,15 @@ class PlannerSupervision(PlannerMixin):
         stalled = guard.check(self._steady.now().nanoseconds)
         if self.streamer is None:
             now = self._now_ns()
-            wants = self.settings.autostart or self._start_requested
-            # the graph queries and checks only when a start is wanted (else idle/holding)
-            active = wants and not self.aborted
-            state, why_not = start_decision(StartInputs(
-                aborted=self.aborted, wants_start=wants,
-                start_requested=self._start_requested,
-                pose_unknown=(active and self._tool_pose is None and self._hold is None
-                              and self.count_publishers(T.TOOL_POSE.name) > 0),
-                tool_away=self._tool_away() if active else "", monitor_ok=ok,
-                refusal=self._refusal() if active and ok else "",
-                lead=self._start_lead(now) if active and ok and now > 0 else "", now_ns=now,
-                subscribers=self.pub_command.get_subscription_count() if active else 0,
-                arriving=(active and self._hold_ns is not None
-                          and (self._pose_ns is None or self._pose_ns < self._hold_ns))))
+            command = self.pub_command
+            state, why_not = start_decision(start_inputs(
+                StartFacts(aborted=self.aborted, autostart=self.settings.autostart,
+                           start_requested=self._start_requested,
+                           pose_known=self._tool_pose is not None,
+                           hold_known=self._hold is not None, hold_ns=self._hold_ns,
+                           pose_ns=self._pose_ns, now_ns=now, monitor_ok=ok),
+                lambda: self.count_publishers(T.TOOL_POSE.name), self._tool_away,
+                self._refusal, self._start_lead, command.get_subscription_count))
             if state == "start":
                 self._start(now)
             elif state in ("idle", "holding"):
@@ -123,17 +119,8 @@ class PlannerSupervision(PlannerMixin):
         self._set_state(state)
 
     def _start_lead(self, now: int) -> str:
-        """Why the stream could not keep within max_lead of the executed pose: the
-        simulator's clock runs further ahead of its published pose than max_lead."""
-        if self._pose_ns is None:
-            return ("no /tool/pose yet: the planner streams only against the executed pose "
-                    "(its stamp bounds the lead)")
-        ahead = (now - self._pose_ns) / NS
-        if ahead > self.settings.max_lead:
-            return (f"/clock runs {ahead:.3f} s ahead of /tool/pose, beyond max_lead "
-                    f"{self.settings.max_lead:g} s: the simulator's step (real_time_factor x "
-                    f"step_period) must stay below max_lead")
-        return ""
+        """Why the stream could not keep within max_lead of the executed pose (core)."""
+        return start_lead(now, self._pose_ns, self.settings.max_lead)
 
     def _start(self, now_ns: int) -> None:
         if self._start_failed:
@@ -163,17 +150,7 @@ class PlannerSupervision(PlannerMixin):
 
     def _update_state(self) -> None:
         st = self.streamer
-        if st is None:
-            if self.aborted:
-                self._set_state("holding")
-            return
-        if st.state == "done":
-            pt = self.cell_used.movement.process_time
-            now = self._now_ns()
-            t0 = self._t0_ns
-            assert t0 is not None               # a streamer that ran has its grid
-            self._set_state("done" if now >= t0 + pt * NS - 1 else "running")
-        elif st.state == "idle":
-            self._set_state("waiting")
-        else:
-            self._set_state(st.state)
+        state = reported_state(None if st is None else st.state, self.aborted, self._now_ns(),
+                               self._t0_ns, self.cell_used.movement.process_time)
+        if state is not None:
+            self._set_state(state)

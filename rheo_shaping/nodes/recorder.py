@@ -76,28 +76,18 @@ class CellRecorder(Node):
         self.buf.wrench.append((t, float(f.x), float(f.z)))
 
     def _on_command(self, msg) -> None:
-        t = m.stamp_ns(msg.header.stamp)
-        if t > 0 and (self.buf.start_ns is None or t <= self.buf.start_ns):
-            self.buf.start_ns = t
-            self.buf.start_xz = m.pose_xz(msg)
+        self.buf.command(m.stamp_ns(msg.header.stamp), m.pose_xz(msg))
 
     def _on_plan(self, msg) -> None:
-        t = m.stamp_ns(msg.header.stamp)
-        if t > 0 and (self.buf.start_ns is None or t < self.buf.start_ns):
-            self.buf.start_ns = t
+        self.buf.plan(m.stamp_ns(msg.header.stamp))
 
     def _on_state(self, msg) -> None:
-        self.buf.planner_state = msg.data
-        if msg.data in MOVING:
-            self.buf.ran = True
+        self.buf.state(msg.data, MOVING)
 
     # -- the record ----------------------------------------------------------------------
     def recorded_time(self) -> float:
         """Process time [s] of the newest pose (0 before the start)."""
-        b = self.buf
-        if b.start_ns is None or not b.pose:
-            return 0.0
-        return max((b.pose[-1][0] - b.start_ns) / NS, 0.0)
+        return self.buf.recorded_time()
 
     def record(self, scenario: CellParams, name: str) -> Record:
         """The record from the process start on (t = 0 at the start;
@@ -183,8 +173,7 @@ def _record(node: CellRecorder, executor, context, out: Path, scenario, namespac
                 say(f"  recorded {t:6.1f} / {end_time:g} s of process time{left} "
                     f"({len(node.buf.profile)} frames), planner {node.buf.planner_state}")
                 next_report += 10.0
-            done = node.buf.planner_state in AT_REST and node.buf.ran
-            if t >= end_time and (done or duration is not None):
+            if node.buf.complete(end_time, duration is not None, AT_REST):
                 break
             if (node.buf.start_ns is not None
                     and time.monotonic() - node.last_rx > idle_timeout):

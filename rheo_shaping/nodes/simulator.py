@@ -50,12 +50,11 @@ from ..sheet.geometry import Cake
 from ..params.node_params import SimulatorNodeParams
 from ..params.cell import CellParams, batch_cell
 from ..planning.scenarios import movement_scenario
-from ..sheet.setpoints import (HOLD_FOR_START, LATE_STEP, WAIT_MONITOR, WAIT_SETPOINT,
-                               SetpointRun, next_step)
+from ..sheet.setpoints import SetpointRun, SimClock, next_step
 from ..sheet.tools import tool_shape
 from ..params.fingerprint import cell_message
 from ..safety.acknowledge import MonitorLead
-from ..safety.command_gate import CommandGate, ToolLimits
+from ..safety.command_gate import Arrivals, CommandGate, ToolLimits
 from ..safety.watchdog import Freshness
 from . import messages as m
 from . import topics as T
@@ -67,10 +66,6 @@ from .ros_params import SchemaParameters
 from .spin import Yielded, build_or_destroy, run_node
 
 from ..units import NS
-
-#: Wall-clock time [s] between re-publications of the unchanged state while /clock holds
-#: for the first set-point (the monitor's data stay fresh; nothing else changes).
-HOLD_REPUBLISH = 0.1
 
 
 class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
@@ -108,14 +103,13 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
             else self._on_command, T.TOOL_COMMAND.qos)
         # one commander: the bound planner's set-points, within the tool's limits
         self.gate = CommandGate(self._tool_limits())
-        self._unbound: list[tuple] = []            # set-points waiting for the graph
+        self.arrivals = Arrivals(self.gate)        # set-points judged in order (core)
         self.pub_abort = self._latched(T.ABORT)
         self.create_subscription(T.ABORT.type, T.ABORT.name, self._on_abort, T.ABORT.qos)
         self.pub_cell = self._latched(T.CELL)
         self.pub_commander = self._latched(T.COMMANDER)
         self._commander: str | None = None          # what /shaping/commander said last
         self._commander_ns = 0                      # steady time it was last checked
-        self._last_hold_pub: int | None = None  # steady time of the last re-publication on hold
         # acknowledgements only from the monitor of this namespace (a second writer holds)
         self._checked = OwnedStream(self, T.CHECKED.name, "monitor")
         self.create_subscription(
@@ -124,14 +118,9 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
             else self._on_checked, T.CHECKED.qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
-        # time of the latest computed state (node or simulated clock)
-        self._t_ns = 0
         self._pending = False          # a step is due (lockstep may hold it back)
-        self._waits = 0                # lockstep waits so far
         # steps wait for the monitor's acknowledgements of the tension samples (core)
         self._lead = self._monitor_lead()
-        self._clock_holds = 0          # steps held at the start for the first set-point
-        self._late_steps = 0           # steps taken without their set-point (stream lost/late)
         self._last_pub_ns = None
         self._force_publish = False
         self._last_marker = None
@@ -151,7 +140,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         self.get_logger().info(
             f"simulator up: {self.cell.sheet.n_masses} masses, movement "
             f"{self.cell.movement.number}, "
-            f"{mode}, step {self._dt_ns / NS:g} s every {self.settings.step_period:g} s")
+            f"{mode}, step {self.timeline.dt_ns / NS:g} s every {self.settings.step_period:g} s")
         self.presence = Presence(self, self._yield)     # last: a node that is fully up
 
     def _publisher(self, topic: T.Topic, qos=None):
@@ -180,9 +169,8 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         the reason goes out on /shaping/abort (the planner stops, the monitor sees it)."""
         if not self.gate.hold(reason):
             return
-        self._unbound.clear()                           # nothing buffered is followed now
-        tool = self.sim.state.tool
-        self.run.cmds = [(self._t_ns, float(tool[0]), float(tool[1]))]
+        self.arrivals.waiting.clear()                   # nothing buffered is followed now
+        tool = self.run.hold(self.timeline.t_ns)
         self.get_logger().error(f"the tool holds at ({tool[0] * 1e3:.3f}, {tool[1] * 1e3:.3f}) mm"
                                 f" until ~/reset: {reason}")
         if publish:
@@ -205,7 +193,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
     def _configure_time(self) -> None:
         s = self.settings
         self._sim_clock = s.real_time_factor != 1.0 or s.publish_clock
-        self._dt_ns = max(int(round(s.real_time_factor * s.step_period * NS)), 1)
+        self.timeline = SimClock(int(round(s.real_time_factor * s.step_period * NS)))
         if self._sim_clock:
             self.pub_clock = self._publisher(T.CLOCK)
 
@@ -259,7 +247,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
 
     @property
     def lockstep_waits(self) -> int:
-        return self._waits
+        return self.timeline.waits
 
     @property
     def monitor_waits(self) -> int:
@@ -276,7 +264,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
             self.destroy_publisher(self.pub_abort)     # drops its latched abort sample
             self.pub_abort = self._latched(T.ABORT)
         self.gate.reset()
-        self._unbound.clear()
+        self.arrivals.waiting.clear()
         self._new_run()
         response.success = True
         response.message = "run restarted: settled sheet at process time 0"
@@ -284,15 +272,10 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         return response
 
     def _reset_refusal(self) -> str:
-        """Why ~/reset may not re-arm now ("" if it may): the cause of a hold that would
-        latch again at once (a lost monitor, a second writer of its acknowledgements)."""
+        """Why ~/reset may not re-arm now (core: MonitorLead.reset_refusal)."""
         trust = self._checked.trust()
-        if trust.foreign:
-            return trust.reason
-        if self._lead.lost(self._steady.now().nanoseconds):
-            return (f"the monitor is lost (no {T.CHECKED.contract} for over "
-                    f"{self.settings.monitor_timeout:g} s): restart it first")
-        return ""
+        return self._lead.reset_refusal(self._steady.now().nanoseconds,
+                                        trust.reason if trust.foreign else "", T.CHECKED.contract)
 
     # -- stepping ---------------------------------------------------------------------
     def _on_timer(self) -> None:
@@ -313,43 +296,36 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
     def _try_step(self) -> None:
         if not self._pending:
             return
-        s = self.settings
+        s, clock = self.settings, self.timeline
         if self._sim_clock:
-            target = self._t_ns + self._dt_ns
-            choice = next_step(
-                s.lockstep, s.start_on_command, self.run.started, self._t_ns > 0,
+            target = clock.t_ns + clock.dt_ns
+            tick = clock.tick(next_step(
+                s.lockstep, s.start_on_command, self.run.started, clock.t_ns > 0,
                 # a held tool is the safe state: the sheet settles under it without waiting
                 # for a monitor that cannot judge (frozen, or refusing a rogue's samples)
                 lambda: not self.gate.held and self._lead.behind(self._steady.now().nanoseconds),
-                lambda: self.run.lacks_setpoint(target), bool(self.gate.held), self._stream_live)
-            if choice == HOLD_FOR_START:
+                lambda: self.run.lacks_setpoint(target), bool(self.gate.held), self._stream_live),
+                self._steady.now().nanoseconds)
+            if tick.clock_ns is not None:
+                self._publish_clock(tick.clock_ns)
+            if tick.wait:       # re-tried on the next acknowledgement or set-point
+                self._publish_steady(clock.t_ns)
+                return
+            if tick.step_to is None:            # /clock holds for the first set-point
                 self._pending = False
-                self._clock_holds += 1
-                self._publish_clock(self._t_ns + self._dt_ns)
-                now = self._steady.now().nanoseconds
-                if (self._last_hold_pub is None
-                        or now - self._last_hold_pub >= HOLD_REPUBLISH * NS):
-                    self._last_hold_pub = now
-                    self._publish_state(self._t_ns)    # the same state, fresh for the monitor
+                if tick.republish:
+                    self._publish_state(clock.t_ns)    # the same state, fresh for the monitor
                 self._hold_camera()
-                self._publish_steady(self._t_ns)
+                self._publish_steady(clock.t_ns)
                 return
-            if choice in (WAIT_MONITOR, WAIT_SETPOINT):
-                # re-tried on the next acknowledgement or set-point; /diagnostics goes on
-                # meanwhile (a hold while the monitor refuses a rogue's samples is seen)
-                self._waits += choice == WAIT_SETPOINT
-                self._publish_steady(self._t_ns)
-                return
-            if choice == LATE_STEP:
-                self._late_steps += 1               # the tool holds its last set-point
+            if tick.late:                       # the tool holds its last set-point
                 self.get_logger().warning(
                     f"step to {target / NS:.3f} s without its set-point (newest "
                     f"{self.run.cmds[-1][0] / NS:.3f} s): the tool holds; late steps so far "
-                    f"{self._late_steps}", throttle_duration_sec=5.0)
-            self._publish_clock(target + self._dt_ns)   # one step ahead
+                    f"{clock.late_steps}", throttle_duration_sec=5.0)
         else:
             target = self.get_clock().now().nanoseconds
-            if target <= self._t_ns:
+            if target <= clock.t_ns:
                 return
         self._pending = False
         self._step_to(target)
@@ -361,27 +337,21 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         pub.publish(m.clock_msg(t_ns))
 
     def _step_to(self, target: int) -> None:
-        run = self.run
-        if not run.started and not self.settings.start_on_command:
-            run.start_at(target)                        # the process starts with this step
-        if run.started and not run.broken:
-            finished = run.advance(target)
-            if finished is not None:
-                self._finish(finished)
-                if finished < run.process_time_at(target) - 1e-9:
-                    # the state at the process end is published, then the run goes on
-                    offset = run.offset_ns
-                    assert offset is not None           # a run that advanced has started
-                    self._publish_state(offset + int(round(finished * NS)))
-                    run.advance(target)
-                else:
-                    self._force_publish = True
-            if run.broken:
-                self.get_logger().error(f"the sheet solver failed at process time "
-                                        f"{self.sim.state.t:.2f} s: {run.broken}; tensions are "
-                                        f"published as NaN until ~/reset")
-        self._t_ns = target
-        self.run.prune(self._t_ns)
+        run, was_broken = self.run, self.run.broken
+        finished, end_ns = run.step_to(target, self.settings.start_on_command)
+        if finished is not None:
+            self._finish(finished)
+            if end_ns is not None:        # the state at the process end, then the run goes on
+                self._publish_state(end_ns)
+                run.advance(target)
+            else:
+                self._force_publish = True
+        if run.broken and not was_broken:
+            self.get_logger().error(f"the sheet solver failed at process time "
+                                    f"{self.sim.state.t:.2f} s: {run.broken}; tensions are "
+                                    f"published as NaN until ~/reset")
+        self.timeline.t_ns = target
+        self.run.prune(target)
         self._publish(target)
 
     def _finish(self, pt: float) -> None:
@@ -389,7 +359,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         self.get_logger().info(
             f"process time {pt:g} s reached: F_max = {s.F_max:.4f} N (link {s.F_max_link}, "
             f"t = {s.F_max_time:.1f} s), SF = {s.SF:.3f}, Delta = {s.delta * 1e3:.3f} mm "
-            f"({self._late_steps} steps without their set-point)")
+            f"({self.timeline.late_steps} steps without their set-point)")
 
 
 def main(args=None):

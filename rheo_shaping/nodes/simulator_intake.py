@@ -4,12 +4,10 @@ checked and buffered for the steps, or the tool held with the reason (a part of
 :class:`~.simulator.SimulatorNode`)."""
 from __future__ import annotations
 
-import math
-
 from geometry_msgs.msg import PoseStamped
 from std_msgs.msg import String
 
-from ..safety.command_gate import GRAPH_WAIT, Publisher
+from ..safety.command_gate import Arrivals, Publisher, malformed_setpoint
 from ..units import NS
 from . import messages as m
 from .guards import publishers_of
@@ -22,7 +20,7 @@ class SetpointIntake(SimulatorMixin):
 
     # the node's state this sets (SimulatorNode._build initializes it)
     _commander: str | None
-    _unbound: list[tuple]
+    arrivals: Arrivals
 
     def _command_publishers(self) -> list[Publisher]:
         return publishers_of(self, self._command_sub.topic_name)
@@ -30,23 +28,23 @@ class SetpointIntake(SimulatorMixin):
     # -- set-points -------------------------------------------------------------------
     def _on_command(self, msg: PoseStamped, info=None) -> None:
         seq = int((info or {}).get("publication_sequence_number", 0))
-        if self.gate.held:
-            if self.gate.report_once("held"):
-                self.get_logger().warning(f"ignoring /tool/command while the tool holds "
-                                          f"({self.gate.held}); ~/reset to re-arm")
-            return
-        if self._unbound:
-            # earlier samples still wait for the graph: this one is judged after them, in
-            # order (the writer's sequence numbers must rise)
-            self._unbound.append((msg, seq, self._steady.now().nanoseconds))
-            self._bind_waiting()
-            return
-        pubs = self._command_publishers()
-        if self.gate.bound is None and not pubs:
-            # the sample came before the graph shows its writer: judged once it does
-            self._unbound.append((msg, seq, self._steady.now().nanoseconds))
-            return
-        self._admit(pubs, msg, seq)
+        if self.gate.held and self.gate.report_once("held"):
+            self.get_logger().warning(f"ignoring /tool/command while the tool holds "
+                                      f"({self.gate.held}); ~/reset to re-arm")
+        self._take(*self.arrivals.offer(msg, seq, self._steady.now().nanoseconds,
+                                        self._command_publishers))
+
+    def _take(self, follow: list, why: str) -> None:
+        """Follow the admitted set-points in order (core: Arrivals), then hold if one was
+        refused; /shaping/commander says whom the gate follows."""
+        if follow or why:
+            self._say_commander()
+        for msg in follow:
+            self._follow(msg)
+            if self.gate.held:
+                return
+        if why:
+            self._hold(why)
 
     def _say_commander(self, pubs: list[Publisher] | None = None) -> None:
         """/shaping/commander: the planner this simulator follows ("" for none), on a
@@ -56,44 +54,19 @@ class SetpointIntake(SimulatorMixin):
             self._commander = name
             self.pub_commander.publish(String(data=name))
 
-    def _admit(self, pubs: list[Publisher], msg: PoseStamped, seq: int) -> bool:
-        """Follow ``msg`` if it comes from the bound planner, else hold; False once held."""
-        why = self.gate.source(pubs, seq)
-        self._say_commander(pubs)
-        if why:
-            self._hold(why)
-            return False
-        self._follow(msg)
-        return not self.gate.held
-
     def _bind_waiting(self) -> None:
         """Set-points that came before the graph showed their writer: judged now."""
-        if not self._unbound:
-            return
-        pubs = self._command_publishers()
-        waited = (self._steady.now().nanoseconds - self._unbound[0][2]) / NS
-        what = self.gate.unbound_wait(pubs, waited)
-        if what == "wait":
-            return
-        waiting, self._unbound = self._unbound, []
-        if what == "hold":
-            self._hold(f"set-points from a writer the graph does not show after {GRAPH_WAIT:g} s")
-            return
-        for msg, seq, _ in waiting:
-            if not self._admit(pubs, msg, seq):
-                return
+        if self.arrivals.waiting:
+            self._take(*self.arrivals.release(self._steady.now().nanoseconds,
+                                              self._command_publishers()))
 
     def _follow(self, msg: PoseStamped) -> None:
         """A set-point of the bound planner: checked, then buffered for the steps."""
         t = m.stamp_ns(msg.header.stamp)
         x, z = m.pose_xz(msg)
-        if t <= 0 or not (math.isfinite(x) and math.isfinite(z)):
-            self.get_logger().warning(f"ignored /tool/command with stamp {t} ns at ({x}, {z})",
-                                      throttle_duration_sec=5.0)
-            return
-        if msg.header.frame_id not in (m.FRAME, ""):
-            self.get_logger().warning(f"ignored /tool/command in frame '{msg.header.frame_id}': "
-                                      f"expected '{m.FRAME}'", throttle_duration_sec=5.0)
+        ignored = malformed_setpoint(t, x, z, msg.header.frame_id, m.FRAME)
+        if ignored:
+            self.get_logger().warning(ignored, throttle_duration_sec=5.0)
             return
         why = self.gate.judge(t, x, z, self.sim.state.tool)
         if why:
@@ -120,8 +93,9 @@ class SetpointIntake(SimulatorMixin):
         if trust.foreign:
             self._hold(trust.reason)
             return
-        if not trust.trusted or msg.data > self._lead.sent:
-            why = trust.reason or f"beyond the {self._lead.sent} samples published"
+        why = self._lead.refusal(msg.data, "" if trust.trusted
+                                 else trust.reason or "not the bound monitor's")
+        if why:
             self.get_logger().warning(f"ignored /shaping/checked {msg.data} ({why})",
                                       throttle_duration_sec=5.0)
             return

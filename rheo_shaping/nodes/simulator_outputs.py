@@ -83,7 +83,7 @@ class SimulatorOutputs(SimulatorMixin):
         if s.camera and (self._last_hold_camera is None
                          or now - self._last_hold_camera >= period):
             self._last_hold_camera = now
-            self._publish_camera(self._t_ns)
+            self._publish_camera(self.timeline.t_ns)
 
     def _publish_camera(self, t_ns: int) -> None:
         """A frame of the simulated camera (rheo_shaping.records.measurement.profile_frame)."""
@@ -97,15 +97,16 @@ class SimulatorOutputs(SimulatorMixin):
 
     def _measure_rate(self, now: int) -> None:
         if self._rate_ref is not None and now > self._rate_ref[0]:
-            self.achieved_factor = (self._t_ns - self._rate_ref[1]) / (now - self._rate_ref[0])
+            self.achieved_factor = ((self.timeline.t_ns - self._rate_ref[1])
+                                    / (now - self._rate_ref[0]))
             wanted = self.settings.real_time_factor
             if (self._sim_clock and self.started and self.summary is None
                     and self.achieved_factor < 0.5 * wanted):
                 self.get_logger().warning(
                     f"running at {self.achieved_factor:.1f}x instead of {wanted:g}x (computation "
-                    f"or set-points lag; lockstep waits so far: {self._waits})",
+                    f"or set-points lag; lockstep waits so far: {self.timeline.waits})",
                     throttle_duration_sec=10.0)
-        self._rate_ref = (now, self._t_ns)
+        self._rate_ref = (now, self.timeline.t_ns)
 
     def _progress(self) -> None:
         period = self.settings.progress_period
@@ -130,9 +131,10 @@ class SimulatorOutputs(SimulatorMixin):
                   "tension_max": float(np.max(self.run.tensions())),
                   "F_max": float(self.peak.value) if self.started else 0.0,
                   "real_time_factor": self.settings.real_time_factor,
-                  "achieved_factor": float(self.achieved_factor), "lockstep_waits": self._waits,
-                  "monitor_waits": self._lead.waits, "clock_holds": self._clock_holds,
-                  "late_steps": self._late_steps}
+                  "achieved_factor": float(self.achieved_factor),
+                  "lockstep_waits": self.timeline.waits,
+                  "monitor_waits": self._lead.waits, "clock_holds": self.timeline.clock_holds,
+                  "late_steps": self.timeline.late_steps}
         if self.summary is not None:
             values.update({"final_F_max": self.summary.F_max, "final_SF": self.summary.SF,
                            "final_delta": self.summary.delta})

@@ -185,12 +185,13 @@ def node_parameters(data: dict, node: str | None, path: str | Path = "") -> dict
     return flat
 
 
-def check_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
+def check_params_file(path: str | Path, data: Any = None) -> dict[str, dict[str, Any]]:
     """Refuse a params file that rcl or a node would refuse (module docstring); return its
     sections.  The message names the file, the section, the key, the value and what was
-    expected."""
+    expected.  ``data``: the file as :func:`read_yaml` read it (read here when None)."""
     from .node_params import NODE_PARAMS, NODE_PARAMETER_NAMES, ROS_BUILTIN_PARAMETERS
-    data = read_yaml(path)
+    if data is None:
+        data = read_yaml(path)
     found = sections(data, path)
     for name, flat in found.items():
         node = node_of(name)
@@ -242,8 +243,9 @@ def load_cell(path: str | Path | None = None, node: str | None = "simulator") ->
     """The cell described by a params file (the default cell when ``path`` is None)."""
     if path is None:
         return CellParams()
-    check_params_file(path)
-    return cell_from_flat(node_parameters(read_yaml(path), None, path), str(path))
+    data = read_yaml(path)                     # the file is read once
+    check_params_file(path, data)
+    return cell_from_flat(node_parameters(data, None, path), str(path))
 
 
 #: Top-level names of node parameters that may sit beside the cell's (the

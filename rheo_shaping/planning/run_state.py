@@ -12,8 +12,13 @@ nanoseconds on the node's (or simulated) clock.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable
 
 from ..units import NS
+from .states import MOVING
+
+if TYPE_CHECKING:
+    from .stopping import TrajectoryStreamer
 
 #: Most set-points in one batch (a clock that jumped far skips ahead).
 MAX_BATCH = 5000
@@ -35,6 +40,42 @@ class StartInputs:
     subscribers: int               # matched subscribers of /tool/command
     arriving: bool = False         # after a run: the executed pose is stamped before the
     #                                last run's newest set-point (the tool still moves)
+
+
+@dataclass(frozen=True, kw_only=True)
+class StartFacts:
+    """What the planner holds at a supervision tick before a run (the inputs that cost
+    nothing to know; the others are asked of the node only when they matter)."""
+
+    aborted: bool                  # an abort is latched
+    autostart: bool                # the parameter
+    start_requested: bool          # ~/start was called
+    pose_known: bool               # a /tool/pose has arrived
+    hold_known: bool               # where the tool holds is known (after a run)
+    hold_ns: int | None            # the last run's newest set-point [ns]
+    pose_ns: int | None            # the newest executed pose's stamp [ns]
+    now_ns: int                    # the node's clock (0: no /clock yet)
+    monitor_ok: bool               # the interlock
+
+
+def start_inputs(f: StartFacts, pose_publishers: Callable[[], int],
+                 tool_away: Callable[[], str], refusal: Callable[[], str],
+                 lead: Callable[[int], str], subscribers: Callable[[], int]) -> StartInputs:
+    """The :class:`StartInputs` of a tick: the graph queries and the node's checks asked
+    only when a start is wanted and not latched off (else the planner idles or holds), the
+    checks only behind the interlock, the lead only once the clock runs."""
+    wants = f.autostart or f.start_requested
+    active = wants and not f.aborted
+    return StartInputs(
+        aborted=f.aborted, wants_start=wants, start_requested=f.start_requested,
+        pose_unknown=(active and not f.pose_known and not f.hold_known
+                      and pose_publishers() > 0),
+        tool_away=tool_away() if active else "", monitor_ok=f.monitor_ok,
+        refusal=refusal() if active and f.monitor_ok else "",
+        lead=lead(f.now_ns) if active and f.monitor_ok and f.now_ns > 0 else "",
+        now_ns=f.now_ns, subscribers=subscribers() if active else 0,
+        arriving=(active and f.hold_ns is not None
+                  and (f.pose_ns is None or f.pose_ns < f.hold_ns)))
 
 
 def start_decision(i: StartInputs) -> tuple[str, str]:
@@ -130,3 +171,117 @@ class SetpointGrid:
         if self.last_ns is None or t > self.last_ns:
             out.append(t)
             self.last_ns = t
+
+
+@dataclass(frozen=True, kw_only=True)
+class Heartbeat:
+    """What the planner knows of the monitor's ``/shaping/ready`` heartbeat (steady clock)."""
+
+    required: bool                 # wait_for_monitor
+    received_ns: int | None        # when the newest one arrived [ns] (None: never)
+    now_ns: int                    # now [ns]
+    timeout: float                 # monitor_timeout [s]
+    ready: bool                    # what the newest one said
+    untrusted: str = ""            # why its writer is not trusted ("" if it is)
+
+
+def interlock(h: Heartbeat) -> tuple[bool, str]:
+    """(the monitor allows motion, why not): a fresh "ready" heartbeat of the one trusted
+    writer, or no heartbeat required (safety principle 6)."""
+    if not h.required:
+        return True, ""
+    if h.received_ns is None:
+        return False, "no ready heartbeat from the monitor yet"
+    age = (h.now_ns - h.received_ns) / NS
+    if age > h.timeout:
+        return False, f"no ready heartbeat from the monitor for {age:.2f} s"
+    if not h.ready:
+        return False, "the monitor reports not ready"
+    if h.untrusted:
+        return False, h.untrusted
+    return True, ""
+
+
+def start_reply(state: str | None, aborted: str | None, settled: bool) -> tuple[bool, str]:
+    """The answer to ``~/start``: refused while a run exists (``state``, None without one)
+    or an abort is latched (``aborted``: its reason, None without one); else the start is
+    requested and waits for the interlock (and for the twin check while not ``settled``)."""
+    if state is not None:
+        return False, f"already started ({state}); ~/reset first"
+    if aborted is not None:
+        return False, f"aborted ({aborted}); ~/reset first"
+    return True, ("start requested: waiting for the interlock"
+                  + ("" if settled else
+                     " (starting up: checking that no other planner runs)"))
+
+
+def reset_refusal(state: str | None) -> str:
+    """Why ``~/reset`` may not re-arm the planner ("" if it may): the tool moves."""
+    return f"refused: the tool is moving ({state})" if state in MOVING else ""
+
+
+def executed_ns(now_ns: int, last_ns: int | None, pose_ns: int | None,
+                t0_ns: int | None) -> int:
+    """The time of the executed tool pose during a run [ns]: the pose's stamp, never after
+    the newest set-point ``last_ns`` (its time when no pose of the run has arrived; now
+    before any set-point)."""
+    last = last_ns if last_ns is not None else now_ns
+    if pose_ns is None or t0_ns is None or pose_ns < t0_ns:
+        return last
+    return min(pose_ns, last)
+
+
+def reported_state(streamer_state: str | None, aborted: bool, now_ns: int,
+                   t0_ns: int | None, process_time: float) -> str | None:
+    """The state the planner reports for its run (None: keep the one it has): ``done`` only
+    once the process time is over too, ``holding`` after an abort without a run."""
+    if streamer_state is None:
+        return "holding" if aborted else None
+    if streamer_state == "done":
+        assert t0_ns is not None               # a streamer that ran has its grid
+        return "done" if now_ns >= t0_ns + process_time * NS - 1 else "running"
+    return "waiting" if streamer_state == "idle" else streamer_state
+
+
+def start_lead(now_ns: int, pose_ns: int | None, max_lead: float) -> str:
+    """Why a stream could not keep within ``max_lead`` [s] of the executed pose ("" if it
+    can): no pose yet, or the simulator's clock runs further ahead of its pose."""
+    if pose_ns is None:
+        return ("no /tool/pose yet: the planner streams only against the executed pose "
+                "(its stamp bounds the lead)")
+    ahead = (now_ns - pose_ns) / NS
+    if ahead > max_lead:
+        return (f"/clock runs {ahead:.3f} s ahead of /tool/pose, beyond max_lead "
+                f"{max_lead:g} s: the simulator's step (real_time_factor x "
+                f"step_period) must stay below max_lead")
+    return ""
+
+
+def lead_wait(now_ns: int, limit_ns: int, pose_ns: int | None, max_lead: float) -> str:
+    """Why set-points wait for the tool now ("" if they do not): the clock is past the
+    lead limit of the executed pose."""
+    if now_ns <= limit_ns:
+        return ""
+    return (f"set-points wait for the tool: /tool/pose at {(pose_ns or 0) / NS:.3f} s, clock "
+            f"{now_ns / NS:.3f} s (max_lead {max_lead:g} s)")
+
+
+def stop_run(streamer: TrajectoryStreamer | None, grid: SetpointGrid | None, reason: str,
+             executed: int) -> tuple[list[int], str] | None:
+    """Stop a run (running, done or retracting) on an abort, from the executed time
+    ``executed`` [ns] on the plan's exact state there (safety principles 3 and 5): the
+    set-point times to send (again) now, so the stream stays continuous in position,
+    velocity and acceleration, and what to log; None when no run moves (the abort only
+    latches)."""
+    if streamer is None or streamer.state not in ("running", "done", "retracting"):
+        return None
+    was = streamer.state
+    streamer.abort(executed / NS, reason)
+    assert streamer.abort_time is not None            # abort() gives it
+    t = int(round(streamer.abort_time * NS))
+    sends = (grid.rewind(t) if grid is not None and grid.last_ns is not None
+             and t < grid.last_ns else [])
+    stop = streamer.stop_plan
+    return sends, (f"stopping from {was} at {t / NS:.6f} s, at rest in "
+                   f"{stop.duration if stop else 0.0:.6f} s"
+                   + (", then retracting to home" if was != "retracting" else ", then holding"))

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Collection
 
 import numpy as np
 
@@ -34,6 +35,37 @@ class CellBuffer:
     first_rx_ns: int | None = None                 # stamp of the first state message received
     planner_state: str = ""
     ran: bool = False
+
+    def command(self, t_ns: int, xz: tuple[float, float]) -> None:
+        """A set-point: the earliest one stamped > 0 is the process start, its position
+        the first set-point's."""
+        if t_ns > 0 and (self.start_ns is None or t_ns <= self.start_ns):
+            self.start_ns, self.start_xz = t_ns, xz
+
+    def plan(self, t_ns: int) -> None:
+        """A plan stamped ``t_ns`` (its start): an earlier process start than any seen."""
+        if t_ns > 0 and (self.start_ns is None or t_ns < self.start_ns):
+            self.start_ns = t_ns
+
+    def state(self, state: str, moving: Collection[str]) -> None:
+        """The planner's state: the run counts as run once it was one of ``moving`` (the
+        planner's vocabulary, planning.states.MOVING)."""
+        self.planner_state = state
+        self.ran = self.ran or state in moving
+
+    def recorded_time(self) -> float:
+        """Process time [s] of the newest pose (0 before the start)."""
+        if self.start_ns is None or not self.pose:
+            return 0.0
+        return max((self.pose[-1][0] - self.start_ns) / NS, 0.0)
+
+    def complete(self, end_time: float, fixed_duration: bool,
+                 at_rest: Collection[str]) -> bool:
+        """Whether the recording is complete at process time ``end_time`` [s]: for a fixed
+        duration once it is recorded, else also once the planner has run and come to rest
+        (one of ``at_rest``: planning.states.AT_REST)."""
+        return self.recorded_time() >= end_time and (
+            fixed_duration or (self.planner_state in at_rest and self.ran))
 
 
 def assemble(buf: CellBuffer, scenario: CellParams, name: str) -> Record:

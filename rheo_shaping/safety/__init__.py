@@ -11,4 +11,5 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'command_gate': ['CommandGate', 'Publisher', 'ToolLimits'],
     'monitor': ['TensionMonitor'],
     'owners': ['StreamOwner', 'Trust'],
+    'manager': ['Requests', 'cell_status'],
 })

@@ -122,3 +122,23 @@ class MonitorLead:
                 and not self._fresh.stale(steady_ns))
         self.waits += wait
         return wait
+
+    def reset_refusal(self, steady_ns: int, foreign: str, topic: str) -> str:
+        """Why a simulator's hold may not be reset now ("" if it may): the cause would
+        latch it again at once: a second writer of the acknowledgements (``foreign``: its
+        reason) or a lost monitor."""
+        if foreign:
+            return foreign
+        if self.lost(steady_ns):
+            return (f"the monitor is lost (no {topic} for over {self._timeout:g} s): "
+                    f"restart it first")
+        return ""
+
+    def refusal(self, seq: int, untrusted: str) -> str:
+        """Why acknowledgement ``seq`` is ignored ("" if it counts): its writer is not the
+        bound monitor (``untrusted``: the reason), or it is beyond the samples published."""
+        if untrusted:
+            return untrusted
+        if seq > self.sent:
+            return f"beyond the {self.sent} samples published"
+        return ""

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 from ..params.validators import PointLike
 from ..units import NS
@@ -185,3 +185,61 @@ class CommandGate:
         if len(path) > KEEP:
             del path[:-KEEP]
         return ""
+
+
+def malformed_setpoint(t_ns: int, x: float, z: float, frame: str, expected: str) -> str:
+    """Why a ``/tool/command`` message is ignored outright ("" if it is a set-point to judge):
+    no stamp, a position that is not finite, another frame than ``expected`` (empty: the
+    default frame)."""
+    if t_ns <= 0 or not (math.isfinite(x) and math.isfinite(z)):
+        return f"ignored /tool/command with stamp {t_ns} ns at ({x}, {z})"
+    if frame not in (expected, ""):
+        return f"ignored /tool/command in frame '{frame}': expected '{expected}'"
+    return ""
+
+
+class Arrivals:
+    """Set-points on their way through a :class:`CommandGate`: each judged by its source in
+    the order it came; those that come before the graph shows their writer wait (ROS 2 can
+    deliver a sample before the graph names its writer), for at most :data:`GRAPH_WAIT`.
+    Items are opaque (the node's messages); times are steady-clock nanoseconds."""
+
+    def __init__(self, gate: CommandGate):
+        self.gate = gate
+        self.waiting: list[tuple[object, int, int]] = []      # (item, seq, arrived)
+
+    def offer(self, item: object, seq: int, now_ns: int,
+              publishers: Callable[[], Sequence[Publisher]]) -> tuple[list[object], str]:
+        """A set-point with publication sequence number ``seq``: (the set-points to follow
+        now, in order; why the tool holds, "" if it does not).  Nothing while the gate
+        holds; after earlier ones still waiting for the graph, in order behind them."""
+        if self.gate.held:
+            return [], ""
+        if self.waiting:
+            self.waiting.append((item, seq, now_ns))
+            return self.release(now_ns, publishers())
+        pubs = list(publishers())
+        if self.gate.bound is None and not pubs:
+            self.waiting.append((item, seq, now_ns))        # judged once the graph shows it
+            return [], ""
+        why = self.gate.source(pubs, seq)
+        return ([], why) if why else ([item], "")
+
+    def release(self, now_ns: int, pubs: Sequence[Publisher]) -> tuple[list[object], str]:
+        """The waiting set-points judged once the graph shows a writer (in order, up to the
+        first refused), or a hold when it still shows none after :data:`GRAPH_WAIT`."""
+        if not self.waiting:
+            return [], ""
+        what = self.gate.unbound_wait(pubs, (now_ns - self.waiting[0][2]) / NS)
+        if what == "wait":
+            return [], ""
+        waiting, self.waiting = self.waiting, []
+        if what == "hold":
+            return [], f"set-points from a writer the graph does not show after {GRAPH_WAIT:g} s"
+        out: list[object] = []
+        for item, seq, _ in waiting:
+            why = self.gate.source(pubs, seq)
+            if why:
+                return out, why
+            out.append(item)
+        return out, ""

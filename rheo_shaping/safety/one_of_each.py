@@ -126,3 +126,83 @@ def commander_refusal(bound: str | None, expected: bool = True) -> str:
                 f"once the simulator follows none (that one ends, its DDS lease runs out after "
                 f"a kill, or the simulator's ~/reset)")
     return ""
+
+
+def cell_refusal(who: str, settled: bool, check_cell: bool, mismatch: str | None,
+                 clocks: str, cell_topic: str) -> tuple[str, bool]:
+    """(why ``who`` may not act yet, whether that is a fault to stop on): still checking for
+    a twin of its name; with ``check_cell``, no cell fingerprint from the simulator on
+    ``cell_topic`` yet (``mismatch`` None: wait) or another cell (``mismatch``: the
+    differing parameters, a fault); a second clock (``clocks``: a fault)."""
+    if not settled:
+        return f"starting up: checking that no other {who} of this name runs", False
+    if check_cell:
+        if mismatch is None:
+            return (f"waiting for the simulator's cell on {cell_topic} (the fingerprint of "
+                    f"every cell parameter; check_cell false for a cell without one)"), False
+        if mismatch:
+            return mismatch, True
+    return clocks, bool(clocks)
+
+
+class PresenceWatch:
+    """A node's side of "one of each" without ROS: its announcement, the twins and younger
+    nodes of its name it has heard of, how long discovery took, when the graph last
+    changed, and whether it has settled (latched).  Times are steady-clock nanoseconds;
+    the node asks the graph and forwards what it reads."""
+
+    def __init__(self, mine: Announcement, now_ns: int):
+        self.mine = mine
+        self.twin = ""                              # why this node must yield ("" none)
+        self.younger: set[Announcement] = set()     # same-name nodes announced as younger
+        self.settled = False
+        self.start_ns = self.t0_ns = now_ns         # its start; the settle time counts from t0
+        self.settle_s = settle_time(None)
+        self.peer_s: float | None = None            # start -> the graph showed another node
+        self.graph: frozenset[str] = frozenset()    # the graph's nodes, and when they changed
+        self.graph_changed_ns = now_ns
+
+    def seen(self, names: frozenset[str], now_ns: int) -> None:
+        """The graph's nodes now (fully qualified names): when they last changed, and how
+        long discovery took to show this node another one."""
+        if names != self.graph:
+            self.graph, self.graph_changed_ns = names, now_ns
+        if self.peer_s is None and names - {self.mine.node}:
+            self.peer_s = (now_ns - self.start_ns) / 1e9
+
+    def discovered(self, now_ns: int) -> None:
+        """Discovery has reached the rest of the cell: the settle time (at least as long as
+        discovery took to show this node another one) counts from now."""
+        if not self.settled:
+            self.settle_s = settle_time(self.peer_s)
+            self.t0_ns = now_ns
+
+    def due(self, now_ns: int) -> bool:
+        """Whether the graph is to be asked if this node may settle: not settled, no twin,
+        its settle time over."""
+        return (not self.settled and not self.twin
+                and (now_ns - self.t0_ns) / 1e9 >= self.settle_s)
+
+    def settle(self, now_ns: int, same_nodes: int, same_writers: int,
+               unnamed_writers: int) -> str:
+        """Why it may not act yet (:func:`settle_refusal` on the graph's counts); settles
+        (latched) when ""."""
+        why = settle_refusal(
+            same_nodes=same_nodes, same_writers=same_writers, unnamed_writers=unnamed_writers,
+            younger=len(self.younger),
+            past_settle_s=(now_ns - self.t0_ns) / 1e9 - self.settle_s,
+            graph_still_s=(now_ns - self.graph_changed_ns) / 1e9, settle_s=self.settle_s)
+        self.settled = not why
+        return why
+
+    def heard(self, other: Announcement, acting: bool) -> tuple[str, bool]:
+        """An announcement: (why this node would yield, whether it yields now).  A node that
+        already acts never quits on one (an older twin is found before a node acts, so an
+        "older" one now is a forgery or a clock); a twin found before is not named twice."""
+        if other.node == self.mine.node and self.mine < other:
+            self.younger.add(other)
+        why = twin_reason(self.mine, other)
+        if not why or acting or self.twin:
+            return why, False
+        self.twin = why
+        return why, True

@@ -10,6 +10,7 @@ the process end and beyond, and the peak tension of the process.  Times on the n
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -65,6 +66,13 @@ class SetpointRun:
         self.sim.reset()                           # the process starts with the tool here
         self.track(self.sim.state)                 # t = 0 counts, as offline
         return True
+
+    def hold(self, t_ns: int) -> np.ndarray:
+        """The tool holds where it is from ``t_ns`` on: every buffered set-point is dropped
+        for one at the tool's present position; that position [m]."""
+        tool = self.sim.state.tool
+        self.cmds = [(int(t_ns), float(tool[0]), float(tool[1]))]
+        return tool.copy()
 
     def start_at(self, t_ns: int) -> None:
         """Start the process at ``t_ns`` without a set-point (the tool stays at its start)."""
@@ -129,6 +137,22 @@ class SetpointRun:
             self.broken = f"{type(exc).__name__}: {exc}"
         return None
 
+    def step_to(self, target_ns: int,
+                start_on_command: bool) -> tuple[float | None, int | None]:
+        """One step of the simulator to node time ``target_ns``: the process starts with it
+        unless it waits for a set-point (``start_on_command``), then the sheet advances
+        (:meth:`advance`).  Returns (the process end [s] if this step reached it, the node
+        time [ns] of that end when it lies before the target: the state there is the one to
+        publish, then :meth:`advance` goes on to the target)."""
+        if not self.started and not start_on_command:
+            self.start_at(target_ns)
+        finished = self.advance(target_ns)
+        if finished is None or finished >= self.process_time_at(target_ns) - 1e-9:
+            return finished, None
+        offset = self.offset_ns
+        assert offset is not None                 # a run that advanced has started
+        return finished, offset + int(round(finished * NS))
+
     def track(self, state) -> None:
         """Note a step's largest link tension; the peak counts up to the process end."""
         i = int(np.argmax(state.tension))
@@ -181,6 +205,55 @@ def next_step(lockstep: bool, start_on_command: bool, started: bool, clock_start
     if lacks_setpoint() and not held:
         return WAIT_SETPOINT if lockstep and stream_live() else LATE_STEP
     return STEP
+
+
+#: Wall-clock time [s] between re-publications of the unchanged state while /clock holds
+#: for the first set-point (the monitor's data stay fresh; nothing else changes).
+HOLD_REPUBLISH = 0.1
+
+
+@dataclass(frozen=True, kw_only=True)
+class Tick:
+    """What a simulator on simulated time does at a tick (:meth:`SimClock.tick`)."""
+
+    step_to: int | None = None     # node time [ns] to step to (None: no step now)
+    clock_ns: int | None = None    # /clock to publish first [ns] (None: none)
+    wait: bool = False             # the step waits: retried at the next acknowledgement or
+    #                                set-point (the step stays due)
+    republish: bool = False        # held for the start: the same state again, fresh for the
+    #                                monitor
+    late: bool = False             # the step goes on without its set-point
+
+
+class SimClock:
+    """A simulator's simulated time: the newest computed state's time ``t_ns`` and the step
+    ``dt_ns`` [ns], with the counts of its policy's choices (:func:`next_step`)."""
+
+    def __init__(self, dt_ns: int):
+        self.dt_ns = max(int(dt_ns), 1)
+        self.t_ns = 0                    # time of the newest computed state [ns]
+        self.clock_holds = 0             # ticks held at the start for the first set-point
+        self.waits = 0                   # lockstep waits for a set-point
+        self.late_steps = 0              # steps taken without their set-point
+        self._republished: int | None = None   # steady time of the last re-publication [ns]
+
+    def tick(self, choice: str, steady_ns: int) -> Tick:
+        """The tick for the policy's ``choice`` at steady time ``steady_ns`` [ns]: /clock one
+        step ahead of a step, or held at the next step's time (then the state is published
+        again every :data:`HOLD_REPUBLISH` s)."""
+        target = self.t_ns + self.dt_ns
+        if choice == HOLD_FOR_START:
+            self.clock_holds += 1
+            again = (self._republished is None
+                     or steady_ns - self._republished >= HOLD_REPUBLISH * NS)
+            if again:
+                self._republished = steady_ns
+            return Tick(clock_ns=target, republish=again)
+        if choice in (WAIT_MONITOR, WAIT_SETPOINT):
+            self.waits += choice == WAIT_SETPOINT
+            return Tick(wait=True)
+        self.late_steps += choice == LATE_STEP
+        return Tick(step_to=target, clock_ns=target + self.dt_ns, late=choice == LATE_STEP)
 
 
 def run_status(broken: str, held: str, started: bool, done: bool, t: float,

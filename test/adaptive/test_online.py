@@ -133,3 +133,64 @@ def test_the_worker_process_refreshes_as_the_shaper_in_this_process_does():
                                atol=1e-12)
     finally:
         proc.close()
+
+
+def test_the_streamed_loop_samples_submits_and_switches_at_the_next_tick():
+    """The planner node's closed loop (rheo_shaping.adaptive.streamed.StreamedLoop) on a
+    real worker process, driven as the node drives it: a sample per period at the executed
+    poses, a refresh submitted when due and taken at a later control tick, the stream
+    switched at the join without a jump; a result whose join was already streamed is
+    dropped with the reason."""
+    from rheo_shaping.adaptive.streamed import StreamedLoop
+    from rheo_shaping.adaptive.worker import ShaperProcess
+    from rheo_shaping.planning.run_state import SetpointGrid
+    cell = movement_1()
+    true = material_cell(cell, NOMINAL * [0.7, 0.7, 1.2])
+    proc = ShaperProcess(cell)
+    try:
+        online = proc.start(cell, OnlineConfig(join_lead=0.5))
+        loop = StreamedLoop(online, proc)
+        streamer = TrajectoryStreamer()
+        streamer.start(online.plan, 0.0)
+        grid = SetpointGrid(0, round(DT * NS))
+        run = SetpointRun(true, tool_start=online.plan.start)
+        sent, taken = [np.asarray(online.plan.start)], []
+        t = 0.0
+        while t < 12.0 and not any(r.switched for r in taken):
+            t = round(t + DT, 9)
+            for t_ns in grid.due(round(t * NS), round(t * NS), sim_time=False):
+                p = streamer.setpoint(t_ns / NS)[0]
+                sent.append(p)
+                run.command(t_ns, float(p[0]), float(p[1]))
+            run.advance(round(t * NS))
+            sample = sample_of(run.sim)
+            loop.pose(run.sim.state.tool, round(t * NS), 0, sample.wrench,
+                      sample.contact_tension)
+            if loop.work is not None:
+                loop.work.result(120)         # the worker's refresh, waited for here
+            r = loop.tick(streamer, grid, round(t * NS), run.sim.state.tool)
+            if r is not None:
+                taken.append(r)
+        assert taken and taken[-1].switched, [r.note for r in taken]
+        r = taken[-1]
+        assert r.note.startswith(f"re-planned from t = {r.step.t_join:.2f} s")
+        assert r.data["switched"] and r.data["worker_cpu_s"] > 0.0
+        assert streamer.plan is r.step.plan
+        steps = np.linalg.norm(np.diff(np.array(sent), axis=0), axis=1)
+        v_max = max(*online.limits.speeds, cell.movement.retract_speed)
+        assert steps.max() <= v_max * DT + 1e-9                   # no jump at the join
+        # the same result again, once the stream has passed its join: dropped, named
+        streamer.setpoint(r.step.t_join + 1.0)
+        again = loop.take(99, r.step, streamer)
+        assert not again.switched and again.warning
+        assert again.note.startswith("re-plan dropped (")
+        # what /diagnostics says of each: WARN when no rest meets both limits (the one that
+        # keeps the sheet whole runs: with the prior's spread at 2 s, here), or dropped
+        level, message, values = r.status()
+        assert message.startswith("re-planned from t = ")
+        assert level == ("WARN" if values["replan"] in ("infeasible", "no_estimate") else "OK")
+        assert values["switched"] and values["k1 [N/m]"] == r.step.estimate.k1
+        assert values["estimate"] == r.step.estimate.status.value
+        assert again.status()[0] == "WARN" and not again.status()[2]["switched"]
+    finally:
+        proc.close()

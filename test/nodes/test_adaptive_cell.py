@@ -31,16 +31,44 @@ simulator:
 """
 
 
-def test_the_adaptive_cell_learns_a_soft_batch_and_follows_its_re_plans_without_a_tear(tmp_path):
+def test_the_adaptive_cell_learns_a_soft_batch_and_follows_its_re_plans_without_a_tear(
+        ros, tmp_path):
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    from _support.ros import Recorder
     cell = base_cell()
     params = tmp_path / "soft_batch.yaml"
     params.write_text(SOFT_BATCH)
-    proc = subprocess.run([str(BIN / "rheo-shaping"), "cell", "--params", str(params),
-                           "--adaptive", "--json", "--real-time-factor", "20"],
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                          timeout=300)
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    rx = Recorder(ros.node("loop_diagnostics"), {"/diagnostics": DiagnosticArray})
+    out_file, err_file = tmp_path / "stdout", tmp_path / "stderr"
+    with open(out_file, "w") as so, open(err_file, "w") as se:
+        proc = subprocess.Popen([str(BIN / "rheo-shaping"), "cell", "--params", str(params),
+                                 "--adaptive", "--json", "--real-time-factor", "20"],
+                                stdout=so, stderr=se, text=True)
+        try:
+            ros.spin_until(lambda: proc.poll() is not None, 300.0, "the adaptive cell's end")
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    stdout, stderr = out_file.read_text(), err_file.read_text()
+    assert proc.returncode == 0, stdout[-3000:] + stderr[-3000:]
+    out = json.loads(stdout.strip().splitlines()[-1])
+    # each refresh on /diagnostics as the planner's closed loop, with the estimate's figures
+    # (those before this subscriber matched the planner's writer are not seen; the last one,
+    # sent reliably once matched, is)
+
+    def loop():
+        return [st for a in rx["/diagnostics"] for st in a.status
+                if st.name == "planner: closed loop"]
+
+    last = out["adaptive"][-1]
+    ros.spin_until(lambda: any(abs(float({kv.key: kv.value for kv in st.values}["t [s]"])
+                                   - last["t"]) < 1e-3 for st in loop()),
+                   10.0, "the last refresh's status")
+    values = {kv.key: kv.value for kv in loop()[-1].values}
+    assert float(values["k1 [N/m]"]) == pytest.approx(last["estimate"]["k1"], rel=1e-5)
+    assert values["switched"] == str(last["switched"])
+    assert loop()[-1].level in (DiagnosticStatus.OK, DiagnosticStatus.WARN)   # never ERROR
     assert out["finished"] and not out["aborted"]
     assert out["F_max"] < out["F_break"] and out["delta"] <= 5e-3
     log = out["adaptive"]

@@ -177,6 +177,8 @@ def test_reset_refused_while_moving_then_rearms_with_an_approach(ros):
                       "tool.home": home})
     b.until(lambda: b.planner.state == "running", what="running")
     b.run(1.0)
+    # (on a busy machine the first set-point may reach the recorder later than 1 s)
+    b.until(lambda: b.rec.last("/tool/command") is not None, what="a set-point received")
     # the simulator holds the tool where the abort finds it (it follows no stop or retract)
     b.hold_at = m.pose_xz(b.rec.last("/tool/command"))
     b.abort.publish(String(data="test abort"))

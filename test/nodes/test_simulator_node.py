@@ -71,8 +71,8 @@ def test_topics_follow_the_contract_on_simulated_time(ros):
     # /clock leads the published state by one step; stamps are simulated time, never zero,
     # and held (one step's) until the first set-point.
     stamps = [m.stamp_ns(p.header.stamp) for p in rec["/sheet/profile"]]
-    assert set(stamps) == {sim._dt_ns}
-    lead = m.stamp_ns(rec["/clock"][0].clock) - sim._dt_ns
+    assert set(stamps) == {sim.timeline.dt_ns}
+    lead = m.stamp_ns(rec["/clock"][0].clock) - sim.timeline.dt_ns
     ros.spin_until(lambda: lead in [m.stamp_ns(p.header.stamp) for p in rec["/sheet/profile"]],
                    5.0, "the state one step behind /clock")
     ns = {mk.ns for mk in rec.last("/sheet/markers").markers}
@@ -96,13 +96,13 @@ def test_follows_set_points_in_lockstep_and_resets(ros):
     cmd = node.create_publisher(PoseStamped, "/tool/command", 100)
     wait_for_subscribers(ros, cmd)
     start = np.array(movement_scenario(cell).start)
-    ros.spin_until(lambda: sim._t_ns > 0, 10.0, "simulated time")
-    t0 = sim._t_ns + sim._dt_ns
+    ros.spin_until(lambda: sim.timeline.t_ns > 0, 10.0, "simulated time")
+    t0 = sim.timeline.t_ns + sim.timeline.dt_ns
     path = lambda t: start + np.array([0.0, -1e-3]) * t          # noqa: E731  1 mm/s down
     sent = [0]
 
     def stream():      # set-points every 20 ms of simulated time up to the simulator's clock
-        clock = sim._t_ns + sim._dt_ns
+        clock = sim.timeline.t_ns + sim.timeline.dt_ns
         while t0 + sent[0] * int(0.02 * NS) <= clock:
             t = sent[0] * 0.02
             cmd.publish(m.pose_msg(path(t), t0 + sent[0] * int(0.02 * NS)))
@@ -150,19 +150,20 @@ def test_clock_holds_until_the_first_set_point(ros):
     data)."""
     sim = make_sim(ros, real_time_factor=10.0, step_period=0.01)
     node, rec = listen(ros, clock=True)
-    ros.spin_until(lambda: sim._clock_holds >= 20, 20.0, "20 held steps")
+    ros.spin_until(lambda: sim.timeline.clock_holds >= 20, 20.0, "20 held steps")
     n = len(rec["/sheet/tensions"])
     ros.spin_until(lambda: len(rec["/sheet/tensions"]) >= n + 10, 10.0, "tensions while held")
-    assert not sim.started and sim._t_ns == sim._dt_ns           # one step, then the hold
+    dt = sim.timeline.dt_ns
+    assert not sim.started and sim.timeline.t_ns == dt           # one step, then the hold
     clock = {m.stamp_ns(c.clock) for c in rec["/clock"]}
-    assert clock == {2 * sim._dt_ns}                               # one step ahead, held
-    assert {m.stamp_ns(p.header.stamp) for p in rec["/sheet/profile"]} == {sim._dt_ns}
+    assert clock == {2 * sim.timeline.dt_ns}                               # one step ahead, held
+    assert {m.stamp_ns(p.header.stamp) for p in rec["/sheet/profile"]} == {sim.timeline.dt_ns}
     cmd = node.create_publisher(PoseStamped, "/tool/command", 100)
     wait_for_subscribers(ros, cmd)
     start = np.array(movement_scenario(sim.cell).start)
-    t0 = 2 * sim._dt_ns
+    t0 = 2 * sim.timeline.dt_ns
     cmd.publish(m.pose_msg(start, t0))
-    ros.spin_until(lambda: sim._t_ns >= t0 + 5 * sim._dt_ns, 20.0, "steps after the start")
+    ros.spin_until(lambda: sim.timeline.t_ns >= t0 + 5 * dt, 20.0, "steps after the start")
     assert sim.process_offset_ns == t0                 # process time 0 = the plan's start
 
 
@@ -196,14 +197,14 @@ def test_while_it_waits_for_the_first_set_point_the_state_goes_out_a_few_times_a
     sent 2,429 identical profiles in 25 s at 100 steps/s)."""
     import time
 
-    from rheo_shaping.nodes.simulator import HOLD_REPUBLISH
+    from rheo_shaping.sheet.setpoints import HOLD_REPUBLISH
     sim = make_sim(ros, real_time_factor=10.0, step_period=0.01, camera=False)
     node, rec = listen(ros)
-    ros.spin_until(lambda: sim._clock_holds > 0, 20.0, "the hold for the first set-point")
-    n0, holds0, t0 = len(rec["/sheet/profile"]), sim._clock_holds, time.monotonic()
+    ros.spin_until(lambda: sim.timeline.clock_holds > 0, 20.0, "the hold for the first set-point")
+    n0, holds0, t0 = len(rec["/sheet/profile"]), sim.timeline.clock_holds, time.monotonic()
     ros.spin_for(3.0)
     wall = time.monotonic() - t0
-    profiles, steps = len(rec["/sheet/profile"]) - n0, sim._clock_holds - holds0
+    profiles, steps = len(rec["/sheet/profile"]) - n0, sim.timeline.clock_holds - holds0
     print(f"\nwaiting {wall:.2f} s: {steps} held steps, {profiles} profiles")
     assert not sim.started
     assert profiles <= wall / HOLD_REPUBLISH + 2            # not one per held step

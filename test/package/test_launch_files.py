@@ -90,8 +90,8 @@ def test_launch_file_opens_only_shipped_files():
 def test_launch_arguments_are_documented():
     args = [n.args[0].value for n in ast.walk(_tree()) if isinstance(n, ast.Call)
             and getattr(n.func, "id", None) == "DeclareLaunchArgument"]
-    assert sorted(args) == ["clock_topic", "gap_watch", "managed", "namespace", "params_file",
-                            "rviz", "use_sim_time"]
+    assert sorted(args) == ["adaptive", "clock_topic", "gap_watch", "managed", "namespace",
+                            "params_file", "rviz", "use_sim_time"]
     doc = (REPO / "docs" / "ros.md").read_text()
     for name in args:
         assert f"| `{name}` |" in doc, f"docs/ros.md: launch argument `{name}` not in its table"

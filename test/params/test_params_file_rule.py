@@ -39,3 +39,22 @@ def test_node_sections_and_namespaces(tmp_path):
     assert [node_of(n) for n in sorted(found)] == [None, "monitor", "planner"]
     assert load_cell(path).movement.number == 2
     assert load_cell(path) != CellParams()
+
+
+def test_a_params_file_is_read_once_to_load_its_cell(monkeypatch):
+    """load_cell reads the YAML once and checks that same text (it read the file twice)."""
+    from pathlib import Path
+
+    from rheo_shaping.params import config
+    reads: list[str] = []
+    real = config.read_yaml
+
+    def counting(path):
+        reads.append(str(path))
+        return real(path)
+
+    monkeypatch.setattr(config, "read_yaml", counting)
+    cell_file = Path(__file__).resolve().parents[2] / "config" / "cell.yaml"
+    cell = config.load_cell(cell_file)
+    assert reads == [str(cell_file)]
+    assert cell.movement.number >= 1

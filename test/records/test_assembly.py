@@ -48,3 +48,26 @@ def test_what_cannot_be_a_record_is_refused_with_the_reason():
     b.profile = b.profile[:1]
     with pytest.raises(RecordCellError, match="a record needs a camera"):
         assemble(b, CellParams(), "r")
+
+
+def test_the_buffer_takes_the_earliest_start_and_completes_when_the_run_is_over():
+    from rheo_shaping.planning.states import AT_REST, MOVING
+    from rheo_shaping.records.assembly import CellBuffer
+    from rheo_shaping.units import NS
+    b = CellBuffer()
+    b.command(0, (0.0, 0.0))                       # unstamped: no start
+    assert b.start_ns is None and b.recorded_time() == 0.0
+    b.command(5 * NS, (0.05, 0.1))
+    b.command(6 * NS, (0.06, 0.1))                 # later: not the start
+    assert (b.start_ns, b.start_xz) == (5 * NS, (0.05, 0.1))
+    b.plan(4 * NS)                                 # the plan's stamp: an earlier start
+    assert b.start_ns == 4 * NS and b.start_xz == (0.05, 0.1)
+    b.pose.append((4 * NS + 60 * NS, 0.05, 0.1))
+    assert b.recorded_time() == 60.0
+    b.state("waiting", MOVING)
+    assert not b.complete(60.0, False, AT_REST)        # never ran
+    assert b.complete(60.0, True, AT_REST)             # a fixed duration: recorded
+    b.state("running", MOVING)
+    assert not b.complete(60.0, False, AT_REST) and b.ran
+    b.state("done", MOVING)
+    assert b.complete(60.0, False, AT_REST) and not b.complete(61.0, False, AT_REST)

@@ -112,3 +112,25 @@ def test_lead_zero_never_waits():
     lead = _published(MonitorLead(lead=0, timeout=0.2), 10)
     lead.on_checked(1, 0)
     assert not lead.behind(NS // 100) and lead.waits == 0
+
+
+def test_a_hold_is_not_reset_while_its_cause_persists():
+    from rheo_shaping.safety.acknowledge import MonitorLead
+    lead = MonitorLead(1, 0.5)
+    assert lead.reset_refusal(0, "", "/shaping/checked") == ""       # no monitor ever seen
+    rogue = "a second writer of /shaping/checked: /rogue_ack"
+    assert lead.reset_refusal(0, rogue, "/shaping/checked") == rogue
+    lead.on_checked(1, 0)
+    assert lead.reset_refusal(NS // 2, "", "/shaping/checked") == ""
+    assert lead.reset_refusal(NS // 2 + 1, "", "/shaping/checked") == (
+        "the monitor is lost (no /shaping/checked for over 0.5 s): restart it first")
+
+
+def test_an_acknowledgement_counts_only_from_the_monitor_and_within_the_samples_sent():
+    from rheo_shaping.safety.acknowledge import MonitorLead
+    lead = MonitorLead(1, 0.5)
+    for _ in range(3):
+        lead.published()
+    assert lead.refusal(3, "") == ""
+    assert lead.refusal(4, "") == "beyond the 3 samples published"
+    assert lead.refusal(2, "not the bound monitor's") == "not the bound monitor's"

@@ -94,3 +94,47 @@ def test_the_hold_latches_its_first_reason_until_reset():
     assert g.held == "monitor: abort"
     g.reset()
     assert g.held == ""
+
+
+def test_a_command_without_stamp_or_finite_position_or_in_another_frame_is_ignored():
+    from rheo_shaping.safety.command_gate import malformed_setpoint
+    assert malformed_setpoint(1, 0.1, 0.2, "cake", "cake") == ""
+    assert malformed_setpoint(1, 0.1, 0.2, "", "cake") == ""
+    assert malformed_setpoint(0, 0.1, 0.2, "cake", "cake") == (
+        "ignored /tool/command with stamp 0 ns at (0.1, 0.2)")
+    assert malformed_setpoint(5, float("nan"), 0.2, "cake", "cake").startswith(
+        "ignored /tool/command with stamp 5 ns at (nan")
+    assert malformed_setpoint(5, 0.1, float("inf"), "cake", "cake") != ""
+    assert malformed_setpoint(5, 0.1, 0.2, "world", "cake") == (
+        "ignored /tool/command in frame 'world': expected 'cake'")
+
+
+def test_setpoints_before_the_graph_shows_their_writer_wait_and_are_judged_in_order():
+    from rheo_shaping.safety.command_gate import Arrivals
+    planner = Publisher("/planner", "01.02")
+    rogue = Publisher("/rogue", "09.09")
+    a = Arrivals(CommandGate(ToolLimits(0.05, 1.0, 5e-3)))
+    graph: list[Publisher] = []
+    assert a.offer("p1", 1, 0, lambda: graph) == ([], "")            # no writer shown yet
+    assert a.offer("p2", 2, NS // 10, lambda: graph) == ([], "")     # behind it, in order
+    assert a.release(NS // 5, graph) == ([], "") and len(a.waiting) == 2
+    graph.append(planner)
+    assert a.release(NS // 4, graph) == (["p1", "p2"], "") and not a.waiting
+    assert a.gate.bound == planner
+    assert a.offer("p3", 3, NS, lambda: graph) == (["p3"], "")
+    # a sample out of the bound writer's sequence is another writer's
+    follow, why = a.offer("x", 2, NS, lambda: graph)
+    assert follow == [] and "out of the bound planner's sequence" in why
+    # a second writer: refused, named
+    graph.append(rogue)
+    follow, why = a.offer("y", 4, NS, lambda: graph)
+    assert follow == [] and "a second publisher of /tool/command: /rogue" in why
+    # the graph never shows a writer: the tool holds after GRAPH_WAIT
+    b = Arrivals(CommandGate(ToolLimits(0.05, 1.0, 5e-3)))
+    b.offer("q", 1, 0, lambda: [])
+    assert b.release(round(GRAPH_WAIT * NS) - 1, []) == ([], "")
+    assert b.release(round(GRAPH_WAIT * NS), []) == (
+        [], f"set-points from a writer the graph does not show after {GRAPH_WAIT:g} s")
+    # nothing is taken while the gate holds
+    b.gate.hold("abort: test")
+    assert b.offer("r", 2, 0, lambda: [planner]) == ([], "")

@@ -90,3 +90,56 @@ def test_the_gate_lets_go_of_a_bound_planner_the_graph_no_longer_shows():
     assert gate.source([unnamed], 1) == ""
     assert gate.commander([old]) == "/planner"            # named now, still bound
     assert gate.source([old], 2) == ""
+
+
+def test_a_node_acts_only_settled_on_the_simulators_cell_and_one_clock():
+    from rheo_shaping.safety.one_of_each import cell_refusal
+    args = dict(check_cell=True, cell_topic="/shaping/cell")
+    why, fault = cell_refusal("monitor", False, mismatch=None, clocks="", **args)
+    assert why == "starting up: checking that no other monitor of this name runs" and not fault
+    why, fault = cell_refusal("planner", True, mismatch=None, clocks="", **args)
+    assert why.startswith("waiting for the simulator's cell on /shaping/cell") and not fault
+    differs = "the cell differs from the simulator's: movement.speed = 0.005 vs 0.002"
+    assert cell_refusal("planner", True, mismatch=differs, clocks="", **args) == (differs, True)
+    assert cell_refusal("planner", True, mismatch="", clocks="", **args) == ("", False)
+    two = "2 publishers of /clock: /sim, /rogue"
+    assert cell_refusal("monitor", True, mismatch="", clocks=two, **args) == (two, True)
+    # without check_cell no fingerprint is awaited; the clocks are still checked
+    assert cell_refusal("planner", True, check_cell=False, mismatch=None, clocks="",
+                        cell_topic="/shaping/cell") == ("", False)
+
+
+def test_the_presence_watch_settles_after_discovery_and_a_still_graph_and_yields_once():
+    """PresenceWatch: the settle time counts from discovery and grows with it; the graph
+    must hold still; a younger twin's announcement is counted, an older one makes the node
+    yield once, and never once it acts."""
+    from rheo_shaping.safety.one_of_each import Announcement, PresenceWatch
+    S = 10**9
+    mine = Announcement(100, 7, "h", "/cell/planner")
+    w = PresenceWatch(mine, now_ns=0)
+    w.seen(frozenset({"/cell/planner"}), 0)
+    w.seen(frozenset({"/cell/planner", "/cell/simulator"}), 3 * S)   # discovery took 3 s
+    assert w.peer_s == 3.0
+    w.discovered(3 * S)
+    assert w.settle_s == 3.0 and not w.due(5 * S) and w.due(6 * S)
+    # the graph changed 3 s before: still for the settle time, so it may act
+    assert w.settle(6 * S, same_nodes=1, same_writers=1, unnamed_writers=0) == ""
+    assert w.settled and not w.due(7 * S)
+    # a second watch that hears of a younger twin first, then of an older one
+    v = PresenceWatch(mine, now_ns=0)
+    younger = Announcement(200, 8, "h", "/cell/planner")
+    assert v.heard(younger, acting=False) == ("", False) and v.younger == {younger}
+    older = Announcement(50, 9, "h", "/cell/planner")
+    why, yields = v.heard(older, acting=False)
+    assert yields and why.startswith("a second /cell/planner in this namespace")
+    assert v.twin == why and not v.due(100 * S)
+    assert v.heard(older, acting=False) == (why, False)              # once
+    # a node that acts runs on
+    u = PresenceWatch(mine, now_ns=0)
+    assert u.heard(older, acting=True)[1] is False and u.twin == ""
+    # two of its name in the graph, one announced younger: it may act; else it waits
+    t = PresenceWatch(mine, now_ns=0)
+    assert t.settle(2 * S, same_nodes=2, same_writers=2, unnamed_writers=0).startswith(
+        "2 nodes of this name in the graph and 0 announced as younger")
+    t.heard(younger, acting=False)
+    assert t.settle(2 * S, same_nodes=2, same_writers=2, unnamed_writers=0) == ""

@@ -54,12 +54,18 @@ def test_start_without_a_set_point(cell):
         run.sim.state.tension))))]
 
 
-def test_process_end_summary_and_peak_stop_at_process_time(cell):
+def streamed_movement_1(cell, seconds: float) -> SetpointRun:
+    """A run of movement 1 with its set-points of ``seconds`` [s] buffered every 0.05 s."""
     plan = movement_plan(cell, 1)
     run = SetpointRun(cell, plan.position(0.0))
-    for t in np.arange(0.0, 6.0, 0.05):
+    for t in np.arange(0.0, seconds, 0.05):
         x, z = plan.position(t)
         run.command(T0 + int(round(t * NS)), float(x), float(z))
+    return run
+
+
+def test_process_end_summary_and_peak_stop_at_process_time(cell):
+    run = streamed_movement_1(cell, 6.0)
     assert run.advance(T0 + 2 * NS) is None and run.summary is None
     assert run.process_time == pytest.approx(2.0)
     so_far = run.summary_so_far()
@@ -83,6 +89,58 @@ def test_a_failed_solver_publishes_nan(cell):
     assert np.isnan(run.tensions()).all()
     run.command(T0, 0.05, 0.10)
     assert run.advance(T0 + NS) is None and run.process_time == 0.0
+
+
+def test_a_step_starts_the_process_and_a_step_past_its_end_gives_the_end_first(cell):
+    """The simulator's step: without start_on_command the process starts with the first
+    step; a step that crosses process_time returns the end's node time (its state is the
+    one published), and advancing again goes on to the target."""
+    run = SetpointRun(cell, (0.05, 0.10))
+    assert run.step_to(T0, start_on_command=True) == (None, None) and not run.started
+    assert run.step_to(T0, start_on_command=False) == (None, None)
+    assert run.started and run.offset_ns == T0
+    assert run.step_to(T0 + 2 * NS, start_on_command=False) == (None, None)
+    finished, end_ns = run.step_to(T0 + 4 * NS, start_on_command=False)
+    assert finished == 3.0 and end_ns == T0 + 3 * NS
+    assert run.process_time == pytest.approx(3.0) and run.summary is not None
+    assert run.advance(T0 + 4 * NS) is None and run.process_time == pytest.approx(4.0)
+    # a step that ends exactly at the process end: no earlier state to publish
+    exact = SetpointRun(cell, (0.05, 0.10))
+    exact.step_to(T0, start_on_command=False)
+    assert exact.step_to(T0 + 3 * NS, start_on_command=False) == (3.0, None)
+
+
+def test_a_hold_drops_every_buffered_setpoint_for_the_tools_position(cell):
+    run = streamed_movement_1(cell, 3.0)
+    run.advance(T0 + NS)
+    here = run.sim.state.tool.copy()
+    assert np.array_equal(run.hold(T0 + NS), here)
+    assert run.cmds == [(T0 + NS, float(here[0]), float(here[1]))]
+    run.advance(T0 + 2 * NS)
+    assert np.array_equal(run.sim.state.tool, here)              # it stays there
+
+
+def test_the_simulated_clock_steps_holds_and_waits_as_its_policy_says():
+    """SimClock: /clock one step ahead of a step; held at the next step's time for the first
+    set-point, the state re-published every HOLD_REPUBLISH s of steady time; a wait keeps
+    the step due; each choice counted."""
+    from rheo_shaping.sheet.setpoints import (HOLD_FOR_START, HOLD_REPUBLISH, LATE_STEP, STEP,
+                                              WAIT_MONITOR, WAIT_SETPOINT, SimClock)
+    c = SimClock(NS // 50)
+    tick = c.tick(STEP, 0)
+    assert (tick.step_to, tick.clock_ns) == (NS // 50, NS // 25)
+    assert not tick.wait and not tick.late
+    c.t_ns = tick.step_to                              # the node stepped there
+    hold_ns = round(HOLD_REPUBLISH * NS)
+    held = [c.tick(HOLD_FOR_START, s) for s in (0, NS // 20, hold_ns, hold_ns + 1)]
+    assert all(t.step_to is None and t.clock_ns == 2 * NS // 50 for t in held)
+    assert [t.republish for t in held] == [True, False, True, False]
+    assert c.clock_holds == 4
+    assert c.tick(WAIT_MONITOR, 0).wait and c.waits == 0           # the monitor's own count
+    assert c.tick(WAIT_SETPOINT, 0).wait and c.waits == 1
+    late = c.tick(LATE_STEP, 0)
+    assert late.late and late.step_to == 2 * NS // 50 and c.late_steps == 1
+    assert SimClock(0).dt_ns == 1                      # never a step of zero
 
 
 def test_the_step_policy_in_its_order():

@@ -1,0 +1,129 @@
+"""The closed loop of one streamed run (the ``planner`` node's ``adaptive``), without ROS:
+which executed pose becomes a sample, when a refresh is submitted to the worker process,
+and what becomes of its result at the next control tick.
+
+The node hands in what it receives (the newest tool wrench and contact tension, each
+executed pose with its stamp) and, at each control tick, the running stream; a finished
+refresh is taken (:meth:`StreamedLoop.take`: the rest of the stream replaced at the join,
+or the re-plan dropped with the reason) and the next one submitted when the shaper says
+it is due.  Times: node-clock nanoseconds in, process-time seconds (since the run's
+start ``t0_ns``) to the shaper.
+"""
+from __future__ import annotations
+
+from concurrent.futures import Future
+from dataclasses import dataclass
+from typing import Any
+
+from ..planning.run_state import SetpointGrid
+from ..planning.stopping import TrajectoryStreamer
+from ..units import NS
+from .observe import Sample
+from .online import OnlineShaper, OnlineStep
+from .worker import ShaperProcess
+
+
+@dataclass(frozen=True, kw_only=True)
+class Refresh:
+    """A refresh taken at a control tick: its result, whether the stream switched to its
+    re-plan, and the record published (``/shaping/estimate``)."""
+
+    step: OnlineStep
+    switched: bool
+    note: str                       # "re-planned from t = ... s: " or "re-plan dropped (...): "
+    data: dict[str, Any]
+
+    @property
+    def warning(self) -> bool:
+        """A re-plan that could not be taken."""
+        return self.step.plan is not None and not self.switched
+
+    def status(self) -> tuple[str, str, dict[str, Any]]:
+        """The closed loop's ``/diagnostics`` status after this refresh: (level, message,
+        values).  WARN when the estimate cannot be used (the running plan goes on, the
+        reason named), when no plan meets both limits (the one that keeps the sheet whole
+        runs) or a re-plan was dropped; else OK."""
+        e, step = self.step.estimate, self.step
+        replan = step.replan.status.value if step.replan is not None else "none"
+        bad = (not e.status.usable or replan in ("infeasible", "no_estimate")
+               or self.warning)
+        values = {"t [s]": step.t, "reason": step.reason.value, "estimate": e.status.value,
+                  "k1 [N/m]": e.k1, "c2 [N s/m]": e.c2,
+                  "mass per length [kg/m]": e.mass_per_length,
+                  "k1 sigma [rel]": float(e.sigma_rel[0]),
+                  "c2 sigma [rel]": float(e.sigma_rel[1]),
+                  "mass sigma [rel]": float(e.sigma_rel[2]), "replan": replan,
+                  "switched": self.switched, "cycle time [s]": step.schedule.cycle_time,
+                  "worker CPU [s]": self.data.get("worker_cpu_s", 0.0)}
+        return ("WARN" if bad else "OK"), f"{self.note}{step.message}", values
+
+
+class StreamedLoop:
+    """The closed loop of the run that started at ``t0_ns`` (``online``: its shaper,
+    ``process``: the worker that refreshes it)."""
+
+    def __init__(self, online: OnlineShaper, process: ShaperProcess):
+        self.online, self.process = online, process
+        self.samples: list[Sample] = []       # taken since the last refresh was submitted
+        self.work: Future | None = None       # the refresh running in the worker
+        self.span = 0.0                       # s of process time the last refresh took
+        self.began = 0.0                      # s, the stream's time when it was submitted
+
+    def pose(self, xz, stamp_ns: int, t0_ns: int | None,
+             wrench: tuple[float, float] | None, contact: float | None) -> None:
+        """An executed tool pose [m] stamped ``stamp_ns``: a sample when the shaper wants
+        one (a wrench is known, the run has started, later than the last sample)."""
+        if t0_ns is None or wrench is None:
+            return
+        t = (stamp_ns - t0_ns) / NS
+        if t >= 0.0 and self.online.wants(t) and (not self.samples
+                                                  or t > self.samples[-1].t):
+            sample = Sample(t=t, tool=(float(xz[0]), float(xz[1])), wrench=wrench,
+                            contact_tension=contact)
+            self.online.add(sample)
+            self.samples.append(sample)
+
+    def tick(self, st: TrajectoryStreamer, grid: SetpointGrid, pose_ns: int | None,
+             pose) -> Refresh | None:
+        """At a control tick: a finished refresh taken (returned), then the next one
+        submitted when it is due (``pose``: the executed tool pose [m] at ``pose_ns``).
+        A refresh that failed in the worker raises its error (the loop ends there)."""
+        t0, taken = grid.t0_ns, None
+        if self.work is not None and self.work.done():
+            work, self.work = self.work, None
+            last = grid.last_ns
+            assert last is not None             # a refresh begins after a set-point is sent
+            self.span = (last - t0) / NS - self.began
+            index, step, cpu = work.result()
+            self.process.cpu_s += cpu
+            taken = self.take(index, step, st)
+        last = grid.last_ns
+        if (self.work is not None or st.state != "running" or pose_ns is None
+                or pose is None or last is None or pose_ns < t0):
+            return taken
+        t = (pose_ns - t0) / NS
+        reason = self.online.due(t)
+        if reason is None:
+            return taken
+        samples, self.samples = self.samples, []
+        streamed = self.began = (last - t0) / NS
+        lead = 2.0 * self.span            # the join after the stream's lead of the last one
+        self.work = self.process.submit(samples, t, reason, (float(pose[0]), float(pose[1])),
+                                        streamed, lead)
+        return taken
+
+    def take(self, index: int, step: OnlineStep, st: TrajectoryStreamer) -> Refresh:
+        """Refresh ``index``'s result: the running stream switches to its re-plan at the
+        join (:meth:`~TrajectoryStreamer.replace_rest`, which refuses a join already streamed
+        or a stream that stopped), and the shaper accepts it."""
+        note = ""
+        if step.plan is not None:
+            try:
+                st.replace_rest(step.plan, step.t_join)
+                self.process.accept(index, step)
+                note = f"re-planned from t = {step.t_join:.2f} s: "
+            except (RuntimeError, ValueError) as exc:
+                note = f"re-plan dropped ({exc}): "
+        switched = note.startswith("re-planned")
+        data = dict(step.as_dict(), switched=switched, worker_cpu_s=self.process.cpu_s)
+        return Refresh(step=step, switched=switched, note=note, data=data)
