@@ -158,7 +158,10 @@ class GapWatchNode(Node):
             self._wake.clear()
             try:
                 for event in session.drain():
-                    (log.info if event.startswith("OK") else log.warning)(event)
+                    if event.startswith("OK"):    # one severity per call site (rclpy)
+                        log.info(event)
+                    else:
+                        log.warning(event)
                 why = session.due_diagnosis(self.jobs is not None and self.jobs.busy)
                 if why:
                     self._diagnose(why)

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from ..params.cell import CellParams
     from ..params.node_params import PlannerNodeParams, SimulatorNodeParams
     from ..planning.plans import MotionLimits, Plan
-    from ..planning.run_state import SetpointGrid
+    from ..planning.run_state import RunLatch, SetpointGrid
     from ..planning.stopping import TrajectoryStreamer
     from ..safety.acknowledge import MonitorLead
     from ..safety.command_gate import CommandGate
@@ -51,15 +51,12 @@ class PlannerHost(Protocol):
     # the run
     streamer: TrajectoryStreamer | None
     grid: SetpointGrid | None
-    aborted: bool
-    _start_requested: bool
+    latch: RunLatch
     _ready_rx: int | None
     _ready_topic: str
     # the executed tool
     _tool_pose: np.ndarray | None
     _pose_ns: int | None
-    _hold: np.ndarray | None
-    _hold_ns: int | None
 
     @property
     def _t0_ns(self) -> int | None: ...

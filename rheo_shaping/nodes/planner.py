@@ -51,7 +51,8 @@ from ..params.cell import CellParams
 from ..planning.plans import MotionLimits, Plan
 from ..planning.movement import approach_plan, autostart_refusal, movement_plan
 from ..params.schema import ParameterError
-from ..planning.run_state import (Heartbeat, SetpointGrid, executed_ns, interlock, lead_limit,
+from ..planning.run_state import (Heartbeat, RunLatch, SetpointGrid, executed_ns, interlock,
+                                  lead_limit,
                                   lead_wait, reset_refusal, start_reply, stop_run)
 from ..planning.stopping import TrajectoryStreamer
 from ..safety.clock_guard import ClockGuard
@@ -110,13 +111,8 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
 
         self.cell_used, self.plan = self._make_plan()
         self._setup_adaptive()
-        self._start_failed = ""       # the run could not start (e.g. its approach); ~/reset
         self.streamer: TrajectoryStreamer | None = None
-        self.aborted = False
-        self.abort_reason = ""
-        self._hold: np.ndarray | None = None        # where the tool holds after a run (known)
-        self._hold_ns: int | None = None            # the last run's newest set-point [ns]
-        self._start_requested = False
+        self.latch = RunLatch()      # abort, start asked, start failed, the hold (core)
         self.grid: SetpointGrid | None = None       # the run's set-point times (core)
         self._ready = False
         self._ready_rx: int | None = None
@@ -243,7 +239,7 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
 
     def _tool_away(self) -> str:
         """Why autostart is unsafe (:func:`~rheo_shaping.planning.movement.autostart_refusal`)."""
-        if self._tool_pose is None or self._hold is not None:
+        if self._tool_pose is None or self.latch.hold is not None:
             return ""
         return autostart_refusal(self._tool_pose, self.cell_used.tool.home, self.plan.start,
                                  self.settings.start_tolerance)
@@ -251,10 +247,17 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
     def _on_abort(self, msg: String) -> None:
         self._abort(f"monitor: {msg.data}")
 
+    @property
+    def aborted(self) -> bool:
+        return self.latch.aborted
+
+    @property
+    def abort_reason(self) -> str:
+        return self.latch.abort_reason
+
     def _abort(self, reason: str) -> None:
-        if self.aborted:
+        if not self.latch.abort(reason):
             return
-        self.aborted, self.abort_reason = True, reason
         stop = stop_run(self.streamer, self.grid, reason, self._executed_ns(self._now_ns()))
         if stop is None:
             self.get_logger().error(f"ABORT ({reason}) before the start: the plan will not run "
@@ -276,9 +279,7 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
             None if self.streamer is None else self._state,
             self.abort_reason if self.aborted else None, self.presence.settled)
         if response.success:
-            self._start_requested = True
-            if self._tool_away() and self._tool_pose is not None:   # away: a pose is known
-                self._hold = self._tool_pose.copy()          # the plan approaches from there
+            self.latch.request_start(self._tool_away(), self._tool_pose)
         return response
 
     def _on_reset(self, request, response):
@@ -286,20 +287,11 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         if why:
             response.success, response.message = False, why
             return response
-        if self.streamer is not None and self.streamer.plan is not None:
-            t = (self._last_cmd_ns or self._now_ns()) / NS
-            self._hold = self.streamer.setpoint(t)[0]      # at rest: done or holding
-            self._hold_ns = self._last_cmd_ns
-        self.streamer = None
-        self.aborted, self.abort_reason = False, ""
-        self.grid = None
-        self._start_requested = False
-        self._start_failed = ""
-        self._set_state("idle" if not self.settings.autostart else "waiting")
+        response.message = self.latch.rearm(self.streamer, self._last_cmd_ns, self._now_ns())
         response.success = True
-        response.message = "re-armed" + (f"; the tool holds at ({self._hold[0]:.4f}, "
-                                         f"{self._hold[1]:.4f}) m"
-                                         if self._hold is not None else "")
+        self.streamer = None
+        self.grid = None
+        self._set_state("idle" if not self.settings.autostart else "waiting")
         self.get_logger().info(f"reset: {response.message}")
         return response
 

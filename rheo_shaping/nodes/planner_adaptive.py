@@ -120,10 +120,13 @@ class PlannerAdaptive(PlannerMixin):
         self.adaptive_log.append(taken.data)
         self.pub_estimate.publish(String(data=json.dumps(json_safe(taken.data))))
         self._loop_status(*taken.status())
-        log = self.get_logger().warning if taken.warning else self.get_logger().info
-        log(f"adaptive ({step.reason.value} at t = {step.t:.2f} s, "
-            f"{step.estimate.cost_s + (step.replan.cost_s if step.replan else 0):.2f} s "
-            f"CPU): {taken.note}{step.message}")
+        text = (f"adaptive ({step.reason.value} at t = {step.t:.2f} s, "
+                f"{step.estimate.cost_s + (step.replan.cost_s if step.replan else 0):.2f} s "
+                f"CPU): {taken.note}{step.message}")
+        if taken.warning:                   # one severity per call site (rclpy's logger)
+            self.get_logger().warning(text)
+        else:
+            self.get_logger().info(text)
 
     def _loop_status(self, level: str, message: str, values: dict) -> None:
         """The closed loop's status on /diagnostics (``<ns>/planner: closed loop``)."""

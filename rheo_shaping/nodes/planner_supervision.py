@@ -33,7 +33,6 @@ class PlannerSupervision(PlannerMixin):
     _supervise_guard: StallGuard | None
     _commander: str | None
     _refused: str
-    _start_failed: str
 
     # -- supervision (steady clock) -------------------------------------------------
     def _on_commander(self, msg: String) -> None:
@@ -61,10 +60,10 @@ class PlannerSupervision(PlannerMixin):
             now = self._now_ns()
             command = self.pub_command
             state, why_not = start_decision(start_inputs(
-                StartFacts(aborted=self.aborted, autostart=self.settings.autostart,
-                           start_requested=self._start_requested,
+                StartFacts(aborted=self.latch.aborted, autostart=self.settings.autostart,
+                           start_requested=self.latch.start_requested,
                            pose_known=self._tool_pose is not None,
-                           hold_known=self._hold is not None, hold_ns=self._hold_ns,
+                           hold_known=self.latch.hold is not None, hold_ns=self.latch.hold_ns,
                            pose_ns=self._pose_ns, now_ns=now, monitor_ok=ok),
                 lambda: self.count_publishers(T.TOOL_POSE.name), self._tool_away,
                 self._refusal, self._start_lead, command.get_subscription_count))
@@ -103,9 +102,9 @@ class PlannerSupervision(PlannerMixin):
                 f"a subscriber of {command.topic_name if command else T.TOOL_COMMAND.name} "
                 f"(the simulator or the robot)"),
             "waiting_for_pose": (f"the tool pose on {self.resolve_topic_name(T.TOOL_POSE.name)}"
-                                 + ("" if self._hold_ns is None else
+                                 + ("" if self.latch.hold_ns is None else
                                     f" stamped at or after the last run's newest set-point "
-                                    f"({self._hold_ns / NS:.3f} s)")),
+                                    f"({self.latch.hold_ns / NS:.3f} s)")),
         }.get(state)
         if what:
             self.get_logger().info(f"waiting for {what}", throttle_duration_sec=5.0)
@@ -114,8 +113,11 @@ class PlannerSupervision(PlannerMixin):
         """Do not start: the state says why, the log once per reason."""
         if reason != self._refused:
             self._refused = reason
-            (self.get_logger().info if state == "waiting" else self.get_logger().warning)(
-                f"not starting ({state}): {reason}")
+            text = f"not starting ({state}): {reason}"
+            if state == "waiting":          # one severity per call site (rclpy's logger)
+                self.get_logger().info(text)
+            else:
+                self.get_logger().warning(text)
         self._set_state(state)
 
     def _start_lead(self, now: int) -> str:
@@ -123,17 +125,13 @@ class PlannerSupervision(PlannerMixin):
         return start_lead(now, self._pose_ns, self.settings.max_lead)
 
     def _start(self, now_ns: int) -> None:
-        if self._start_failed:
+        if self.latch.start_failed:
             self._set_state("error")
             return
         try:
-            # after a run, from where the tool is measured (a simulator reset moves it to
-            # the movement's start; a hold stops it where it was, not where the stop ended)
-            held = self._hold
-            plan = self._adaptive_plan(self._plan_from(
-                self._tool_pose if held is not None and self._tool_pose is not None else held))
+            plan = self._adaptive_plan(self._plan_from(self.latch.start_from(self._tool_pose)))
         except (ParameterError, ValueError, RuntimeError) as exc:
-            self._start_failed = str(exc)              # until ~/reset
+            self.latch.start_failed = str(exc)              # until ~/reset
             self.get_logger().error(f"cannot start: {exc}")
             self._set_state("error")
             return
@@ -150,7 +148,7 @@ class PlannerSupervision(PlannerMixin):
 
     def _update_state(self) -> None:
         st = self.streamer
-        state = reported_state(None if st is None else st.state, self.aborted, self._now_ns(),
-                               self._t0_ns, self.cell_used.movement.process_time)
+        state = reported_state(None if st is None else st.state, self.latch.aborted,
+                               self._now_ns(), self._t0_ns, self.cell_used.movement.process_time)
         if state is not None:
             self._set_state(state)

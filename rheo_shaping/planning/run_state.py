@@ -14,6 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable
 
+import numpy as np
+
 from ..units import NS
 from .states import MOVING
 
@@ -285,3 +287,53 @@ def stop_run(streamer: TrajectoryStreamer | None, grid: SetpointGrid | None, rea
     return sends, (f"stopping from {was} at {t / NS:.6f} s, at rest in "
                    f"{stop.duration if stop else 0.0:.6f} s"
                    + (", then retracting to home" if was != "retracting" else ", then holding"))
+
+
+class RunLatch:
+    """What the planner keeps between runs: an abort latched until ``~/reset``, a start
+    asked for by ``~/start``, a start that failed (until ``~/reset``), and where the tool
+    holds after a run (its position [m] and the last run's newest set-point [ns]): a later
+    run starts with an approach from there."""
+
+    def __init__(self) -> None:
+        self.aborted = False
+        self.abort_reason = ""
+        self.start_requested = False
+        self.start_failed = ""
+        self.hold: np.ndarray | None = None
+        self.hold_ns: int | None = None
+
+    def abort(self, reason: str) -> bool:
+        """Latch an abort; False when one is latched already (the first reason stays)."""
+        if self.aborted:
+            return False
+        self.aborted, self.abort_reason = True, reason
+        return True
+
+    def request_start(self, tool_away: str, pose: np.ndarray | None) -> None:
+        """``~/start`` was accepted: with the tool away from where the plan starts
+        (``tool_away``, a reason) and its measured ``pose`` [m] known, the run approaches
+        from there."""
+        self.start_requested = True
+        if tool_away and pose is not None:
+            self.hold = np.array(pose, dtype=float)
+
+    def start_from(self, pose: np.ndarray | None) -> np.ndarray | None:
+        """Where a run starts its approach [m] (None: at the plan's start): after a run,
+        from the measured pose (a simulator's reset moves the tool to the movement's start,
+        a hold stops it where it was, not where the stop ended), else nowhere."""
+        return pose if self.hold is not None and pose is not None else self.hold
+
+    def rearm(self, streamer: TrajectoryStreamer | None, last_ns: int | None,
+              now_ns: int) -> str:
+        """``~/reset`` accepted (the tool at rest): the latches cleared, the hold taken
+        where the run's stream stands (its newest set-point at ``last_ns``, or now); the
+        reply's message."""
+        if streamer is not None and streamer.plan is not None:
+            self.hold = streamer.setpoint((last_ns or now_ns) / NS)[0]
+            self.hold_ns = last_ns
+        self.aborted, self.abort_reason = False, ""
+        self.start_requested, self.start_failed = False, ""
+        hold = self.hold
+        return "re-armed" + (f"; the tool holds at ({hold[0]:.4f}, {hold[1]:.4f}) m"
+                             if hold is not None else "")

@@ -177,8 +177,14 @@ def test_reset_refused_while_moving_then_rearms_with_an_approach(ros):
                       "tool.home": home})
     b.until(lambda: b.planner.state == "running", what="running")
     b.run(1.0)
-    # (on a busy machine the first set-point may reach the recorder later than 1 s)
-    b.until(lambda: b.rec.last("/tool/command") is not None, what="a set-point received")
+    # the tool 1 mm along the plan (on a busy machine the set-points may reach the recorder
+    # later than 1 s): the approach after the reset then has somewhere to come from
+
+    def along() -> bool:
+        last = b.rec.last("/tool/command")
+        return last is not None and float(np.hypot(*(np.asarray(m.pose_xz(last))
+                                                     - b.planner.plan.start))) > 1e-3
+    b.until(along, what="the tool 1 mm along the plan")
     # the simulator holds the tool where the abort finds it (it follows no stop or retract)
     b.hold_at = m.pose_xz(b.rec.last("/tool/command"))
     b.abort.publish(String(data="test abort"))

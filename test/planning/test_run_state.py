@@ -259,3 +259,34 @@ def test_the_start_inputs_ask_the_node_only_what_matters():
     after = replace(facts, autostart=True, pose_known=True, hold_known=True, hold_ns=9 * NS)
     assert start_inputs(replace(after, pose_ns=9 * NS - 1), *calls).arriving
     assert not start_inputs(replace(after, pose_ns=9 * NS), *calls).arriving
+
+
+def test_the_latch_holds_an_abort_until_reset_and_where_the_tool_holds():
+    import numpy as np
+
+    from rheo_shaping.planning.plans import MotionLimits, Waypoint, plan_waypoints
+    from rheo_shaping.planning.run_state import RunLatch
+    from rheo_shaping.planning.stopping import TrajectoryStreamer
+    latch = RunLatch()
+    assert latch.start_from(np.array([0.1, 0.2])) is None            # before any run: the plan
+    assert latch.abort("monitor: F > threshold") and not latch.abort("again")
+    assert latch.abort_reason == "monitor: F > threshold"
+    # ~/start with the tool away and its pose known: the run approaches from there
+    latch.request_start("the tool is 30 mm from home", np.array([0.07, 0.09]))
+    assert latch.start_requested and np.array_equal(latch.hold, [0.07, 0.09])
+    pose = np.array([0.071, 0.091])
+    assert np.array_equal(latch.start_from(pose), pose)              # the measured pose
+    assert np.array_equal(latch.start_from(None), [0.07, 0.09])
+    # ~/reset after a run: the hold where the stream stands, every latch cleared
+    plan = plan_waypoints((0.0, 0.1), [Waypoint(0.1, 0.1)], MotionLimits(0.02, 0.2, 2.0))
+    st = TrajectoryStreamer(home_xz=(0.0, 0.2))
+    st.start(plan, 0.0)
+    st.setpoint(2.0)
+    latch.start_failed = "the approach pinches the sheet"
+    message = latch.rearm(st, 2 * NS, 3 * NS)
+    assert np.allclose(latch.hold, plan.sample(2.0)[0]) and latch.hold_ns == 2 * NS
+    assert message == (f"re-armed; the tool holds at ({latch.hold[0]:.4f}, "
+                       f"{latch.hold[1]:.4f}) m")
+    assert not latch.aborted and latch.abort_reason == "" and not latch.start_requested
+    assert latch.start_failed == ""
+    assert RunLatch().rearm(None, None, 0) == "re-armed"
