@@ -106,3 +106,9 @@ def test_the_interval_covers_the_truth_under_a_correlated_discrepancy():
     hits = [_replicate(rng)[0] for _ in range(N)]
     rate = sum(hits) / N
     assert rate - 3 * math.sqrt(rate * (1 - rate) / N) >= 0.80, rate
+
+
+def test_the_family_factor_scales_each_side_about_the_value_within_the_bounds():
+    out = iv.scaled("kelvin_c1", (500.0,), [(450.0, 520.0)], 2.0)
+    assert out == [(pytest.approx(400.0), pytest.approx(540.0))]
+    assert iv.scaled("friction_tool", (0.1,), [(0.0, 0.2)], 3.0)[0][0] == 0.0   # its bound
