@@ -120,7 +120,9 @@ def run(args: argparse.Namespace) -> int:
                 "baseline_error_median_tolerances", "no_effect_library_name_rate",
                 "out_of_library_unexplained_or_flagged_rate",
                 "out_of_library_name_unflagged_rate", "interval_coverage",
-                "diagnosis_wall_s_median", "diagnosis_wall_s_max"):
+                "interval_width_rel_median", "interval_coverage_bound",
+                "interval_width_rel_median_bound", "diagnosis_wall_s_median",
+                "diagnosis_wall_s_max"):
         v = out.get(key)
         target = against_target(out["world"], key, v)
         print(f"  {key:42s} {'n/a' if v is None else f'{v:.3f}':>8s}  {target}")

@@ -55,7 +55,7 @@ import numpy as np
 
 from ..records.record import Record
 from ..sheet.effects import EFFECT_NAMES
-from . import floor as fl_mod, naming as naming_mod, stats
+from . import floor as fl_mod, intervals, naming as naming_mod, stats
 from .compare import RecordData, residuals
 from .context import Baseline, FitContext
 from .evaluate import Runner, apply
@@ -160,7 +160,7 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         after = after_stage(ctx, base, verdict, chain_c)
         runs = run.runs
     floor_rep = _floor_report(fl, base, named, naming, below, tolerance, ctx.sp, ctx.sf,
-                              cands.responses)
+                              cands.responses, ctx.G)
     return _assemble(ctx, nominal, base, gap.p, gap.replay, cands, verdict, after, runs,
                      floor=floor_rep, initial_state=initial_summary(data, choice),
                      baseline_mode=baseline)
@@ -197,9 +197,11 @@ def _floor(spec, data, nf: int, nh: int, sp: float, sf: float) -> "fl_mod.Floor"
 
 
 def _floor_report(floor, base: Baseline, verdict_fit, naming, below_tol: bool, tolerance,
-                  sp: float, sf: float, responses) -> FloorReport:
+                  sp: float, sf: float, responses, G=None) -> FloorReport:
     """The floor, what the baseline and the verdict leave against it, and the model-form
-    part of the verdict's interval."""
+    part of the verdict's interval: estimated from the fit records' remainder
+    (:mod:`.intervals`); the worst-case bound of a floor-sized discrepancy is reported beside
+    it, and widens the interval only where no remainder is at hand."""
     q_h = floor.quantile(True)
     out: dict = {}
     if verdict_fit is not None:
@@ -207,12 +209,24 @@ def _floor_report(floor, base: Baseline, verdict_fit, naming, below_tol: bool, t
         if math.isfinite(verdict_fit.J_holdout):
             out["verdict_holdout"] = fl_mod.holdout_remainder(verdict_fit.J_holdout, floor)
         if floor.source != "numerics" and responses:
-            # the model-form discrepancy is at least the floor's, and at least what the
-            # named effect leaves on the fit records when that is beyond the floor
+            # the worst case: a discrepancy of the floor's size, or of what the named effect
+            # leaves on the fit records when that is beyond the floor, along the response
             q = fl_mod.discrepancy_size(floor.quantile(), verdict_fit.J)
-            out["model_form_interval_width"] = fl_mod.model_form_interval(
-                verdict_fit, q, base.solver.A, responses)
+            bounded = replace(verdict_fit, interval=dict(verdict_fit.interval))
+            bound = fl_mod.model_form_interval(bounded, q, base.solver.A, responses)
+            est = (intervals.remainder_interval(verdict_fit, base.solver.A, responses, G.data,
+                                                G.stack) if G is not None else None)
+            if est is None:
+                verdict_fit.interval.update(bounded.interval)
+                out["model_form_interval_width"] = bound
+            else:
+                out["model_form_interval_width"] = est[0]
+                out["model_form_spread"] = est[1].as_json()
             out["model_form_discrepancy"] = q
+            if bound:
+                name = bounded.names[0]
+                out["model_form_bound"] = {"width": bound, "interval": [
+                    list(iv) for iv in bounded.interval.get(name, [])]}
     return FloorReport(
         source=floor.source, config=floor.config, cases=int(floor.fit.size),
         q95_fit=floor.quantile(), q95_holdout=q_h, q95_profile_m=floor.profile_sys_m,

@@ -112,7 +112,9 @@ class FloorReport:
     verdict: Remainder | None = None
     verdict_holdout: Remainder | None = None
     model_form_interval_width: list[float] | None = None   # added to the verdict's interval
-    model_form_discrepancy: float | None = None    # its squared size (J - 1 units)
+    model_form_discrepancy: float | None = None    # the bound's squared size (J - 1 units)
+    model_form_spread: dict | None = None   # how the width was estimated (intervals.Spread)
+    model_form_bound: dict | None = None    # the worst-case bound: widths, the interval
 
     @property
     def model_form(self) -> bool:
@@ -137,4 +139,6 @@ class FloorReport:
         if self.model_form_interval_width is not None:
             out["model_form_interval_width"] = self.model_form_interval_width
             out["model_form_discrepancy"] = self.model_form_discrepancy
+            out["model_form_spread"] = self.model_form_spread
+            out["model_form_bound"] = self.model_form_bound
         return out

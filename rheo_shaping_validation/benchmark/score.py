@@ -9,7 +9,7 @@ import numpy as np
 
 from rheo_shaping.diagnosis.baseline import SHEET
 from rheo_shaping.diagnosis.signature import KIND_OF_EFFECT
-from rheo_shaping.sheet.effects import EFFECT_NAMES
+from rheo_shaping.sheet.effects import EFFECT_NAMES, EFFECTS
 from rheo_shaping_validation.worlds.params import WORLD_EFFECTS
 
 
@@ -30,7 +30,8 @@ TARGETS = {
                 "out_of_library_unexplained_or_flagged_rate": (">=", 0.80),
                 "out_of_library_name_unflagged_rate": ("<=", 0.10),
                 "holdout_gap_shrink_median": (">=", 0.70),
-                "interval_coverage": (">=", 0.80)},
+                "interval_coverage": (">=", 0.80),
+                "interval_width_rel_median": ("<=", 0.50)},
 }
 
 
@@ -123,10 +124,34 @@ def score_case(case: dict, diag) -> dict:
         row["param_rel_error"] = float(np.linalg.norm(fit - true) / np.linalg.norm(true))
         ivs = vf.interval.get(n, [])
         row["in_interval"] = bool(ivs) and all(lo <= t <= hi for t, (lo, hi) in zip(true, ivs))
+        row["interval_width_rel"] = relative_width(n, fit, ivs)
+        # the worst-case bound (a floor-sized discrepancy along the response) on the same case
+        bound = (fl.model_form_bound or {}).get("interval")
+        if bound:
+            row["in_interval_bound"] = all(lo <= t <= hi for t, (lo, hi) in zip(true, bound))
+            row["interval_width_rel_bound"] = relative_width(n, fit, bound)
         h = diag.gap_after.holdout
         row["holdout_gap_shrink"] = (None if h is None or h.shrink is None or math.isnan(h.shrink)
                                      else h.shrink)
     return row
+
+
+#: A fitted value below this share of its effect's library range is "near zero": its
+#: interval's width is taken relative to the range, not to the value.
+NEAR_ZERO = 0.1
+
+
+def relative_width(name: str, fit, ivs) -> float | None:
+    """The interval's width relative to the fitted value, or to the effect's library range
+    (``EFFECTS[name].bounds``) for a value within :data:`NEAR_ZERO` of it; the largest over
+    the effect's parameters."""
+    out = []
+    for k, (v, iv) in enumerate(zip(fit, ivs)):
+        lo_b, hi_b = EFFECTS[name].bounds[k]
+        span = hi_b - lo_b
+        ref = abs(v) if abs(v) >= NEAR_ZERO * span else span
+        out.append((iv[1] - iv[0]) / ref if ref > 0 else math.inf)
+    return float(max(out)) if out else None
 
 
 def summarise(rows: list[dict], wall: float) -> dict:
@@ -194,12 +219,22 @@ def summarise(rows: list[dict], wall: float) -> dict:
                 and not r.get("verdict_beyond_floor") for r in by["out_of_library"])
             / len(by["out_of_library"]) if by["out_of_library"] else None),
         "interval_coverage": frac(single, "in_interval"),
+        "interval_width_rel_median": _median(single, "interval_width_rel"),
+        "interval_cases": sum(r.get("in_interval") is not None for r in single),
+        # the worst-case bound on the same cases, for comparison
+        "interval_coverage_bound": frac(single, "in_interval_bound"),
+        "interval_width_rel_median_bound": _median(single, "interval_width_rel_bound"),
         "diagnosis_wall_s_median": (float(np.median([r["diagnosis_wall_s"] for r in rows]))
                                     if rows and "diagnosis_wall_s" in rows[0] else None),
         "diagnosis_wall_s_max": (float(np.max([r["diagnosis_wall_s"] for r in rows]))
                                  if rows and "diagnosis_wall_s" in rows[0] else None),
         "per_effect": per_effect, "wall_time_s": wall,
     }
+
+
+def _median(rows: list[dict], key: str) -> float | None:
+    xs = [r[key] for r in rows if r.get(key) is not None]
+    return float(np.median(xs)) if xs else None
 
 
 def is_fraction(v) -> bool:

@@ -11,6 +11,7 @@ import pytest
 from rheo_shaping_validation.benchmark import (WORLDS, against_target, base_cell, make_case,
                                                run_benchmark)
 from rheo_shaping_validation.cli import main
+from rheo_shaping_validation.benchmark.score import relative_width
 from rheo_shaping.params.cell import EffectsParams
 from rheo_shaping.sheet.effects import EFFECTS
 from rheo_shaping_validation.worlds.forms import FormParams
@@ -128,6 +129,15 @@ def test_the_dynamic_world_prints_issue_26s_targets_and_whether_each_is_met(tmp_
     assert against_target("finer-chain", "top1_accuracy", 0.84) == ""
     assert against_target("finer-chain", "top1_accuracy_beyond_noise", 0.89) == ">= 0.90 short"
     assert against_target("dynamic", "interval_coverage", None) == ">= 0.80 n/a"
+    assert against_target("dynamic", "interval_width_rel_median", 0.56) == "<= 0.50 short"
+
+
+def test_an_intervals_width_is_relative_to_the_value_or_near_zero_to_the_library_range():
+    assert relative_width("kelvin_c1", [500.0], [(250.0, 750.0)]) == pytest.approx(1.0)
+    assert relative_width("power_law", [0.7], [(0.63, 0.77)]) == pytest.approx(0.2)
+    # a tool offset of (2 mm, 0.1 mm): the second within a tenth of the 8 mm range
+    w = relative_width("tool_offset", [2e-3, 1e-4], [(1.9e-3, 2.1e-3), (-3e-4, 5e-4)])
+    assert w == pytest.approx(0.1)
 
 
 def test_a_case_of_the_family_keeps_its_draws_and_varies_its_form():
