@@ -156,8 +156,12 @@ def test_two_managed_cells_come_up_and_a_killed_monitor_brings_only_its_cell_dow
     assert np.ptp(xz, axis=0).max() == 0.0, xz
 
     # Cell B runs on to the end, its cell never failing, nothing on its abort topic.
-    ros.spin_until(lambda: rec.last("/cellB/shaping/planner_state").data == "done", 240.0,
-                   "cell B's planner done", every=alive)
+    try:
+        ros.spin_until(lambda: rec.last("/cellB/shaping/planner_state").data == "done", 240.0,
+                       "cell B's planner done", every=alive)
+    except pytest.fail.Exception as exc:         # every process of cell B says why
+        pytest.fail(f"{exc}\n" + "\n".join(f"--- /cellB {n} ---\n{p.text()[-4000:]}"
+                                           for n, p in cells["/cellB"].items()))
     assert all(json.loads(msg.data)["phase"] != "failed"
                for msg in rec["/cellB/lifecycle_manager/status"])
     assert _status(rec, "/cellB")["phase"] == "active"
