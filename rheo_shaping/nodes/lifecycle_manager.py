@@ -184,7 +184,8 @@ class LifecycleManagerNode(Node):
         for a in self.requests.collect(
                 now, lambda name, tr: self._client(name, tr).service_is_ready(), self._call,
                 lambda name, tr, future: self._client(name, tr).remove_pending_request(future)):
-            self.core.answered(a.node, a.transition, a.ok, a.why, steady_ns=now)
+            self.core.answered(a.node, a.transition, a.ok, a.why,
+                               steady_ns=now if a.replied else None)   # a reply is a beat
 
     def _publish_status(self, waiting: str, now: int) -> None:
         text, level, message, values = cell_status(

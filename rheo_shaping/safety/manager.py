@@ -28,6 +28,7 @@ class Answer:
     transition: str
     ok: bool
     why: str = ""
+    replied: bool = False          # the node answered (a sign of life); not a time-out
 
 
 class Requests:
@@ -68,7 +69,7 @@ class Requests:
                 ok = bool(result and result.success)
                 why = getattr(result, "message", "") or "the node refused it (its log says why)"
                 out.append(Answer(node=node, transition=transition, ok=ok,
-                                  why="" if ok else why))
+                                  why="" if ok else why, replied=True))
             elif now_ns - asked > limit:
                 del self.calls[node]
                 drop(node, transition, reply)

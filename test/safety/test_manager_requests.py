@@ -40,7 +40,8 @@ def test_a_request_is_sent_once_its_service_is_seen_and_answered_by_its_reply():
     assert collect(NS + 2) == [] and sent == [("monitor", "configure")]   # sent once
     replies["monitor"].result_value = SimpleNamespace(success=True, message="")
     replies["monitor"].is_done = True
-    assert collect(NS + 3) == [Answer(node="monitor", transition="configure", ok=True)]
+    assert collect(NS + 3) == [Answer(node="monitor", transition="configure", ok=True,
+                                      replied=True)]
     assert not r.waiting and not r.calls
     # a refusal carries the node's message, or says where to look
     r.ask("planner", "activate", 0)
@@ -49,7 +50,7 @@ def test_a_request_is_sent_once_its_service_is_seen_and_answered_by_its_reply():
     replies["planner"].result_value = SimpleNamespace(success=False, message="")
     replies["planner"].is_done = True
     assert collect(2) == [Answer(node="planner", transition="activate", ok=False,
-                                 why="the node refused it (its log says why)")]
+                                 why="the node refused it (its log says why)", replied=True)]
 
 
 def test_requests_out_of_time_are_answered_as_failures_and_their_replies_dropped():
