@@ -243,7 +243,6 @@ def model_form_interval(c, q95: float, A: np.ndarray, responses) -> list[float]:
     cause: sqrt(q95) / |e_perp| per parameter, e_perp its response column with the
     baseline's columns ``A`` projected out (Cauchy-Schwarz on the least-squares shift).
     Returns the widths added, per parameter (empty when none applies)."""
-    from ..sheet.effects import EFFECTS
     from .check import effect_columns
     if len(c.names) != 1 or not (q95 > 0):
         return []
@@ -261,9 +260,18 @@ def model_form_interval(c, q95: float, A: np.ndarray, responses) -> list[float]:
             continue
         w = math.sqrt(q95) / n
         widths[k] = max(widths.get(k, 0.0), w)
-    for k, w in widths.items():
-        lo, hi = ivs[k]
-        b_lo, b_hi = EFFECTS[name].bounds[k]
-        ivs[k] = (max(lo - w, b_lo), min(hi + w, b_hi))
-    c.interval[name] = ivs
+    c.interval[name] = widened(name, ivs, widths)
     return [widths.get(k, 0.0) for k in range(len(ivs))]
+
+
+def widened(name: str, ivs: list[tuple[float, float]],
+            widths: dict[int, float]) -> list[tuple[float, float]]:
+    """Intervals ``ivs`` of effect ``name`` with parameter k's widened by ``widths[k]`` on
+    each side, within the effect's bounds."""
+    from ..sheet.effects import EFFECTS
+    out = list(ivs)
+    for k, w in widths.items():
+        lo, hi = out[k]
+        b_lo, b_hi = EFFECTS[name].bounds[k]
+        out[k] = (max(lo - w, b_lo), min(hi + w, b_hi))
+    return out

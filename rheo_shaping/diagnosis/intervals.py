@@ -166,8 +166,8 @@ def remainder_interval(c, A: np.ndarray, responses, data, stack) -> tuple[list, 
     ``stack`` the fit records and how they stack.  Returns (the widths added per parameter,
     the :class:`Spread`), or None when it does not apply (a pair, no columns, no simulated
     residual)."""
-    from ..sheet.effects import EFFECTS
     from .check import effect_columns
+    from .floor import widened
     if len(c.names) != 1 or c.search.z_raw is None:
         return None
     name = c.names[0]
@@ -189,11 +189,7 @@ def remainder_interval(c, A: np.ndarray, responses, data, stack) -> tuple[list, 
     for (k, _), w in zip(cols, sp.half):
         if k < len(ivs) and math.isfinite(w):
             widths[k] = max(widths.get(k, 0.0), float(w))
-    for k, w in widths.items():
-        lo, hi = ivs[k]
-        b_lo, b_hi = EFFECTS[name].bounds[k]
-        ivs[k] = (max(lo - w, b_lo), min(hi + w, b_hi))
-    c.interval[name] = scaled(name, c.values[name], ivs, FAMILY_FACTOR)
+    c.interval[name] = scaled(name, c.values[name], widened(name, ivs, widths), FAMILY_FACTOR)
     return [widths.get(k, 0.0) for k in range(len(ivs))], sp
 
 

@@ -266,10 +266,9 @@ class MonitorNode(Node):
     def _not_yet(self) -> str:
         """Why this monitor may not report ready (core: cell_refusal); aborts on a cell that
         is not its own or a second clock."""
-        why, fault = cell_refusal(
-            "monitor", self.presence.settled, self.settings.check_cell,
-            self.cell_check.mismatch() if self.presence.settled else None,
-            second_clock(self) if self.presence.settled else "", T.CELL.contract)
+        why, fault = cell_refusal("monitor", self.presence.settled, self.settings.check_cell,
+                                  self.cell_check.mismatch, lambda: second_clock(self),
+                                  T.CELL.contract)
         if fault:
             self._abort(f"monitor: {why}")
         return why

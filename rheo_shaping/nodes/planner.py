@@ -52,8 +52,7 @@ from ..planning.plans import MotionLimits, Plan
 from ..planning.movement import approach_plan, autostart_refusal, movement_plan
 from ..params.schema import ParameterError
 from ..planning.run_state import (Heartbeat, RunLatch, SetpointGrid, executed_ns, interlock,
-                                  lead_limit,
-                                  lead_wait, reset_refusal, start_reply, stop_run)
+                                  lead_limit, lead_wait, reset_refusal, start_reply, stop_run)
 from ..planning.stopping import TrajectoryStreamer
 from ..safety.clock_guard import ClockGuard
 from ..safety.one_of_each import cell_refusal
@@ -204,7 +203,7 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         return interlock(Heartbeat(
             required=self.settings.wait_for_monitor, received_ns=self._ready_rx,
             now_ns=self._steady.now().nanoseconds, timeout=self.settings.monitor_timeout,
-            ready=self._ready, untrusted=self._ready_src.trust().reason))
+            ready=self._ready), lambda: self._ready_src.trust().reason)
 
     # -- callbacks ------------------------------------------------------------------
     def _on_ready(self, msg: Bool) -> None:
@@ -232,10 +231,9 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         interlock, _monitor_ok.)"""
         settled = self.presence.settled
         starting = self._adaptive_refusal() if settled and self.streamer is None else ""
-        return starting or cell_refusal(
-            "planner", settled, self.settings.check_cell,
-            self.cell_check.mismatch() if settled else None,
-            second_clock(self) if settled else "", T.CELL.contract)[0]
+        return starting or cell_refusal("planner", settled, self.settings.check_cell,
+                                        self.cell_check.mismatch, lambda: second_clock(self),
+                                        T.CELL.contract)[0]
 
     def _tool_away(self) -> str:
         """Why autostart is unsafe (:func:`~rheo_shaping.planning.movement.autostart_refusal`)."""

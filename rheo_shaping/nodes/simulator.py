@@ -169,7 +169,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         the reason goes out on /shaping/abort (the planner stops, the monitor sees it)."""
         if not self.gate.hold(reason):
             return
-        self.arrivals.waiting.clear()                   # nothing buffered is followed now
+        self.arrivals.clear()                   # nothing buffered is followed now
         tool = self.run.hold(self.timeline.t_ns)
         self.get_logger().error(f"the tool holds at ({tool[0] * 1e3:.3f}, {tool[1] * 1e3:.3f}) mm"
                                 f" until ~/reset: {reason}")
@@ -264,7 +264,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
             self.destroy_publisher(self.pub_abort)     # drops its latched abort sample
             self.pub_abort = self._latched(T.ABORT)
         self.gate.reset()
-        self.arrivals.waiting.clear()
+        self.arrivals.clear()
         self._new_run()
         response.success = True
         response.message = "run restarted: settled sheet at process time 0"

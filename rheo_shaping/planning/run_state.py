@@ -184,12 +184,12 @@ class Heartbeat:
     now_ns: int                    # now [ns]
     timeout: float                 # monitor_timeout [s]
     ready: bool                    # what the newest one said
-    untrusted: str = ""            # why its writer is not trusted ("" if it is)
 
 
-def interlock(h: Heartbeat) -> tuple[bool, str]:
+def interlock(h: Heartbeat, untrusted: Callable[[], str] = lambda: "") -> tuple[bool, str]:
     """(the monitor allows motion, why not): a fresh "ready" heartbeat of the one trusted
-    writer, or no heartbeat required (safety principle 6)."""
+    writer, or no heartbeat required (safety principle 6).  ``untrusted()``: why the
+    heartbeat's writer is not trusted ("" if it is; a graph query, asked last)."""
     if not h.required:
         return True, ""
     if h.received_ns is None:
@@ -199,8 +199,9 @@ def interlock(h: Heartbeat) -> tuple[bool, str]:
         return False, f"no ready heartbeat from the monitor for {age:.2f} s"
     if not h.ready:
         return False, "the monitor reports not ready"
-    if h.untrusted:
-        return False, h.untrusted
+    why = untrusted()
+    if why:
+        return False, why
     return True, ""
 
 

@@ -208,6 +208,10 @@ class Arrivals:
         self.gate = gate
         self.waiting: list[tuple[object, int, int]] = []      # (item, seq, arrived)
 
+    def clear(self) -> None:
+        """Drop the set-points still waiting (a hold, a reset: none is followed)."""
+        self.waiting.clear()
+
     def offer(self, item: object, seq: int, now_ns: int,
               publishers: Callable[[], Sequence[Publisher]]) -> tuple[list[object], str]:
         """A set-point with publication sequence number ``seq``: (the set-points to follow

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import asdict, dataclass
+from typing import Callable
 
 from ..params.wire import Field, WireError, read_fields
 
@@ -128,21 +129,25 @@ def commander_refusal(bound: str | None, expected: bool = True) -> str:
     return ""
 
 
-def cell_refusal(who: str, settled: bool, check_cell: bool, mismatch: str | None,
-                 clocks: str, cell_topic: str) -> tuple[str, bool]:
+def cell_refusal(who: str, settled: bool, check_cell: bool,
+                 mismatch: Callable[[], str | None], clocks: Callable[[], str],
+                 cell_topic: str) -> tuple[str, bool]:
     """(why ``who`` may not act yet, whether that is a fault to stop on): still checking for
     a twin of its name; with ``check_cell``, no cell fingerprint from the simulator on
-    ``cell_topic`` yet (``mismatch`` None: wait) or another cell (``mismatch``: the
-    differing parameters, a fault); a second clock (``clocks``: a fault)."""
+    ``cell_topic`` yet (``mismatch()`` None: wait) or another cell (``mismatch()``: the
+    differing parameters, a fault); a second clock (``clocks()``: a fault).  Each question
+    (a graph query of the node) is asked only when the ones before it passed."""
     if not settled:
         return f"starting up: checking that no other {who} of this name runs", False
     if check_cell:
-        if mismatch is None:
+        why = mismatch()
+        if why is None:
             return (f"waiting for the simulator's cell on {cell_topic} (the fingerprint of "
                     f"every cell parameter; check_cell false for a cell without one)"), False
-        if mismatch:
-            return mismatch, True
-    return clocks, bool(clocks)
+        if why:
+            return why, True
+    second = clocks()
+    return second, bool(second)
 
 
 class PresenceWatch:

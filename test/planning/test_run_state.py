@@ -146,7 +146,15 @@ def heartbeat(**change):
 ])
 def test_the_interlock_wants_a_fresh_ready_heartbeat_of_the_trusted_writer(change, why):
     from rheo_shaping.planning.run_state import interlock
-    assert interlock(heartbeat(**change)) == (not why, why)
+    untrusted = change.pop("untrusted", "")
+    asked = []
+
+    def trust() -> str:
+        asked.append(True)
+        return untrusted
+    assert interlock(heartbeat(**change), trust) == (not why, why)
+    # the writer's trust (a graph query) is asked only once everything else holds
+    assert bool(asked) == (why in ("", untrusted) and change.get("required", True))
 
 
 def test_start_and_reset_replies():

@@ -95,17 +95,24 @@ def test_the_gate_lets_go_of_a_bound_planner_the_graph_no_longer_shows():
 def test_a_node_acts_only_settled_on_the_simulators_cell_and_one_clock():
     from rheo_shaping.safety.one_of_each import cell_refusal
     args = dict(check_cell=True, cell_topic="/shaping/cell")
-    why, fault = cell_refusal("monitor", False, mismatch=None, clocks="", **args)
+
+    def ask(value):
+        return lambda: value
+
+    def never():
+        raise AssertionError("asked before the questions ahead of it passed")
+    why, fault = cell_refusal("monitor", False, mismatch=never, clocks=never, **args)
     assert why == "starting up: checking that no other monitor of this name runs" and not fault
-    why, fault = cell_refusal("planner", True, mismatch=None, clocks="", **args)
+    why, fault = cell_refusal("planner", True, mismatch=ask(None), clocks=never, **args)
     assert why.startswith("waiting for the simulator's cell on /shaping/cell") and not fault
     differs = "the cell differs from the simulator's: movement.speed = 0.005 vs 0.002"
-    assert cell_refusal("planner", True, mismatch=differs, clocks="", **args) == (differs, True)
-    assert cell_refusal("planner", True, mismatch="", clocks="", **args) == ("", False)
+    assert cell_refusal("planner", True, mismatch=ask(differs), clocks=never,
+                        **args) == (differs, True)
+    assert cell_refusal("planner", True, mismatch=ask(""), clocks=ask(""), **args) == ("", False)
     two = "2 publishers of /clock: /sim, /rogue"
-    assert cell_refusal("monitor", True, mismatch="", clocks=two, **args) == (two, True)
+    assert cell_refusal("monitor", True, mismatch=ask(""), clocks=ask(two), **args) == (two, True)
     # without check_cell no fingerprint is awaited; the clocks are still checked
-    assert cell_refusal("planner", True, check_cell=False, mismatch=None, clocks="",
+    assert cell_refusal("planner", True, check_cell=False, mismatch=never, clocks=ask(""),
                         cell_topic="/shaping/cell") == ("", False)
 
 
