@@ -266,7 +266,8 @@ class MonitorNodeParams:
     max_data_age: float = param(
         0.5, "longest time without tension data (wall-clock age of the newest sample on a "
         "steady clock, and the QoS deadline requested; with stale_clock 'auto' in a lockstep "
-        "cell, on the cell's clock instead); longer: abort", "s", 0.0, 60.0, lo_open=True)
+        "cell, the link tensions' on the cell's clock instead, the contact tension's on the "
+        "wall only beyond 10 x max_data_age); longer: abort", "s", 0.0, 60.0, lo_open=True)
     stale_clock: str = param(
         "auto", "the clock max_data_age is judged on: 'auto', the cell's (simulated) clock when "
         "on simulated time and acknowledging (the simulator steps only on this monitor's "

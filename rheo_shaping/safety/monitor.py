@@ -12,11 +12,16 @@ publishes what it decides):
   ``max_data_age`` on the steady clock, a missed deadline, stamps older than
   ``max_stamp_age``), no data within ``startup_timeout``: abort (principles 1, 2);
 * in a lockstep cell (:attr:`TensionMonitor.cell_clock`: the simulator steps only on this
-  monitor's acknowledgements) a stream is stale when the cell's clock has run
-  ``max_data_age`` past its newest sample; the wall's age and the QoS deadline count
-  there only beyond :data:`LOCKSTEP_WALL_FACTOR` x ``max_data_age`` (a starved machine
-  slows such a cell, its tool does not move unwatched; a clock that stands still that long
-  has lost its simulator).
+  monitor's acknowledgements) the stream that paces it (the link tensions) is stale when
+  the cell's clock has run ``max_data_age`` past its newest sample; the wall's age and the
+  QoS deadline count there only beyond :data:`LOCKSTEP_WALL_FACTOR` x ``max_data_age`` (a
+  starved machine slows such a cell, its tool does not move unwatched; a clock that stands
+  still that long has lost its simulator).  Where the monitor acknowledges, the contact
+  tension is not acknowledged and holds nothing: its samples can reach the monitor later
+  than the link tensions of the same step (a reliable stream repairing a lost sample), so
+  it is judged on the wall only, by the same bound; the threshold loses nothing by it, the
+  contact tension is one of the link tensions
+  (:func:`~rheo_shaping.sheet.metrics.contact_tension`).
 
 Times are integer nanoseconds: ``steady`` on a steady clock, ``clock`` on the node's
 clock (simulated time when ``sim_time``; 0 while there is no clock yet).
@@ -119,14 +124,21 @@ class TensionMonitor:
         self.on_abort(reason)
         return True
 
+    def paced(self, topic: str) -> bool:
+        """Whether ``topic`` is judged on the cell's clock: in a lockstep cell
+        (:attr:`cell_clock`), the acknowledged link tensions, or every tension stream where
+        the monitor does not acknowledge (simulator and monitor on one executor)."""
+        return self.cell_clock and (topic == self.tension_topics[0]
+                                    or not self.settings.acknowledge)
+
     def age(self, topic: str, steady: int) -> float:
         """Time [s] since the newest sample on ``topic`` (inf: none yet): on the wall's
-        steady clock, or on the cell's clock when :attr:`cell_clock` (and it has run)."""
+        steady clock, or on the cell's clock when :meth:`paced` (and it has run)."""
         rx = self._rx[topic]
         if rx is None:
             return math.inf
         seen = self._rx_clock.get(topic, 0)
-        if self.cell_clock and seen > 0 and self._clock_seen > 0:
+        if self.paced(topic) and seen > 0 and self._clock_seen > 0:
             return max(self._clock_seen - seen, 0) / NS
         return (steady - rx) / NS
 
@@ -302,10 +314,15 @@ class TensionMonitor:
             self.abort(f"stale data: {self._old[topic]}")
         elif self.state == "ready" and stale:
             t = stale[0]
-            if ages[t] <= s.max_data_age:                 # a lockstep cell's clock stood still
+            if self.paced(t) and ages[t] <= s.max_data_age:    # the cell's clock stood still
                 self.abort(f"stale data: no {t} for {self.wall_age(t, steady):.3f} s of wall "
                            f"time while the cell's clock stood still: its simulator is lost "
                            f"({LOCKSTEP_WALL_FACTOR:g} x max_data_age {s.max_data_age:g} s)")
+            elif self.cell_clock and not self.paced(t):
+                self.abort(f"stale data: no {t} for {ages[t]:.3f} s of wall time "
+                           f"({LOCKSTEP_WALL_FACTOR:g} x max_data_age {s.max_data_age:g} s: "
+                           f"in a lockstep cell the stream not acknowledged is judged on the "
+                           f"wall)")
             else:
                 self.abort(f"stale data: no {t} for "
                            + (f"{ages[t]:.3f} s" if math.isfinite(ages[t]) else "ever")
@@ -335,7 +352,8 @@ class TensionMonitor:
         lockstep cell: on its clock, or beyond the wall's bound)."""
         limit = self.settings.max_data_age
         return [t for t in self.tension_topics
-                if self.age(t, steady) > limit or self.wall_age(t, steady) > self._wall_limit]
+                if (self.age(t, steady) > limit and (self.paced(t) or not self.cell_clock))
+                or self.wall_age(t, steady) > self._wall_limit]
 
     @property
     def _wall_limit(self) -> float:

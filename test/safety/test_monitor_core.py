@@ -282,8 +282,9 @@ def test_in_a_lockstep_cell_a_starved_machine_slows_the_cell_and_stale_is_on_its
 
 def test_on_the_cells_clock_a_sample_is_aged_from_the_clock_it_arrived_at():
     """A contact sample read before its step's tensions, 0.45 s of cell time after the last
-    tick, is 0.1 s old 0.1 s later (not 0.55 s: the clock of the tick before)."""
-    h = Harness(max_data_age=0.5)
+    tick, is 0.1 s old 0.1 s later (not 0.55 s: the clock of the tick before); the
+    one-process cell (no acknowledgements: both streams on the cell's clock)."""
+    h = Harness(max_data_age=0.5, acknowledge=False)
     h.mon.cell_clock = True
     h.make_ready()
     h.clock += int(0.45 * NS)
@@ -292,6 +293,40 @@ def test_on_the_cells_clock_a_sample_is_aged_from_the_clock_it_arrived_at():
     h.mon.on_tensions([0.05, 0.1], h.steady, h.clock)
     h.clock += int(0.1 * NS)
     assert h.mon.tick(h.steady, h.clock) and not h.aborts
+
+
+def test_where_the_monitor_acknowledges_the_contact_tension_is_judged_on_the_wall_only():
+    """The contact tension holds no simulator: 0.6 s of cell time (60 ms of wall at x10)
+    behind the acknowledged link tensions is no fault (a delivery late against the cell's
+    clock; the link tensions include the contact's link); 5.01 s of wall without one is."""
+    h = Harness(max_data_age=0.5)                     # acknowledge: True (the default)
+    h.mon.cell_clock = True
+    h.make_ready()
+    for _ in range(12):                              # 12 steps of 0.05 s at x10
+        h.steady += int(0.005 * NS)
+        h.clock += int(0.05 * NS)
+        h.mon.on_tensions([0.05, 0.1], h.steady, h.clock)
+    assert h.mon.age(CONTACT, h.steady) == pytest.approx(0.06)
+    assert h.mon.tick(h.steady, h.clock) and not h.aborts
+    h.steady += int(4.9 * NS)                        # the link tensions go on, the contact not
+    h.mon.on_tensions([0.05, 0.1], h.steady, h.clock)
+    assert h.mon.tick(h.steady, h.clock) and not h.aborts
+    h.steady += int(0.05 * NS)
+    h.mon.on_tensions([0.05, 0.1], h.steady, h.clock)
+    assert not h.mon.tick(h.steady, h.clock)
+    assert h.aborts == [f"stale data: no {CONTACT} for 5.010 s of wall time (10 x max_data_age "
+                        f"0.5 s: in a lockstep cell the stream not acknowledged is judged on "
+                        f"the wall)"]
+    # the one-process cell (no acknowledgements): the same 0.6 s of cell time is stale
+    h = Harness(max_data_age=0.5, acknowledge=False)
+    h.mon.cell_clock = True
+    h.make_ready()
+    for _ in range(12):
+        h.steady += int(0.005 * NS)
+        h.clock += int(0.05 * NS)
+        h.mon.on_tensions([0.05, 0.1], h.steady, h.clock)
+    assert not h.mon.tick(h.steady, h.clock)
+    assert h.aborts == [f"stale data: no {CONTACT} for 0.600 s (max_data_age 0.5 s)"]
 
 
 @pytest.mark.parametrize("sim_time, acknowledge, stale_clock, expected", [
