@@ -15,7 +15,7 @@ except ImportError:             # setuptools < 70 ships only distutils' (its own
 
 package_name = 'rheo_shaping'
 NODES = ('simulator', 'planner', 'monitor', 'simulator_managed', 'planner_managed',
-         'monitor_managed', 'lifecycle_manager', 'gap_watch')
+         'monitor_managed', 'gap_watch_managed', 'lifecycle_manager', 'gap_watch')
 
 # The node executables.  A signal must end a node cleanly at any moment of its start-up
 # (rheo_shaping/nodes/entry.py), but CPython installs its own SIGINT handler and imports `site`

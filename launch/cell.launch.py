@@ -22,9 +22,10 @@ Arguments (docs/ros.md, "Launch"):
   ``false``: everything on the wall clock, the simulator at real time;
 * ``rviz``: ``true`` also starts RViz with the package's rviz/cell.rviz;
 * ``managed``: ``true`` starts the managed (lifecycle) nodes ``simulator_managed``,
-  ``monitor_managed``, ``planner_managed`` (node names simulator, monitor, planner) and the
-  ``lifecycle_manager``, which brings them up in order and down to a safe state when one
-  fails (docs/ros.md, "Managed start-up");
+  ``monitor_managed``, ``planner_managed`` (node names simulator, monitor, planner; with
+  ``gap_watch``, ``gap_watch_managed`` too) and the ``lifecycle_manager`` with those
+  ``node_names``, which brings them up in order and down to a safe state when one fails
+  (docs/ros.md, "Managed start-up");
 * ``gap_watch``: ``true`` also starts the gap watch (the model beside the cell,
   docs/gapwatch.md), its settings from ``/**/gap_watch`` of the params file;
 * ``adaptive``: ``true`` the planner's closed loop (its ``adaptive`` parameter: it learns
@@ -67,7 +68,9 @@ def _nodes(context):
     clock = [('/clock', 'clock')] if clock_topic == 'clock' else []
     common = dict(package=PACKAGE, namespace=namespace, parameters=[params_file],
                   output='screen', emulate_tty=True, remappings=clock)
+    gap_watch = LaunchConfiguration('gap_watch').perform(context).lower() in ('true', '1')
     if LaunchConfiguration('managed').perform(context).lower() in ('true', '1'):
+        names = ['simulator', 'monitor', 'planner'] + (['gap_watch'] if gap_watch else [])
         cell = [
             Node(executable='simulator_managed', name='simulator',
                  ros_arguments=simulator_args, **common),
@@ -75,8 +78,12 @@ def _nodes(context):
                  **common),
             Node(executable='planner_managed', name='planner', ros_arguments=planner_args,
                  **common),
-            Node(executable='lifecycle_manager', name='lifecycle_manager', ros_arguments=follow,
-                 **common),    # the cell's clock: one stamp source
+            Node(executable='gap_watch_managed', name='gap_watch', ros_arguments=follow,
+                 condition=IfCondition(LaunchConfiguration('gap_watch')), **common),
+            # the nodes above it manages; the cell's clock: one stamp source
+            Node(executable='lifecycle_manager', name='lifecycle_manager',
+                 ros_arguments=follow + ['-p', f"node_names:=[{','.join(names)}]"],
+                 **common),
         ]
     else:
         cell = [
@@ -85,10 +92,10 @@ def _nodes(context):
             Node(executable='monitor', name='monitor', ros_arguments=follow, **common),
             Node(executable='planner', name='planner', ros_arguments=planner_args,
                  **common),
+            Node(executable='gap_watch', name='gap_watch', ros_arguments=follow,
+                 condition=IfCondition(LaunchConfiguration('gap_watch')), **common),
         ]
     return cell + [
-        Node(executable='gap_watch', name='gap_watch', ros_arguments=follow,
-             condition=IfCondition(LaunchConfiguration('gap_watch')), **common),
         Node(package='rviz2', executable='rviz2', name='rviz2', namespace=namespace,
              arguments=['-d', os.path.join(share, 'rviz', 'cell.rviz')],
              parameters=[{'use_sim_time': sim_time}], remappings=clock, output='screen',

@@ -1,5 +1,6 @@
 """Entry points of the node executables (``simulator``, ``planner``, ``monitor``; their
-managed variants ``simulator_managed``, ``planner_managed``, ``monitor_managed``; the
+managed variants ``simulator_managed``, ``planner_managed``, ``monitor_managed``,
+``gap_watch_managed``; the
 ``lifecycle_manager``; ``gap_watch``).
 
 A signal must end a node cleanly at any moment of its start-up, with exit code 0 and
@@ -75,6 +76,10 @@ def planner_managed() -> int:
 
 def monitor_managed() -> int:
     return _run("managed", "monitor_main")
+
+
+def gap_watch_managed() -> int:
+    return _run("managed", "gap_watch_main")
 
 
 def lifecycle_manager() -> int:

@@ -93,7 +93,7 @@ class GapWatchNode(Node):
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.session = WatchSession(self.model, self.floor, s)     # the decisions (core)
         self._wake = threading.Event()
-        self._stop = threading.Event()
+        self._stopping = threading.Event()
         self._pool: ProcessPoolExecutor | None = None
         self.jobs: DiagnosisJobs | None = None
         for topic, callback in ((T.TOOL_POSE, self._on_pose),
@@ -152,7 +152,7 @@ class GapWatchNode(Node):
     # -- the worker thread: the session's drain, and the diagnoses it asks for ---------------
     def _work(self) -> None:
         session, log = self.session, self.get_logger()
-        while not self._stop.is_set():
+        while not self._stopping.is_set():
             session.worker_beat = session.clock()
             self._wake.wait(0.1)
             self._wake.clear()
@@ -197,7 +197,7 @@ class GapWatchNode(Node):
         return True, f"diagnosing {rec_dir}"
 
     def _on_verdict(self, future) -> None:
-        if self._stop.is_set():               # the node is stopping: its worker was ended
+        if self._stopping.is_set():               # the node is stopping: its worker was ended
             return
         try:
             v = future.result()
@@ -234,8 +234,12 @@ class GapWatchNode(Node):
                                                        self.model.sheet.thickness,
                                                        report.body["level"]))
 
-    def destroy_node(self):
-        self._stop.set()
+    def _end_work(self) -> None:
+        """End the model's worker thread and a diagnosis still running (node destroyed, or
+        a managed gap watch cleaned up)."""
+        if getattr(self, "_stopping", None) is None:
+            return                                  # not built (a managed node unconfigured)
+        self._stopping.set()
         self._wake.set()
         if self._pool is not None:             # a diagnosis still running ends with the node
             workers = list((getattr(self._pool, "_processes", None) or {}).values())
@@ -243,6 +247,10 @@ class GapWatchNode(Node):
             for w in workers:
                 if w.is_alive():
                     w.terminate()
+            self._pool = None
+
+    def destroy_node(self):
+        self._end_work()
         return super().destroy_node()
 
 

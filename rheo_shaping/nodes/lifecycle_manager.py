@@ -1,8 +1,9 @@
 """The ``lifecycle_manager`` node: brings a managed cell up in order and down to a safe state
 when one of its nodes fails (docs/ros.md, "Managed start-up"), in the style of Nav2's.
 
-It drives ``simulator``, ``monitor`` and ``planner`` of its own namespace (the managed
-executables ``*_managed``, rheo_shaping.nodes.managed) through their lifecycle services
+It drives the nodes of its ``node_names`` in its own namespace (``simulator``, ``monitor``,
+``planner``, and ``gap_watch`` when named; the managed executables ``*_managed``,
+rheo_shaping.nodes.managed) through their lifecycle services
 (``<node>/change_state``, lifecycle_msgs/ChangeState).  What to ask and when is the core's
 :class:`~rheo_shaping.safety.lifecycle.CellLifecycle`: configure all, activate simulator and
 monitor, the planner once the monitor reports ready; on a failure (a node's ``~/heartbeat``
@@ -28,7 +29,7 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
 from ..params.node_params import LifecycleManagerParams
-from ..safety.lifecycle import CELL_ORDER, CellLifecycle, Step
+from ..safety.lifecycle import CellLifecycle, Step
 from ..safety.clock_guard import ClockGuard
 from ..safety.manager import Requests, cell_status
 from ..safety.watchdog import StallGuard
@@ -58,17 +59,18 @@ class LifecycleManagerNode(Node):
                                        cli_args=node_kwargs.get('cli_args'))
         s = self.settings
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.nodes = s.nodes                # node_names, in the order they come up
         self.core = CellLifecycle(heartbeat_timeout=s.heartbeat_timeout,
-                                  ready_timeout=s.heartbeat_timeout)
+                                  ready_timeout=s.heartbeat_timeout, nodes=self.nodes)
         self._change_state = {}
         self._reset: dict = {}              # each node's ~/reset (a recovery clears latches)
         self.requests = Requests(s.transition_timeout)   # asked, sent, out of time (core)
         # each heartbeat only from its node, /shaping/ready only from the monitor
         # (by name: a restarted node beats while the killed one's writer is in the graph)
         self._beat_src = {name: OwnedStream(self, f"{name}/heartbeat", name, strict=False)
-                          for name in CELL_ORDER}
+                          for name in self.nodes}
         self._ready_src = OwnedStream(self, T.READY.name, "monitor")
-        for name in CELL_ORDER:
+        for name in self.nodes:
             self.create_subscription(T.HEARTBEAT.type, f"{name}/heartbeat",
                                      partial(self._on_heartbeat, name),
                                      T.HEARTBEAT.qos)
@@ -95,7 +97,7 @@ class LifecycleManagerNode(Node):
             self.core.startup()
         self.create_timer(s.period, self._tick, clock=self._steady)
         self.get_logger().info(
-            f"lifecycle manager up: {', '.join(CELL_ORDER)} in "
+            f"lifecycle manager up: {', '.join(self.nodes)} in "
             f"{self.get_namespace()}; heartbeat_timeout {s.heartbeat_timeout:g} s"
             + ("" if s.autostart else "; waiting for ~/startup"))
 

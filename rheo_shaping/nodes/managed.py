@@ -1,5 +1,5 @@
-"""The managed (lifecycle) variants of the three nodes: ``simulator_managed``,
-``monitor_managed``, ``planner_managed`` (docs/ros.md, "Managed start-up").
+"""The managed (lifecycle) variants of the nodes: ``simulator_managed``, ``monitor_managed``,
+``planner_managed``, ``gap_watch_managed`` (docs/ros.md, "Managed start-up").
 
 Each is the plain node's class, unchanged, driven through the ROS 2 node lifecycle
 (``rclpy.lifecycle``): the node starts ``unconfigured`` with only its lifecycle services and
@@ -46,6 +46,7 @@ from ..safety.lifecycle import HEARTBEAT_PERIOD
 from ..params.wire import Field
 from ..units import NS
 from .hosts import ManagedMixin
+from .gap_watch import GapWatchNode
 from .monitor import MonitorNode
 from .rclpy_private import clock_subscription, lifecycle_label, release_state_machine
 from ..planning.states import MOVING
@@ -130,7 +131,9 @@ class Managed(LifecycleNodeMixin, ManagedMixin):
 
     def _destroy_built(self) -> None:
         """Destroy every entity made since the lifecycle's own (the plain node's), but the
-        time source's /clock subscription (guard_clock made it again; the node keeps it)."""
+        time source's /clock subscription (guard_clock made it again; the node keeps it),
+        after the plain node's own work has ended (:meth:`_end_work`)."""
+        self._end_work()
         keep = clock_subscription(self)
         destroy: dict[str, Callable[[Any], object]] = {
                    "publishers": self.destroy_publisher,
@@ -210,6 +213,9 @@ class Managed(LifecycleNodeMixin, ManagedMixin):
             self._run_timers(False)
 
     # -- what each node adds --------------------------------------------------------
+    def _end_work(self) -> None:
+        """End what the plain node runs beside its executor (threads, processes)."""
+
     def _may_activate(self) -> str:
         return ""
 
@@ -289,6 +295,21 @@ class ManagedPlannerNode(Managed, PlannerNode):
             PlannerNode._stream(self)
 
 
+class ManagedGapWatchNode(Managed, GapWatchNode):
+    """The gap watch as a lifecycle node: it publishes its residuals, states and verdicts
+    only while active (its model's worker runs from configure to cleanup)."""
+
+    def __init__(self, **node_kwargs):
+        self._managed_init('gap_watch', node_kwargs, (node_kwargs,))
+
+    def _end_work(self) -> None:
+        GapWatchNode._end_work(self)
+
+    def destroy_node(self) -> None:
+        GapWatchNode._end_work(self)
+        Managed.destroy_node(self)
+
+
 def simulator_main(args=None):
     return run_node(ManagedSimulatorNode, 'simulator', args)
 
@@ -301,9 +322,15 @@ def planner_main(args=None):
     return run_node(ManagedPlannerNode, 'planner', args)
 
 
+def gap_watch_main(args=None):
+    return run_node(ManagedGapWatchNode, 'gap_watch', args)
+
+
 if __name__ == '__main__':  # pragma: no cover - python -m rheo_shaping.nodes.managed NODE
-    mains = {"simulator": simulator_main, "monitor": monitor_main, "planner": planner_main}
+    mains = {"simulator": simulator_main, "monitor": monitor_main, "planner": planner_main,
+             "gap_watch": gap_watch_main}
     name = sys.argv.pop(1) if len(sys.argv) > 1 else ""
     if name not in mains:
-        sys.exit("usage: python -m rheo_shaping.nodes.managed simulator|monitor|planner ...")
+        sys.exit("usage: python -m rheo_shaping.nodes.managed "
+                 "simulator|monitor|planner|gap_watch ...")
     sys.exit(mains[name]())

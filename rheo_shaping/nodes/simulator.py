@@ -36,7 +36,6 @@ parameters are read-only while the node runs (docs/ros.md, "Parameters").
 """
 from __future__ import annotations
 
-import math
 import sys
 
 import numpy as np
@@ -50,6 +49,7 @@ from ..sheet.geometry import Cake
 from ..params.node_params import SimulatorNodeParams
 from ..params.cell import CellParams, batch_cell
 from ..planning.scenarios import movement_scenario
+from ..sheet.cadence import Cadence, RateMeter
 from ..sheet.setpoints import SetpointRun, SimClock, next_step
 from ..sheet.tools import tool_shape
 from ..params.fingerprint import cell_message
@@ -81,7 +81,9 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
     def _build(self, node_kwargs: dict, message_info: bool) -> None:
         self.get_logger().info('starting: parameters, then the settled sheet')
         self.params = SchemaParameters(self, {"cell": CellParams, "settings": SimulatorNodeParams},
-                                       cli_args=node_kwargs.get('cli_args'))
+                                       cli_args=node_kwargs.get('cli_args'),
+                                       on_change=lambda names: self._retune())
+        self.cadence = Cadence(self.settings)        # what goes out when (core)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         pub = self._publisher
         self.pub_profile = pub(T.PROFILE)
@@ -121,16 +123,9 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         self._pending = False          # a step is due (lockstep may hold it back)
         # steps wait for the monitor's acknowledgements of the tension samples (core)
         self._lead = self._monitor_lead()
-        self._last_pub_ns = None
-        self._force_publish = False
-        self._last_marker = None
-        self._last_diag = None
-        self._last_camera = None        # the next camera frame is due at this time [ns]
-        self._last_hold_camera = None   # steady time of the last frame while /clock held [ns]
+        self.rate = RateMeter(self.settings.real_time_factor)
         seed = self.settings.camera_seed
         self._camera_rng = np.random.default_rng(seed if seed else None)
-        self._rate_ref = None          # (steady ns, sim ns) to measure the achieved factor
-        self.achieved_factor = math.nan
         self._configure_time()
         self._new_run()
         self._timer = self.create_timer(self.settings.step_period,
@@ -175,13 +170,16 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
                                 f" until ~/reset: {reason}")
         if publish:
             self.pub_abort.publish(String(data=f"simulator: {reason}"))
-        self._force_publish = True
-        self._last_diag = None                          # /diagnostics says it at once
+        self.cadence.force(diagnostics=True)            # the state and /diagnostics at once
 
     def _on_abort(self, msg: String) -> None:
         self._hold(f"abort: {msg.data}", publish=False)
 
     # -- parameters -------------------------------------------------------------------
+    def _retune(self) -> None:
+        """A tunable setting changed (after the build): the output schedule reads it."""
+        self.cadence.settings = self.settings
+
     @property
     def cell(self) -> CellParams:
         return self.params["cell"]
@@ -209,7 +207,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
         self._tool_outline = tool_shape(cell.tool).outline(48)
         self._cake_outline = Cake.of(cell.cake).outline(48)
         self._commands_fresh = Freshness(self.settings.command_timeout)
-        self._next_progress = self.settings.progress_period
+        self.cadence.restart()
         self.pub_cell.publish(String(data=cell_message(cell)))
 
     @property
@@ -345,7 +343,7 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
                 self._publish_state(end_ns)
                 run.advance(target)
             else:
-                self._force_publish = True
+                self.cadence.force()
         if run.broken and not was_broken:
             self.get_logger().error(f"the sheet solver failed at process time "
                                     f"{self.sim.state.t:.2f} s: {run.broken}; tensions are "

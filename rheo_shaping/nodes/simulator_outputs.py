@@ -1,6 +1,7 @@
 """What the ``simulator`` node publishes: the sheet's state, the simulated camera, markers,
 /diagnostics and progress lines (a part of :class:`~.simulator.SimulatorNode`; the
-decisions are the core's: :func:`rheo_shaping.sheet.setpoints.run_status`)."""
+decisions are the core's: :class:`rheo_shaping.sheet.cadence.Cadence`,
+:func:`rheo_shaping.sheet.setpoints.run_status`)."""
 from __future__ import annotations
 
 import math
@@ -8,60 +9,50 @@ import math
 import numpy as np
 
 from ..records.measurement import MeasurementParams, profile_frame
+from ..sheet.cadence import Cadence, RateMeter
 from ..sheet.setpoints import run_status
-from ..units import NS
 from . import messages as m
 from .hosts import SimulatorMixin
 
 
 class SimulatorOutputs(SimulatorMixin):
     """The simulator node's publishing (mixed into :class:`~.simulator.SimulatorNode`, whose
-    state it reads)."""
+    state it reads); what is due when: the core's
+    :class:`~rheo_shaping.sheet.cadence.Cadence`."""
 
-    # the node's state this sets (SimulatorNode._build and _new_run initialize it)
-    _force_publish: bool
-    _last_pub_ns: int | None            # the last state published [ns, node clock]
-    _last_camera: int | None            # the next camera frame is due at this time [ns]
-    _last_marker: int | None            # steady time of the last markers [ns]
-    _last_diag: int | None              # steady time of the last /diagnostics [ns]
-    _last_hold_camera: int | None       # steady time of the last frame while /clock held
-    _rate_ref: tuple[int, int] | None   # (steady ns, sim ns) to measure the achieved factor
-    achieved_factor: float
-    _next_progress: float
+    # the node's state this reads (SimulatorNode._build and _new_run initialize it)
+    cadence: Cadence
+    rate: RateMeter
+
+    @property
+    def achieved_factor(self) -> float:
+        """The achieved real-time factor at the newest /diagnostics."""
+        return self.rate.factor
 
     # -- publishing -------------------------------------------------------------------
     def _publish(self, t_ns: int) -> None:
-        s = self.settings
-        if (self._last_pub_ns is None or s.publish_period == 0.0 or self._force_publish
-                or t_ns - self._last_pub_ns >= s.publish_period * NS - 1):
-            self._force_publish = False
+        if self.cadence.state_due(t_ns):
             self._publish_state(t_ns)
-        if s.camera and (self._last_camera is None or t_ns >= self._last_camera):
-            # frames on a grid of 1 / camera_rate (each at the first step at or after it)
-            period = int(round(NS / s.camera_rate))
-            self._last_camera = (t_ns // period + 1) * period
+        if self.cadence.camera_due(t_ns):
             self._publish_camera(t_ns)
         self._publish_steady(t_ns)
 
     def _publish_steady(self, t_ns: int) -> None:
         """What goes out on the steady clock: markers, /diagnostics, progress lines."""
-        s = self.settings
         now = self._steady.now().nanoseconds
-        if s.publish_markers and (self._last_marker is None
-                                  or now - self._last_marker >= s.marker_period * NS):
-            self._last_marker = now
+        if self.cadence.markers_due(now):
             self.pub_markers.publish(m.markers_msg(
                 t_ns, self.sim.nodes(), self.run.tensions(), self._run_cell.material.F_break,
                 self._run_cell.sheet.thickness, self._tool_outline + self.sim.state.tool,
                 self._cake_outline))
-        if self._last_diag is None or now - self._last_diag >= s.diagnostics_period * NS:
+        if self.cadence.diagnostics_due(now):
             self._measure_rate(now)
-            self._last_diag = now
             self.pub_diag.publish(self._diagnostics(t_ns))
-        self._progress()
+        if self.cadence.progress_due(self.sim.state.t, self.started):
+            self._progress()
 
     def _publish_state(self, t_ns: int) -> None:
-        self._last_pub_ns = t_ns
+        self.cadence.state_sent(t_ns)
         st = self.sim.state
         self.pub_profile.publish(m.profile_msg(st.x, t_ns))
         self._publish_tensions()
@@ -76,13 +67,8 @@ class SimulatorOutputs(SimulatorMixin):
 
     def _hold_camera(self) -> None:
         """While /clock holds: camera frames of the waiting sheet at the rate they come at when
-        running (camera_rate x real_time_factor per wall second), for late joiners."""
-        s = self.settings
-        now = self._steady.now().nanoseconds
-        period = NS / (s.camera_rate * s.real_time_factor)
-        if s.camera and (self._last_hold_camera is None
-                         or now - self._last_hold_camera >= period):
-            self._last_hold_camera = now
+        running, for late joiners."""
+        if self.cadence.hold_camera_due(self._steady.now().nanoseconds):
             self._publish_camera(self.timeline.t_ns)
 
     def _publish_camera(self, t_ns: int) -> None:
@@ -96,30 +82,20 @@ class SimulatorOutputs(SimulatorMixin):
         self.pub_camera.publish(m.profile_msg(pts, t_ns))
 
     def _measure_rate(self, now: int) -> None:
-        if self._rate_ref is not None and now > self._rate_ref[0]:
-            self.achieved_factor = ((self.timeline.t_ns - self._rate_ref[1])
-                                    / (now - self._rate_ref[0]))
-            wanted = self.settings.real_time_factor
-            if (self._sim_clock and self.started and self.summary is None
-                    and self.achieved_factor < 0.5 * wanted):
-                self.get_logger().warning(
-                    f"running at {self.achieved_factor:.1f}x instead of {wanted:g}x (computation "
-                    f"or set-points lag; lockstep waits so far: {self.timeline.waits})",
-                    throttle_duration_sec=10.0)
-        self._rate_ref = (now, self.timeline.t_ns)
+        self.rate.measure(now, self.timeline.t_ns)
+        if self._sim_clock and self.started and self.summary is None and self.rate.lagging():
+            self.get_logger().warning(
+                f"running at {self.rate.factor:.1f}x instead of {self.rate.wanted:g}x "
+                f"(computation or set-points lag; lockstep waits so far: {self.timeline.waits})",
+                throttle_duration_sec=10.0)
 
     def _progress(self) -> None:
-        period = self.settings.progress_period
-        if period <= 0 or not self.started or self.sim.state.t < self._next_progress:
-            return
-        while self._next_progress <= self.sim.state.t:
-            self._next_progress += period
         st = self.sim.state
         self.get_logger().info(
             f"t = {st.t:6.1f} s: tool ({st.tool[0] * 1e3:.2f}, {st.tool[1] * 1e3:.2f}) mm, "
             f"largest tension {float(np.max(st.tension)):.4f} N, contact "
             f"{self.sim.contact_tension():.4f} N, F_max so far {self.peak.value:.4f} N, "
-            f"x{self.achieved_factor:.1f} real time")
+            f"x{self.rate.factor:.1f} real time")
 
     def _diagnostics(self, t_ns: int):
         st = self.sim.state
@@ -131,7 +107,7 @@ class SimulatorOutputs(SimulatorMixin):
                   "tension_max": float(np.max(self.run.tensions())),
                   "F_max": float(self.peak.value) if self.started else 0.0,
                   "real_time_factor": self.settings.real_time_factor,
-                  "achieved_factor": float(self.achieved_factor),
+                  "achieved_factor": float(self.rate.factor),
                   "lockstep_waits": self.timeline.waits,
                   "monitor_waits": self._lead.waits, "clock_holds": self.timeline.clock_holds,
                   "late_steps": self.timeline.late_steps}

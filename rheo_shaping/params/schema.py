@@ -22,7 +22,7 @@ class Spec:
     lo: float | None = None          # lower bound (inclusive unless lo_open)
     hi: float | None = None          # upper bound (inclusive)
     lo_open: bool = False            # True: value must be > lo
-    choices: tuple[str, ...] = ()    # for strings
+    choices: tuple[str, ...] = ()    # for strings, and for each name of a list of names
     length: int | None = None        # for float arrays of fixed length
     min_length: int = 0              # for float arrays of variable length
     tunable: bool = False            # may change while a node runs (else read-only then)
@@ -30,7 +30,9 @@ class Spec:
     def range_text(self) -> str:
         """Human text of the valid range, e.g. ``(0, 1e+06] N/m``."""
         if self.choices:
-            return "one of " + ", ".join(repr(c) for c in self.choices)
+            one = "one of " + ", ".join(repr(c) for c in self.choices)
+            return (f"a list of at least {self.min_length} different names, each {one}"
+                    if self.min_length else one)
         lo = "-inf" if self.lo is None else f"{self.lo:g}"
         hi = "inf" if self.hi is None else f"{self.hi:g}"
         text = f"{'(' if self.lo_open else '['}{lo}, {hi}]"
@@ -82,6 +84,11 @@ def validate_value(name: str, value: Any, kind: type, spec: Spec) -> Any:
         if spec.choices and value not in spec.choices:
             raise fail(spec.range_text())
         return value
+    if kind is tuple and spec.choices:                   # a list of names
+        if (not isinstance(value, (list, tuple)) or len(value) < spec.min_length
+                or any(v not in spec.choices for v in value) or len(set(value)) < len(value)):
+            raise fail(spec.range_text())
+        return tuple(value)
     if kind is tuple:
         if not isinstance(value, (list, tuple)) or isinstance(value, str):
             raise fail(f"a list of numbers, {spec.range_text()}")

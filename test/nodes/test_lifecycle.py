@@ -274,3 +274,47 @@ def test_a_killed_monitor_restarted_is_recovered_by_one_startup_of_the_manager(
     for p in (*cell.values(), again):
         if p is not monitor:
             assert "Traceback" not in p.text(), p.text()[-3000:]
+
+
+def test_a_gap_watch_named_in_node_names_is_managed_with_the_cell(ros, procs, tmp_path):
+    """Nav2's ``node_names``: the manager given the gap watch too brings up
+    ``gap_watch_managed`` with the cell (simulator, monitor, gap watch, planner: the planner
+    last), the gap watch publishes its state only while active, and ``~/shutdown`` brings all
+    four down in reverse order, the gap watch's worker ended with its cleanup (the process
+    stays up, no traceback)."""
+    from _support.ros import Recorder
+    params = _params(tmp_path)
+    ns = "/gw"
+    ros_args = ["--ros-args", "--params-file", str(params), "-r", f"__ns:={ns}",
+                *T.CLOCK_REMAP]
+    cell = {node: procs(exe, *ros_args) for node, exe in MANAGED.items()}
+    cell["gap_watch"] = procs("gap_watch_managed", *ros_args)
+    names = "[planner,gap_watch,monitor,simulator]"          # any order: the manager's own
+    cell["lifecycle_manager"] = procs("lifecycle_manager", *ros_args, "-p",
+                                      f"node_names:={names}")
+    node = ros.node("gap_watch_manager_observer")
+    rec = Recorder(node, {f"{ns}/lifecycle_manager/status": (T.MANAGER_STATUS.type, True),
+                          T.GAP.in_namespace(ns): (T.GAP.type, False)})
+    four = ("simulator", "monitor", "gap_watch", "planner")
+    ros.spin_until(lambda: _status(rec, ns).get("phase") == "active", UP_TIMEOUT_S,
+                   "the manager reporting the cell of four active")
+    assert _status(rec, ns)["nodes"] == {n: "active" for n in four}
+    log = cell["lifecycle_manager"].text()
+    order = [log.index(f"{t} {n}\n") for t in ("configure", "activate") for n in four]
+    assert order == sorted(order), log[-3000:]
+    ros.spin_until(lambda: rec[T.GAP.in_namespace(ns)], 60.0, "the active gap watch's state")
+    shutdown = node.create_client(Trigger, f"{ns}/lifecycle_manager/shutdown")
+    ros.spin_until(shutdown.service_is_ready, 30.0, "the manager's ~/shutdown")
+    future = shutdown.call_async(Trigger.Request())          # acts: sent once
+    ros.spin_until(lambda: _status(rec, ns).get("phase") == "down", 120.0, "the cell down")
+    if future.done():
+        assert future.result().success, future.result().message
+    assert _status(rec, ns)["nodes"] == {n: "unconfigured" for n in four}
+    log = cell["lifecycle_manager"].text()
+    order = [log.index(f"{t} {n}\n") for t in ("deactivate", "cleanup") for n in reversed(four)]
+    assert order == sorted(order), log[-3000:]
+    assert "cleaned up (unconfigured)" in cell["gap_watch"].text()
+    for name, p in cell.items():
+        assert p.proc.poll() is None, f"{name} exited:\n{p.text()[-3000:]}"
+        assert "Traceback" not in p.text(), f"{name}:\n{p.text()[-3000:]}"
+        assert p.stop() == 0, f"{name}:\n{p.text()[-3000:]}"

@@ -25,7 +25,8 @@ PACKAGE = "rheo_shaping"
 NODES = ("simulator", "planner", "monitor", "gap_watch")
 #: The managed executables (rheo_shaping/nodes/managed.py) and the node name each starts.
 MANAGED = {"simulator_managed": "simulator", "planner_managed": "planner",
-           "monitor_managed": "monitor", "lifecycle_manager": "lifecycle_manager"}
+           "monitor_managed": "monitor", "gap_watch_managed": "gap_watch",
+           "lifecycle_manager": "lifecycle_manager"}
 EXECUTABLES = (*NODES, *MANAGED, "rheo-shaping")
 BUILD_TIMEOUT_S = 300
 START_TIMEOUT_S = 30

@@ -63,9 +63,9 @@ def test_launch_file_starts_only_installed_executables():
         else:
             assert pkg in declared, f"{pkg} (started by the launch file) not in package.xml"
         started.append(exe)
-    assert sorted(started) == ["gap_watch", "lifecycle_manager", "monitor", "monitor_managed",
-                               "planner", "planner_managed", "rviz2", "simulator",
-                               "simulator_managed"]
+    assert sorted(started) == ["gap_watch", "gap_watch_managed", "lifecycle_manager", "monitor",
+                               "monitor_managed", "planner", "planner_managed", "rviz2",
+                               "simulator", "simulator_managed"]
 
 
 def test_launch_file_opens_only_shipped_files():
@@ -131,12 +131,14 @@ def test_rviz_config_shows_the_cell_in_frame_cake():
 
 
 def test_managed_launch_starts_each_managed_node_under_its_plain_name_and_the_manager():
-    """``managed:=true``: simulator_managed, monitor_managed and planner_managed under the node
-    names the plain ones have (the lifecycle manager drives ``<name>/change_state`` of its
-    namespace), with the same arguments, remaps and params file, and the manager beside them."""
+    """``managed:=true``: simulator_managed, monitor_managed, planner_managed (and with
+    ``gap_watch:=true`` gap_watch_managed) under the node names the plain ones have (the
+    lifecycle manager drives ``<name>/change_state`` of its namespace), with the same
+    arguments, remaps, condition and params file, and the manager beside them with those
+    node_names."""
     calls = {_kw(n, "executable"): n for n in ast.walk(_tree()) if isinstance(n, ast.Call)
              and getattr(n.func, "id", None) == "Node"}
-    for plain in ("simulator", "monitor", "planner"):
+    for plain in ("simulator", "monitor", "planner", "gap_watch"):
         managed = calls[f"{plain}_managed"]
         assert _kw(managed, "name") == plain
         kwargs = {kw.arg: ast.unparse(kw.value) for kw in managed.keywords
@@ -145,6 +147,13 @@ def test_managed_launch_starts_each_managed_node_under_its_plain_name_and_the_ma
                           if kw.arg != "executable"}, plain
     manager = calls["lifecycle_manager"]
     assert _kw(manager, "name") == "lifecycle_manager"
+    # the manager's node_names: the three, and the gap watch when it is started
+    args = next(kw.value for kw in manager.keywords if kw.arg == "ros_arguments")
+    assert "node_names:=[" in ast.unparse(args)
+    names = next(n for n in ast.walk(_tree()) if isinstance(n, ast.Assign)
+                 and getattr(n.targets[0], "id", "") == "names")
+    assert ast.unparse(names.value) == ("['simulator', 'monitor', 'planner'] + (['gap_watch'] "
+                                        "if gap_watch else [])")
     assert [ast.unparse(kw.value) for kw in manager.keywords if kw.arg is None] == ["common"]
     from rheo_shaping.safety.lifecycle import CELL_ORDER
     assert set(CELL_ORDER) == {"simulator", "monitor", "planner"}

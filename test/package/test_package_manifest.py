@@ -51,7 +51,7 @@ CONSOLE_SCRIPTS = {"rheo-shaping": "rheo_shaping.cli:main",
                    "rheo-shaping-validation": "rheo_shaping_validation.cli:main"}
 #: The nodes' executables: setup.py's LAUNCHER (``scripts``), not console_scripts wrappers.
 NODES = ("simulator", "planner", "monitor", "simulator_managed", "planner_managed",
-         "monitor_managed", "lifecycle_manager", "gap_watch")
+         "monitor_managed", "gap_watch_managed", "lifecycle_manager", "gap_watch")
 
 
 def _manifest() -> ET.Element:

@@ -11,7 +11,7 @@ S = 1_000_000_000          # ns per s
 
 
 def beat_all(c: CellLifecycle, t: int, states: dict | None = None) -> None:
-    for name in CELL_ORDER:
+    for name in c.nodes:
         seen = c.seen[name]
         state = (states or {}).get(name, seen.state or "unconfigured")
         c.heartbeat(name, state, t, seen.transitions, "p-" + name)
@@ -45,6 +45,36 @@ def test_the_cell_is_configured_then_activated_in_order():
     assert [(s.action, s.node) for s in asked] == [
         ("configure", "simulator"), ("configure", "monitor"), ("configure", "planner"),
         ("activate", "simulator"), ("activate", "monitor"), ("activate", "planner")]
+
+
+def test_node_names_with_the_gap_watch_bring_it_up_before_the_planner_and_lose_the_cell_with_it():
+    """node_names in any order: simulator, monitor, gap_watch, planner (the planner last,
+    behind the interlock); a managed gap watch that goes silent fails the cell (a node the
+    manager was given is one the cell needs)."""
+    from rheo_shaping.params.node_params import LifecycleManagerParams
+    settings = LifecycleManagerParams(node_names=("planner", "gap_watch", "monitor",
+                                                  "simulator"))
+    c = CellLifecycle(heartbeat_timeout=1.0, nodes=settings.nodes)
+    asked, t = bring_up(c)
+    order = ["simulator", "monitor", "gap_watch", "planner"]
+    assert [(s.action, s.node) for s in asked] == (
+        [("configure", n) for n in order] + [("activate", n) for n in order])
+    for _ in range(12):                                  # the gap watch silent for 1.2 s
+        t += S // 10
+        for name in ("simulator", "monitor", "planner"):
+            seen = c.seen[name]
+            c.heartbeat(name, seen.state, t, seen.transitions, "p-" + name)
+        c.monitor_ready(True, t)
+        steps = c.steps(t)
+        answer(c, steps)
+    assert c.phase == "failed" and c.reason.startswith("gap_watch lost: no heartbeat for ")
+
+
+def test_node_names_must_name_every_node_of_a_cell():
+    from rheo_shaping.params.node_params import LifecycleManagerParams
+    with pytest.raises(ValueError, match="missing monitor"):
+        LifecycleManagerParams(node_names=("simulator", "planner", "gap_watch"))
+    assert LifecycleManagerParams().nodes == CELL_ORDER
 
 
 def test_nothing_is_asked_before_every_node_has_a_heartbeat():
