@@ -10,7 +10,11 @@ monitor, the planner once the monitor reports ready; on a failure (a node's ``~/
 silent for ``heartbeat_timeout``, a node that left ``active``, a failed transition) the
 reason goes out on ``shaping/abort`` (the simulator holds the tool, the planner stops) and
 the planner is deactivated.  ``~/status`` (JSON, latched) and ``/diagnostics`` say the phase,
-the reason and what it waits for.  ``~/startup`` and ``~/shutdown`` (std_srvs/Trigger) bring
+the reason and what it waits for.  ``~/manage_nodes`` (lifecycle_msgs/ChangeState, the
+command in the transition's label) takes Nav2's commands: startup, pause, resume, reset,
+shutdown (:data:`~rheo_shaping.safety.lifecycle.COMMANDS`; a client:
+:class:`~rheo_shaping.nodes.manager_client.LifecycleManagerClient`); ``~/is_active``
+(std_srvs/Trigger) is Nav2's query.  ``~/startup`` and ``~/shutdown`` (std_srvs/Trigger) bring
 the cell up again (after a failure or a hold: restart a lost node first; ``~/startup`` then
 configures and activates it and clears every node's latch in order, rheo_shaping.safety.
 lifecycle) or down (deactivate in reverse order, then clean up).
@@ -85,6 +89,8 @@ class LifecycleManagerNode(Node):
         self.create_service(Trigger, '~/startup', self._on_startup)
         self.create_service(Trigger, '~/shutdown', self._on_shutdown)
         self.create_service(Trigger, '~/is_active', self._on_is_active)
+        # Nav2's one manage service: the command in the transition's label (COMMANDS)
+        self.create_service(ChangeState, '~/manage_nodes', self._on_manage_nodes)
         self._guard = StallGuard(0.5 * s.heartbeat_timeout)
         # on the cell's clock (use_sim_time) its /diagnostics stamps are the cell's; a
         # refused /clock (a forged jump, a negative time) is not applied, only logged: the
@@ -127,12 +133,28 @@ class LifecycleManagerNode(Node):
     def _on_startup(self, request, response):
         why = self.core.startup()
         if not why:
-            # the abort this manager latched (a failure) is dropped: late joiners do not get it
-            self.destroy_publisher(self.pub_abort)
-            self.pub_abort = self.create_publisher(T.ABORT.type, T.ABORT.name, T.ABORT.qos)
+            self._drop_latched_abort()
         response.success, response.message = not why, why or "bringing the cell up"
         self.get_logger().info(f"~/startup: {response.message}")
         return response
+
+    def _on_manage_nodes(self, request, response):
+        """Nav2's manage_nodes: ``request.transition.label`` one of startup, pause, resume,
+        reset, shutdown (rheo_shaping.safety.lifecycle.COMMANDS); the reason of a refusal in
+        the log and on ~/status."""
+        command = request.transition.label
+        why = self.core.command(command)
+        if not why and command in ("startup", "resume"):
+            self._drop_latched_abort()
+        response.success = not why
+        self.get_logger().info(f"~/manage_nodes {command!r}: {why or 'done'}")
+        return response
+
+    def _drop_latched_abort(self) -> None:
+        """The abort this manager latched (a failure) is dropped: late joiners do not get
+        it."""
+        self.destroy_publisher(self.pub_abort)
+        self.pub_abort = self.create_publisher(T.ABORT.type, T.ABORT.name, T.ABORT.qos)
 
     def _on_is_active(self, request, response):
         """Nav2's query: success only while the cell is active (the tool can move)."""

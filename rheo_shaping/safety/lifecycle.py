@@ -54,6 +54,11 @@ RESET_ORDER: tuple[str, ...] = ("monitor", "simulator", "planner")
 #: acknowledgements is there.
 RESET_RETRIES = 40
 RESET_RETRY_S = 1.0
+#: Nav2's lifecycle manager's commands (nav2_msgs/ManageLifecycleNodes: STARTUP 0, PAUSE 1,
+#: RESUME 2, RESET 3, SHUTDOWN 4), by their number: startup configures and activates, pause
+#: deactivates (the tool holds), resume activates again (clearing the latches), reset
+#: deactivates and cleans up, shutdown also shuts every node down (finalized).
+COMMANDS: tuple[str, ...] = ("startup", "pause", "resume", "reset", "shutdown")
 #: A managed node's heartbeat period [s] (steady clock).
 HEARTBEAT_PERIOD = 0.1
 #: Refused activations of the interlocked node tried again before the cell fails (its view of
@@ -107,9 +112,12 @@ class NodeSeen:
 @dataclass
 class CellLifecycle:
     """The lifecycle manager's state machine: phases ``idle`` -> ``starting`` -> ``active``;
-    ``active`` <-> ``held`` (a node's latch, :attr:`reason` names it); ``stopping`` ->
-    ``down``; ``failed`` (latched with :attr:`reason`) from ``starting``, ``active`` or
-    ``held``.  Feed it observations, ask :meth:`steps` what to do."""
+    ``active`` <-> ``held`` (a node's latch, :attr:`reason` names it); ``pausing`` ->
+    ``paused`` (every node deactivated: the tool holds); ``stopping`` -> ``down`` (and
+    cleaned up); ``finalizing`` -> ``finalized`` (shut down: the processes must be started
+    again); ``failed`` (latched with :attr:`reason`) from ``starting``, ``active`` or
+    ``held``.  Feed it observations, ask :meth:`steps` what to do; Nav2's commands
+    (:data:`COMMANDS`) are :meth:`command`."""
 
     heartbeat_timeout: float                       # [s] silence that counts as a lost node
     ready_timeout: float = 1.0                     # [s] age beyond which /shaping/ready is old
@@ -189,17 +197,27 @@ class CellLifecycle:
             seen.refused += 1          # tried again once the interlock allows (steps)
         elif self.phase in ("starting", "active"):
             self._fail(why)
-        elif self.phase == "stopping":
+        elif self.phase in ("stopping", "pausing", "finalizing"):
             self.reason = why           # noted; the bring-down goes on with the others
 
+    def command(self, name: str) -> str:
+        """One of Nav2's commands (:data:`COMMANDS`: startup, pause, resume, reset, shutdown);
+        "" or why not now."""
+        if name not in COMMANDS:
+            return f"unknown command {name!r}: expected one of {', '.join(COMMANDS)}"
+        return {"startup": self.startup, "pause": self.pause, "resume": self.startup,
+                "reset": self.shutdown, "shutdown": self.finalize}[name]()
+
     def startup(self) -> str:
-        """Bring the cell up (again after a failure, a hold or a bring-down: every node's
-        latch is cleared in :data:`RESET_ORDER` on the way); "" or why not now."""
+        """Bring the cell up (again after a failure, a hold, a pause or a bring-down: every
+        node's latch is cleared in :data:`RESET_ORDER` on the way); "" or why not now."""
         if self.phase in ("starting", "active"):
             return f"already {self.phase}"
+        if self.phase in ("finalizing", "finalized"):
+            return f"the cell is {self.phase}: start its processes again"
         if any(s.pending for s in self.seen.values()):
             return "a transition is still under way"
-        recover = self.phase in ("failed", "held")
+        recover = self.phase in ("failed", "held", "pausing", "paused")
         self.phase, self.reason, self._hold_due = "starting", "", False
         self._resets = [n for n in RESET_ORDER if n in self.nodes] if recover else []
         self._reset_refused = (0, 0, "")
@@ -217,9 +235,25 @@ class CellLifecycle:
 
     def shutdown(self) -> str:
         """Bring the cell down (deactivate in reverse order, then clean up); "" or why not."""
-        if self.phase in ("stopping", "down"):
+        if self.phase in ("stopping", "down", "finalizing", "finalized"):
             return f"already {self.phase}"
         self.phase, self._hold_due = "stopping", False
+        return ""
+
+    def pause(self) -> str:
+        """Deactivate every node in reverse order (the planner stops, the simulator holds the
+        tool); :meth:`startup` resumes; "" or why not now."""
+        if self.phase not in ("starting", "active", "held", "failed"):
+            return f"nothing to pause: the cell is {self.phase}"
+        self.phase, self._hold_due, self._resets = "pausing", False, []
+        return ""
+
+    def finalize(self) -> str:
+        """Bring the cell down and shut every node down (``finalized``: its process must be
+        started again); "" or why not now."""
+        if self.phase in ("finalizing", "finalized"):
+            return f"already {self.phase}"
+        self.phase, self._hold_due = "finalizing", False
         return ""
 
     # -- decisions -----------------------------------------------------------------
@@ -294,7 +328,7 @@ class CellLifecycle:
             hold = [Step("hold", reason=self.reason)] if self._hold_due else []
             self._hold_due = False
             return hold + self._keep_safe(steady_ns)
-        if self.phase == "stopping":
+        if self.phase in ("stopping", "pausing", "finalizing"):
             return self._bring_down()
         return []
 
@@ -360,13 +394,24 @@ class CellLifecycle:
         return self._ask(name, "deactivate")
 
     def _bring_down(self) -> list[Step]:
+        """Deactivate in reverse order; then (not pausing) clean up; then (finalizing) shut
+        down; one transition at a time."""
         if any(s.pending for s in self.seen.values()):
             return []
         for name in reversed(self.nodes):
             if self.seen[name].state == ACTIVE:
                 return self._ask(name, "deactivate")
+        if self.phase == "pausing":
+            self.phase = "paused"
+            return []
         for name in reversed(self.nodes):
             if self.seen[name].state == INACTIVE:
                 return self._ask(name, "cleanup")
+        if self.phase == "finalizing":
+            for name in reversed(self.nodes):
+                if self.seen[name].state == UNCONFIGURED:
+                    return self._ask(name, "shutdown")
+            self.phase = "finalized"
+            return []
         self.phase = "down"
         return []

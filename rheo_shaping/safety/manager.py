@@ -79,7 +79,8 @@ class Requests:
 
 
 #: The diagnostic level of each phase of the cell (any other: WARN).
-PHASE_LEVELS = {"failed": "ERROR", "active": "OK", "starting": "WARN", "held": "ERROR"}
+PHASE_LEVELS = {"failed": "ERROR", "active": "OK", "starting": "WARN", "held": "ERROR",
+                "paused": "WARN", "down": "WARN", "finalized": "WARN"}
 
 
 def cell_status(phase: str, reason: str, waiting: str,

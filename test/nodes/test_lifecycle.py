@@ -27,6 +27,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
+from rheo_shaping.nodes.manager_client import LifecycleManagerClient  # noqa: E402
 from rheo_shaping.nodes import topics as T  # noqa: E402
 from rheo_shaping.nodes.services import query  # noqa: E402
 from rheo_shaping.params.config import dump_cell  # noqa: E402
@@ -279,9 +280,9 @@ def test_a_killed_monitor_restarted_is_recovered_by_one_startup_of_the_manager(
 def test_a_gap_watch_named_in_node_names_is_managed_with_the_cell(ros, procs, tmp_path):
     """Nav2's ``node_names``: the manager given the gap watch too brings up
     ``gap_watch_managed`` with the cell (simulator, monitor, gap watch, planner: the planner
-    last), the gap watch publishes its state only while active, and ``~/shutdown`` brings all
-    four down in reverse order, the gap watch's worker ended with its cleanup (the process
-    stays up, no traceback)."""
+    last); Nav2's ``manage_nodes`` commands through the client: pause, resume, reset (all
+    four down in reverse order, the gap watch's worker ended with its cleanup), shutdown
+    (finalized; the processes stay up, no traceback)."""
     from _support.ros import Recorder
     params = _params(tmp_path)
     ns = "/gw"
@@ -303,16 +304,27 @@ def test_a_gap_watch_named_in_node_names_is_managed_with_the_cell(ros, procs, tm
     order = [log.index(f"{t} {n}\n") for t in ("configure", "activate") for n in four]
     assert order == sorted(order), log[-3000:]
     ros.spin_until(lambda: rec[T.GAP.in_namespace(ns)], 60.0, "the active gap watch's state")
-    shutdown = node.create_client(Trigger, f"{ns}/lifecycle_manager/shutdown")
-    ros.spin_until(shutdown.service_is_ready, 30.0, "the manager's ~/shutdown")
-    future = shutdown.call_async(Trigger.Request())          # acts: sent once
-    ros.spin_until(lambda: _status(rec, ns).get("phase") == "down", 120.0, "the cell down")
-    if future.done():
-        assert future.result().success, future.result().message
-    assert _status(rec, ns)["nodes"] == {n: "unconfigured" for n in four}
+    # Nav2's commands through its client: pause (all inactive, the cell not active), resume,
+    # reset (down in reverse order), shutdown (finalized)
+    client = LifecycleManagerClient(node, ns, spin_once=ros.spin_for)
+
+    def phase(want: str, nodes: str, what: str) -> None:
+        ros.spin_until(lambda: _status(rec, ns).get("phase") == want, 120.0, what)
+        assert _status(rec, ns)["nodes"] == {n: nodes for n in four}, _status(rec, ns)
+    assert client.pause() in (True, None)              # (a reply can be lost; not the effect)
+    phase("paused", "inactive", "the cell paused")
+    assert client.is_active() is False
+    assert client.resume() in (True, None)
+    phase("active", "active", "the cell resumed")
+    assert client.is_active() is True
+    assert client.reset() in (True, None)
+    phase("down", "unconfigured", "the cell reset (down)")
     log = cell["lifecycle_manager"].text()
-    order = [log.index(f"{t} {n}\n") for t in ("deactivate", "cleanup") for n in reversed(four)]
+    order = [log.rindex(f"{t} {n}\n") for t in ("deactivate", "cleanup") for n in reversed(four)]
     assert order == sorted(order), log[-3000:]
+    assert client.shutdown() in (True, None)
+    phase("finalized", "finalized", "the cell shut down (finalized)")
+    assert client.startup() is False                  # refused: start the processes again
     assert "cleaned up (unconfigured)" in cell["gap_watch"].text()
     for name, p in cell.items():
         assert p.proc.poll() is None, f"{name} exited:\n{p.text()[-3000:]}"

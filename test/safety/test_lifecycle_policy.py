@@ -213,6 +213,50 @@ def test_bring_down_deactivates_in_reverse_then_cleans_up():
     assert c.phase == "down"
 
 
+def _run(c: CellLifecycle, t: int, n: int = 12, latches: dict | None = None) -> list:
+    """n checks of 0.1 s, every node beating (with ``latches``), each step answered."""
+    asked = []
+    for _ in range(n):
+        t += S // 10
+        for name in c.nodes:
+            seen = c.seen[name]
+            c.heartbeat(name, seen.state, t, seen.transitions, "p-" + name,
+                        (latches or {}).get(name, ""))
+        c.monitor_ready(c.seen["monitor"].state == "active", t)
+        steps = c.steps(t)
+        asked += steps
+        answer(c, steps)
+        for step in steps:                    # a reset clears the node's latch
+            if step.action == "reset" and latches:
+                latches.pop(step.node, None)
+    return [(s.action, s.node) for s in asked]
+
+
+def test_nav2_commands_pause_resume_reset_and_shutdown():
+    """Nav2's manage_nodes commands: pause deactivates in reverse order (the tool holds: the
+    simulator's latch), resume brings the cell back through the latches in order, reset
+    deactivates and cleans up, shutdown also shuts every node down (finalized: nothing
+    brings it back but new processes)."""
+    c = CellLifecycle(heartbeat_timeout=1.0)
+    _, t = bring_up(c)
+    assert c.command("pause") == "" and c.phase == "pausing"
+    assert _run(c, t) == [("deactivate", "planner"), ("deactivate", "monitor"),
+                          ("deactivate", "simulator")]
+    assert c.phase == "paused" and c.command("pause") == "nothing to pause: the cell is paused"
+    assert c.command("resume") == ""
+    asked = _run(c, t, latches={"simulator": "deactivated (lifecycle): the tool holds"})
+    assert asked == [("activate", "simulator"), ("activate", "monitor"), ("reset", "monitor"),
+                     ("reset", "simulator"), ("reset", "planner"), ("activate", "planner")]
+    assert c.phase == "active"
+    assert c.command("reset") == "" and _run(c, t)[-1] == ("cleanup", "simulator")
+    assert c.phase == "down"
+    assert c.command("shutdown") == ""
+    assert _run(c, t) == [("shutdown", n) for n in ("planner", "monitor", "simulator")]
+    assert c.phase == "finalized"
+    assert c.command("startup") == "the cell is finalized: start its processes again"
+    assert "unknown command 'restart'" in c.command("restart")
+
+
 def test_startup_after_a_failure_clears_the_reason():
     c = CellLifecycle(heartbeat_timeout=0.5)
     _, t = bring_up(c)
