@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import sys
 from functools import partial
+from typing import cast
 
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
@@ -35,7 +36,7 @@ from std_srvs.srv import Trigger
 from ..params.node_params import LifecycleManagerParams
 from ..safety.lifecycle import CellLifecycle, Step
 from ..safety.clock_guard import ClockGuard
-from ..safety.manager import Requests, cell_status
+from ..safety.manager import Reply, Requests, cell_status
 from ..safety.watchdog import StallGuard
 from ..params.wire import WireError, read_fields
 from ..units import NS
@@ -177,6 +178,10 @@ class LifecycleManagerNode(Node):
         was = self.core.phase
         for step in self.core.steps(now, self._guard.previous if stalled else None):
             self._do(step, now)
+        for name, transition in self.core.unheard(now):
+            self.get_logger().warning(f"{transition} {name} again: its heartbeat shows no sign "
+                                      f"of the request (lost before its service matched)")
+            self.requests.resend(name, self._drop)
         self._collect(now)                      # the new requests sent at once if they can
         if self.core.phase == "failed" and was != "failed":
             self.get_logger().error(f"the cell failed: {self.core.reason}; the tool holds, the "
@@ -203,11 +208,14 @@ class LifecycleManagerNode(Node):
                    else ChangeState.Request(transition=Transition(label=transition)))
         return self._client(name, transition).call_async(request)
 
+    def _drop(self, name: str, transition: str, future: Reply) -> None:
+        self._client(name, transition).remove_pending_request(cast(Future, future))
+
     def _collect(self, now: int) -> None:
         """Requests whose service showed up, replies that came, those out of time (core)."""
         for a in self.requests.collect(
                 now, lambda name, tr: self._client(name, tr).service_is_ready(), self._call,
-                lambda name, tr, future: self._client(name, tr).remove_pending_request(future)):
+                self._drop):
             self.core.answered(a.node, a.transition, a.ok, a.why,
                                steady_ns=now if a.replied else None)   # a reply is a beat
 

@@ -59,6 +59,13 @@ RESET_RETRY_S = 1.0
 #: deactivates (the tool holds), resume activates again (clearing the latches), reset
 #: deactivates and cleans up, shutdown also shuts every node down (finalized).
 COMMANDS: tuple[str, ...] = ("startup", "pause", "resume", "reset", "shutdown")
+#: A transition request that its node's heartbeats show no sign of for this long [s] (the
+#: same process beating in the same state, no transition counted) did not arrive: a request
+#: written before the restarted node's service had matched the manager's client is lost
+#: (no durability for services); it is sent again.  A node in a transition beats no more
+#: (the transition runs in its executor), and a request that arrived is served between two
+#: beats: ten beats unchanged say it never came.
+UNHEARD_S = 1.0
 #: A managed node's heartbeat period [s] (steady clock).
 HEARTBEAT_PERIOD = 0.1
 #: Refused activations of the interlocked node tried again before the cell fails (its view of
@@ -107,6 +114,10 @@ class NodeSeen:
     refused: int = 0                  # refused activations in a row
     activated: bool = False           # activated by this bring-up (expected active since)
     latch: str = ""                   # its latched hold or abort ("" none), from its beat
+    asked_ns: int = 0                 # steady time the pending transition was (re)sent
+    resent: int = 0                   # times the pending transition was sent again
+    heard: tuple[str, str, int] = ("", "", 0)   # the newest beat: (instance, state, count)
+    refusal: tuple[str, int] | None = None      # a re-sent request's refusal, and when
 
 
 @dataclass
@@ -129,6 +140,8 @@ class CellLifecycle:
     _hold_due: bool = False                        # the failure's hold is still to be sent
     _resets: list[str] = field(default_factory=list)   # latches a recovery still clears
     _reset_refused: tuple[int, int, str] = (0, 0, "")  # refusals, retry time [ns], why
+    _steady_ns: int = 0                            # the time of the newest check [ns]
+    _relatched_n: tuple[int, int] = (0, 0)         # latches cleared again, next time [ns]
 
     def __post_init__(self) -> None:
         if self.heartbeat_timeout <= HEARTBEAT_PERIOD:
@@ -149,6 +162,13 @@ class CellLifecycle:
             return
         seen.beat_ns = steady_ns
         seen.latch = latch
+        seen.heard = (instance, state, transitions)
+        if (instance == seen.instance and seen.pending in TRANSITIONS
+                and seen.refusal is not None and transitions <= seen.asked_at
+                and steady_ns > seen.refusal[1]):
+            # a re-sent request refused, and the node did not do it before: refused
+            self.answered(node, seen.pending, False, seen.refusal[0], final=True)
+            return
         if (instance == seen.instance and seen.pending in TRANSITIONS
                 and transitions > seen.asked_at):
             # the transition asked for is done, its reply not here (lost or late): the beat
@@ -165,13 +185,20 @@ class CellLifecycle:
         self._ready = (bool(ready), steady_ns)
 
     def answered(self, node: str, transition: str, success: bool, message: str = "",
-                 steady_ns: int | None = None) -> None:
+                 steady_ns: int | None = None, final: bool = False) -> None:
         """The reply to the ``transition`` of ``node`` asked for (False: refused, failed or
-        not answered in time), received at ``steady_ns`` (a reply is a sign of life too)."""
+        not answered in time), received at ``steady_ns`` (a reply is a sign of life too).
+        A refusal of a request sent again (:meth:`unheard`) may be the node's answer to a
+        duplicate of one it carried out (its reply lost): it is judged with the node's next
+        heartbeat (``final``: judged)."""
         seen = self.seen[node]
         if seen.pending != transition:
             return                     # answered already (by a heartbeat): a late reply
-        seen.pending = ""
+        if (not success and seen.resent and not final and transition in TRANSITIONS
+                and steady_ns is not None):
+            seen.refusal = (message, steady_ns)
+            return
+        seen.pending, seen.resent, seen.refusal = "", 0, None
         if steady_ns is not None:
             seen.beat_ns = max(seen.beat_ns or steady_ns, steady_ns)
         if transition == "reset":
@@ -220,7 +247,7 @@ class CellLifecycle:
         recover = self.phase in ("failed", "held", "pausing", "paused")
         self.phase, self.reason, self._hold_due = "starting", "", False
         self._resets = [n for n in RESET_ORDER if n in self.nodes] if recover else []
-        self._reset_refused = (0, 0, "")
+        self._reset_refused, self._relatched_n = (0, 0, ""), (0, 0)
         for seen in self.seen.values():
             seen.refused, seen.activated = 0, False
         return ""
@@ -303,6 +330,7 @@ class CellLifecycle:
         ``previous_ns``: the manager itself stood still since its check at that time (a busy
         machine; :class:`~rheo_shaping.safety.watchdog.StallGuard`), so beats may wait unread:
         a node whose beat was fresh at that check is judged at the next one, not now."""
+        self._steady_ns = steady_ns
         if self.phase in ("starting", "active", "held"):
             # (a lost node has a beat: lost() judges only nodes seen once)
             lost = [(n, age) for n, age in self.lost(steady_ns) if previous_ns is None
@@ -342,7 +370,24 @@ class CellLifecycle:
     def _ask(self, name: str, transition: str) -> list[Step]:
         seen = self.seen[name]
         seen.pending, seen.asked_at = transition, seen.transitions
+        seen.asked_ns, seen.resent, seen.refusal = self._steady_ns, 0, None
         return [Step(transition, name)]
+
+    def unheard(self, steady_ns: int) -> list[tuple[str, str]]:
+        """(node, transition) of every pending transition to send again: its node's beats of
+        the last :data:`UNHEARD_S` (the process asked, its state and count unchanged) show
+        the request never arrived."""
+        out = []
+        for name in self.nodes:
+            seen = self.seen[name]
+            instance, state, count = seen.heard
+            if (seen.pending in TRANSITIONS and seen.refusal is None
+                    and instance == seen.instance and state == seen.state
+                    and count == seen.asked_at and seen.beat_ns is not None
+                    and seen.beat_ns - seen.asked_ns >= UNHEARD_S * NS):
+                seen.asked_ns, seen.resent = steady_ns, seen.resent + 1
+                out.append((name, seen.pending))
+        return out
 
     def _bring_up(self, steady_ns: int) -> list[Step]:
         if any(s.pending for s in self.seen.values()):
@@ -365,7 +410,7 @@ class CellLifecycle:
                 break                                  # the latches first (a recovery)
             if name == planner and interlock_refusal(self.seen[monitor].state,
                                                      self.ready(steady_ns)):
-                return []                              # waits for the monitor (waiting_for)
+                return self._relatched(steady_ns)      # waits for the monitor (waiting_for)
             return self._ask(name, "activate")
         if self._resets:
             if steady_ns < self._reset_refused[1]:
@@ -373,6 +418,25 @@ class CellLifecycle:
             return self._ask(self._resets[0], "reset")
         self.phase = "active"
         return []
+
+    def _relatched(self, steady_ns: int) -> list[Step]:
+        """Before the planner is activated, a node that latched (again) is cleared again: on
+        a busy machine a restarted monitor can abort on stale data while its simulator,
+        still holding, does not wait for it.  At most :data:`RESET_RETRIES` times, one every
+        :data:`RESET_RETRY_S`; then the cell fails naming the latch."""
+        latched = [n for n in RESET_ORDER if n in self.nodes and n != INTERLOCK[1]
+                   and self.seen[n].latch and self.seen[n].state == ACTIVE]
+        count, due = self._relatched_n
+        if not latched or steady_ns < due:
+            return []
+        name = latched[0]
+        if count >= RESET_RETRIES:
+            self._fail(f"the {name} latched again before the planner could start "
+                       f"({RESET_RETRIES} resets): {self.seen[name].latch}")
+            return []
+        self._relatched_n = (count + 1, steady_ns + int(RESET_RETRY_S * NS))
+        self._resets = [name]
+        return self._ask(name, "reset")
 
     def _fail(self, reason: str) -> None:
         """The cell fails: the hold and the planner's deactivation follow (:meth:`steps`)."""

@@ -45,6 +45,15 @@ class Requests:
         """Ask ``node`` for ``transition`` (sent by :meth:`collect` once its service is seen)."""
         self.waiting[node] = (transition, now_ns)
 
+    def resend(self, node: str, drop: Callable[[str, str, Reply], None]) -> None:
+        """Send ``node``'s request again (it did not arrive: the node's heartbeats show no
+        sign of it); ``drop`` forgets the first call's pending reply; its time-out still
+        counts from the first ask."""
+        if node in self.calls:
+            transition, reply, asked = self.calls.pop(node)
+            drop(node, transition, reply)
+            self.waiting[node] = (transition, asked)
+
     def collect(self, now_ns: int, ready: Callable[[str, str], bool],
                 send: Callable[[str, str], Reply],
                 drop: Callable[[str, str, Reply], None]) -> list[Answer]:

@@ -19,12 +19,10 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
-
 from rheo_shaping.nodes import topics as T  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
-from test_lifecycle import MANAGED, _params, _status  # noqa: E402
+from test_lifecycle import MANAGED, _params, _status, cell_recorder  # noqa: E402
 
 NS_ = "/busy"
 FOUR = ("simulator", "monitor", "gap_watch", "planner")
@@ -48,7 +46,6 @@ def hog():
 
 def test_under_a_cpu_hog_the_managers_state_is_whether_the_tool_can_move(
         ros, procs, tmp_path, hog):
-    from _support.ros import Recorder
     params = _params(tmp_path)
     ros_args = ["--ros-args", "--params-file", str(params), "-r", f"__ns:={NS_}",
                 *T.CLOCK_REMAP]
@@ -56,16 +53,8 @@ def test_under_a_cpu_hog_the_managers_state_is_whether_the_tool_can_move(
     cell["gap_watch"] = procs("gap_watch_managed", *ros_args)
     cell["lifecycle_manager"] = procs("lifecycle_manager", *ros_args, "-p",
                                       "node_names:=[simulator,monitor,planner,gap_watch]")
-    node = ros.node("busy_observer")
     status_topic = f"{NS_}/lifecycle_manager/status"
-    rec = Recorder(node, {status_topic: (T.MANAGER_STATUS.type, True),
-                          T.PLANNER_STATE.in_namespace(NS_): (T.PLANNER_STATE.type, True)})
-    rec.add(T.DIAGNOSTICS.name, T.DIAGNOSTICS.type,
-            QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE))
-
-    def planner_state() -> str:
-        last = rec.last(T.PLANNER_STATE.in_namespace(NS_))
-        return last.data if last is not None else ""
+    rec, planner_state = cell_recorder(ros, "busy_observer", NS_, depth=200)
 
     # the run's end: done, or the cell stopped (failed or held) with its reason
     ros.spin_until(lambda: planner_state() == "done"

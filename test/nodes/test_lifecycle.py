@@ -64,6 +64,22 @@ def _params(tmp_path):
     return params
 
 
+def cell_recorder(ros, observer: str, ns: str, depth: int = 100):
+    """A recorder of the manager's status, the planner's state and /diagnostics of the cell
+    in ``ns``, and the planner's newest state ("" none yet)."""
+    from _support.ros import Recorder
+    rec = Recorder(ros.node(observer),
+                   {f"{ns}/lifecycle_manager/status": (T.MANAGER_STATUS.type, True),
+                    T.PLANNER_STATE.in_namespace(ns): (T.PLANNER_STATE.type, True)})
+    rec.add(T.DIAGNOSTICS.name, T.DIAGNOSTICS.type,
+            QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE))
+
+    def planner_state() -> str:
+        last = rec.last(T.PLANNER_STATE.in_namespace(ns))
+        return last.data if last is not None else ""
+    return rec, planner_state
+
+
 def _start_cell(procs, params, ns: str) -> dict:
     ros_args = ["--ros-args", "--params-file", str(params), "-r", f"__ns:={ns}",
                 *T.CLOCK_REMAP]
@@ -214,19 +230,11 @@ def test_a_killed_monitor_restarted_is_recovered_by_one_startup_of_the_manager(
     interlock: the cell runs again.  Before, the cell wedged (the newcomer unconfigured, the
     simulator's hold latched again, the manager `active` over a planner that never moved).
     Throughout, the manager says `active` only while the tool can move."""
-    from _support.ros import Recorder
     params = _params(tmp_path)
     ns = "/rc"
     cell = _start_cell(procs, params, ns)
-    node = ros.node("recovery_observer")
-    rec = Recorder(node, {f"{ns}/lifecycle_manager/status": (T.MANAGER_STATUS.type, True),
-                          T.PLANNER_STATE.in_namespace(ns): (T.PLANNER_STATE.type, True)})
-    rec.add(T.DIAGNOSTICS.name, T.DIAGNOSTICS.type,
-            QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
-
-    def planner_state() -> str:
-        last = rec.last(T.PLANNER_STATE.in_namespace(ns))
-        return last.data if last is not None else ""
+    rec, planner_state = cell_recorder(ros, "recovery_observer", ns)
+    node = rec.node
 
     def sim_message() -> str:
         for msg in reversed(rec[T.DIAGNOSTICS.name]):
@@ -252,14 +260,22 @@ def test_a_killed_monitor_restarted_is_recovered_by_one_startup_of_the_manager(
     startup = node.create_client(Trigger, f"{ns}/lifecycle_manager/startup")
     ros.spin_until(startup.service_is_ready, 30.0, "the manager's ~/startup")
     future = startup.call_async(Trigger.Request())         # one call: acts (sent once)
-    ros.spin_until(lambda: _status(rec, ns).get("phase") == "active", 120.0,
-                   "the manager to bring the cell back")
+
+    def until(predicate, timeout: float, what: str) -> None:
+        try:
+            ros.spin_until(predicate, timeout, what)
+        except pytest.fail.Exception as exc:        # the status and every process say why
+            logs = [f"--- {n} ---\n{p.text()[-3000:]}"
+                    for n, p in (*cell.items(), ("again", again))]
+            pytest.fail(f"{exc}\nstatus {_status(rec, ns)}\n" + "\n".join(logs))
+    until(lambda: _status(rec, ns).get("phase") == "active", 120.0,
+          "the manager to bring the cell back")
     # Nav2's query: the manager says active only now
     is_active = node.create_client(Trigger, f"{ns}/lifecycle_manager/is_active")
     ros.spin_until(is_active.service_is_ready, 30.0, "the manager's ~/is_active")
     answer = query(is_active, Trigger.Request(), ros.spin_for, 30.0)
     assert answer is not None and answer.success, answer
-    ros.spin_until(lambda: planner_state() == "running", 60.0, "the planner running again")
+    until(lambda: planner_state() == "running", 60.0, "the planner running again")
     if future.done():                # (a reply can be lost to discovery; the effect cannot)
         assert future.result().success, future.result().message
     assert _status(rec, ns)["nodes"] == {n: "active" for n in CELL_ORDER}

@@ -257,6 +257,89 @@ def test_nav2_commands_pause_resume_reset_and_shutdown():
     assert "unknown command 'restart'" in c.command("restart")
 
 
+def _lost_configure(c: CellLifecycle) -> int:
+    """The monitor's configure asked at t = 0 and never heard of: its process beats on,
+    unconfigured, no transition counted; the time [ns] it is sent again."""
+    c.startup()
+    beat_all(c, 0)
+    c.seen["simulator"].state = c.seen["planner"].state = "inactive"   # (configured before)
+    assert c.steps(0) == [Step("configure", "monitor")]
+    t = 0
+    while not c.unheard(t):
+        t += S // 10
+        assert t <= S, "not sent again within UNHEARD_S of unchanged beats"
+        c.heartbeat("monitor", "unconfigured", t, 0, "p-monitor")
+    assert t == S                                 # 1.0 s of beats after the ask
+    assert c.unheard(t) == []                     # once; the next only after another 1.0 s
+    return t
+
+
+def test_a_transition_request_lost_before_the_service_matched_is_sent_again():
+    """A restarted node's service can match the manager's client after its heartbeat did:
+    the request is lost (seen in test_lifecycle.py's recovery on a loaded machine: the
+    manager waited out its 120 s transition_timeout).  The beats tell: the same process,
+    unconfigured, no transition counted for 1.0 s after the ask."""
+    c = CellLifecycle(heartbeat_timeout=5.0)
+    t = _lost_configure(c)
+    c.answered("monitor", "configure", True, steady_ns=t + S // 10)    # the second arrived
+    assert c.seen["monitor"].state == "inactive" and not c.seen["monitor"].pending
+
+
+def test_a_refused_duplicate_is_judged_by_the_next_heartbeat():
+    """Sent again, a request may be a duplicate of one the node carried out (its reply lost):
+    lifecycle refuses the duplicate.  The refusal waits for the node's next beat: done
+    (a transition counted) is success; unchanged is the refusal."""
+    c = CellLifecycle(heartbeat_timeout=5.0)
+    t = _lost_configure(c)
+    c.answered("monitor", "configure", False, "invalid transition", steady_ns=t + 1)
+    assert c.seen["monitor"].pending == "configure" and c.phase == "starting"
+    c.heartbeat("monitor", "inactive", t + 2, 1, "p-monitor")          # it had configured
+    assert c.seen["monitor"].state == "inactive" and c.phase == "starting"
+    c = CellLifecycle(heartbeat_timeout=5.0)
+    t = _lost_configure(c)
+    c.answered("monitor", "configure", False, "bad parameter", steady_ns=t + 1)
+    c.heartbeat("monitor", "unconfigured", t + 2, 0, "p-monitor")       # it refused
+    assert c.phase == "failed" and c.reason == "configure of the monitor failed: bad parameter"
+
+
+def test_a_monitor_that_latches_before_the_planner_is_activated_is_cleared_again():
+    """A restarted monitor on a busy machine can abort (stale data) while its simulator,
+    still holding, does not wait for it: before the planner is activated, the latch is
+    cleared again (its ~/reset, once a second), and the planner follows the interlock; a
+    latch that keeps coming back fails the cell after RESET_RETRIES, naming it."""
+    c = CellLifecycle(heartbeat_timeout=5.0)
+    c.startup()
+    t, asked = 0, []
+    latch = {"monitor": "stale data: no /sheet/tensions for 0.800 s"}
+    for _ in range(30):
+        t += S // 10
+        for name in c.nodes:
+            seen = c.seen[name]
+            c.heartbeat(name, seen.state or "unconfigured", t, seen.transitions, "p-" + name,
+                        latch.get(name, ""))
+        c.monitor_ready(c.seen["monitor"].state == "active" and not latch, t)
+        steps = c.steps(t)
+        asked += [(s.action, s.node) for s in steps]
+        answer(c, steps)
+        if ("reset", "monitor") in asked:
+            latch = {}                                  # the reset cleared it
+    assert asked[-2:] == [("reset", "monitor"), ("activate", "planner")], asked
+    assert c.phase == "active"
+    c = CellLifecycle(heartbeat_timeout=5.0)
+    c.startup()
+    t = 0
+    for _ in range(10 * (RESET_RETRIES + 3)):          # a latch that always comes back
+        t += S // 10
+        for name in c.nodes:
+            seen = c.seen[name]
+            c.heartbeat(name, seen.state or "unconfigured", t, seen.transitions, "p-" + name,
+                        "nan tension" if name == "monitor" else "")
+        answer(c, c.steps(t))
+    assert c.phase == "failed"
+    assert c.reason == (f"the monitor latched again before the planner could start "
+                        f"({RESET_RETRIES} resets): nan tension")
+
+
 def test_startup_after_a_failure_clears_the_reason():
     c = CellLifecycle(heartbeat_timeout=0.5)
     _, t = bring_up(c)
