@@ -11,9 +11,10 @@ start ``t0_ns``) to the shaper.
 """
 from __future__ import annotations
 
+import time
 from concurrent.futures import Future
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 from ..planning.run_state import SetpointGrid
 from ..planning.stopping import TrajectoryStreamer
@@ -21,6 +22,22 @@ from ..units import NS
 from .observe import Sample
 from .online import OnlineShaper, OnlineStep
 from .worker import ShaperProcess
+
+
+#: Wall time [s] the first refresh of a run is taken to need before one is measured: the
+#: estimate and re-plan took 0.22 s median, 0.31 s max of CPU at load 9-10 on this project's
+#: 2-core machine (docs/closed-loop.md, "The cost of a refresh"), with margin.
+FIRST_REFRESH_S = 0.5
+
+
+def join_lead(span: float, pace: float, refresh_wall_s: float) -> float:
+    """Process time [s] from the newest set-point sent to a re-plan's join: twice the larger
+    of what the last refresh took (``span`` [s] of process time streamed meanwhile) and what
+    the next one will take at the cell's ``pace`` (process s per wall s, e.g. 10 at x10)
+    in ``refresh_wall_s`` [s] of wall time.  A cell faster than real time streams seconds of
+    process time during one refresh: a join of 1 s (the first refresh's, without this) had
+    passed by the time its re-plan came, and the stroke ran on unchanged."""
+    return 2.0 * max(span, pace * refresh_wall_s)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -62,12 +79,18 @@ class StreamedLoop:
     """The closed loop of the run that started at ``t0_ns`` (``online``: its shaper,
     ``process``: the worker that refreshes it)."""
 
-    def __init__(self, online: OnlineShaper, process: ShaperProcess):
+    def __init__(self, online: OnlineShaper, process: ShaperProcess,
+                 monotonic: Callable[[], float] = time.monotonic):
+        """``monotonic``: a wall clock [s] (the cell's pace and each refresh's wall time)."""
         self.online, self.process = online, process
         self.samples: list[Sample] = []       # taken since the last refresh was submitted
         self.work: Future | None = None       # the refresh running in the worker
         self.span = 0.0                       # s of process time the last refresh took
         self.began = 0.0                      # s, the stream's time when it was submitted
+        self._clock = monotonic
+        self._start: tuple[float, float] | None = None   # (wall s, streamed s) at 1st tick
+        self._submitted = 0.0                 # wall s the running refresh was submitted
+        self.refresh_wall_s = FIRST_REFRESH_S   # wall s the last refresh took
 
     def pose(self, xz, stamp_ns: int, t0_ns: int | None,
              wrench: tuple[float, float] | None, contact: float | None) -> None:
@@ -89,11 +112,14 @@ class StreamedLoop:
         submitted when it is due (``pose``: the executed tool pose [m] at ``pose_ns``).
         A refresh that failed in the worker raises its error (the loop ends there)."""
         t0, taken = grid.t0_ns, None
+        if self._start is None and grid.last_ns is not None:      # the stream's first tick
+            self._start = (self._clock(), (grid.last_ns - t0) / NS)
         if self.work is not None and self.work.done():
             work, self.work = self.work, None
             last = grid.last_ns
             assert last is not None             # a refresh begins after a set-point is sent
             self.span = (last - t0) / NS - self.began
+            self.refresh_wall_s = self._clock() - self._submitted
             index, step, cpu = work.result()
             self.process.cpu_s += cpu
             taken = self.take(index, step, st)
@@ -107,9 +133,14 @@ class StreamedLoop:
             return taken
         samples, self.samples = self.samples, []
         streamed = self.began = (last - t0) / NS
-        lead = 2.0 * self.span            # the join after the stream's lead of the last one
+        now = self._clock()
+        assert self._start is not None          # set at the first tick with a set-point
+        wall = now - self._start[0]
+        pace = (streamed - self._start[1]) / wall if wall > 0.0 else 0.0
+        self._submitted = now
         self.work = self.process.submit(samples, t, reason, (float(pose[0]), float(pose[1])),
-                                        streamed, lead)
+                                        streamed, join_lead(self.span, pace,
+                                                            self.refresh_wall_s))
         return taken
 
     def take(self, index: int, step: OnlineStep, st: TrajectoryStreamer) -> Refresh:

@@ -49,6 +49,7 @@ from .hosts import ManagedMixin
 from .gap_watch import GapWatchNode
 from .monitor import MonitorNode
 from .rclpy_private import clock_subscription, lifecycle_label, release_state_machine
+from ..planning.run_state import stop_run
 from ..planning.states import MOVING
 from .planner import PlannerNode
 from .simulator import SimulatorNode
@@ -274,7 +275,16 @@ class ManagedPlannerNode(Managed, PlannerNode):
 
     def _on_deactivating(self) -> None:
         if self.streamer is not None and self.streamer.state in MOVING:
-            self._abort("planner: deactivated (lifecycle)")     # the planned stop
+            if self.aborted:
+                # an abort latched before (its stop sent, now retracting): the retract is
+                # stopped too, or the stream would stay `retracting` while inactive and
+                # refuse the recovery's ~/reset ("the tool is moving")
+                stop = stop_run(self.streamer, self.grid, "planner: deactivated (lifecycle)",
+                                self._executed_ns(self._now_ns()))
+                for t_send in stop[0] if stop is not None else ():
+                    self._publish_setpoint(t_send)
+            else:
+                self._abort("planner: deactivated (lifecycle)")     # the planned stop
             self._send_stop()
         self._set_state("inactive")
 

@@ -149,7 +149,8 @@ def test_the_streamed_loop_samples_submits_and_switches_at_the_next_tick():
     proc = ShaperProcess(cell)
     try:
         online = proc.start(cell, OnlineConfig(join_lead=0.5))
-        loop = StreamedLoop(online, proc)
+        clock = {"t": 0.0}                    # a cell at real time: the wall is its clock
+        loop = StreamedLoop(online, proc, monotonic=lambda: clock["t"])
         streamer = TrajectoryStreamer()
         streamer.start(online.plan, 0.0)
         grid = SetpointGrid(0, round(DT * NS))
@@ -157,7 +158,7 @@ def test_the_streamed_loop_samples_submits_and_switches_at_the_next_tick():
         sent, taken = [np.asarray(online.plan.start)], []
         t = 0.0
         while t < 12.0 and not any(r.switched for r in taken):
-            t = round(t + DT, 9)
+            t = clock["t"] = round(t + DT, 9)
             for t_ns in grid.due(round(t * NS), round(t * NS), sim_time=False):
                 p = streamer.setpoint(t_ns / NS)[0]
                 sent.append(p)
@@ -194,3 +195,14 @@ def test_the_streamed_loop_samples_submits_and_switches_at_the_next_tick():
         assert again.status()[0] == "WARN" and not again.status()[2]["switched"]
     finally:
         proc.close()
+
+
+def test_a_re_plan_joins_after_what_a_refresh_streams_at_the_cells_pace():
+    """A cell faster than real time streams seconds of process time while one refresh
+    computes: the join is twice the larger of the last refresh's span and the next one's
+    wall time at the cell's pace (the first refresh before any is measured: 0.5 s)."""
+    from rheo_shaping.adaptive.streamed import FIRST_REFRESH_S, join_lead
+    assert join_lead(0.0, 1.0, FIRST_REFRESH_S) == 1.0            # x1: the config's 1 s
+    assert join_lead(0.0, 20.0, FIRST_REFRESH_S) == 20.0          # x20: 10 s a refresh
+    assert join_lead(6.0, 20.0, 0.2) == 12.0                      # the span measured
+    assert join_lead(3.0, 20.0, 0.3) == 12.0                      # the pace x wall

@@ -15,6 +15,7 @@ from lifecycle_msgs.msg import State  # noqa: E402
 from rclpy.lifecycle import TransitionCallbackReturn  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
 
 from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes import topics as T  # noqa: E402
@@ -163,6 +164,33 @@ def test_the_planner_activates_only_behind_a_ready_monitor_and_a_run_stops_on_de
     for node in (sim, monitor, planner):
         assert node.trigger_shutdown() == SUCCESS
         assert node._state_machine.current_state[0] == State.PRIMARY_STATE_FINALIZED
+
+
+def test_a_planner_deactivated_while_it_retracts_after_an_abort_can_be_reset(ros):
+    """An abort, its stop, then the retract: deactivated then (the manager's failure while
+    the planner retracts), the retract is stopped too and sent to its end at rest; the
+    stream holds, so the recovery's ~/reset is taken (it stayed `retracting` while inactive
+    and refused 40 resets: seen in test_lifecycle.py's recovery at load 7-10)."""
+    sim, monitor, planner = _cell(ros)
+    for node in (sim, monitor, planner):
+        assert node.trigger_configure() == SUCCESS
+    assert sim.trigger_activate() == SUCCESS and monitor.trigger_activate() == SUCCESS
+    ros.spin_until(lambda: planner._ready, 30.0, "the monitor ready, as the planner sees it")
+    assert planner.trigger_activate() == SUCCESS
+    ros.spin_until(lambda: planner.state == "running" and planner.grid.last_ns
+                   > planner.grid.t0_ns + 30 * NS, 60.0, "30 s of the run (the tool away)")
+    monitor._abort("monitor: a test's abort")
+    ros.spin_until(lambda: planner.streamer.state == "retracting", 60.0, "the retract")
+    assert planner.trigger_deactivate() == SUCCESS
+    st = planner.streamer
+    assert st.state in ("stopping", "holding") and planner.state == "inactive"
+    end = st.abort_time + st.stop_plan.duration
+    assert np.linalg.norm(st.setpoint(end)[1]) == pytest.approx(0.0, abs=1e-12)
+    assert st.state == "holding"
+    reply = planner._on_reset(Trigger.Request(), Trigger.Response())
+    assert reply.success, reply.message
+    for node in (sim, monitor, planner):
+        assert node.trigger_shutdown() == SUCCESS
 
 
 def test_shutdown_from_active_stops_first(ros):
