@@ -97,12 +97,21 @@ def test_a_frozen_monitor_holds_the_tool_within_the_budget(ros, procs, tmp_path)
     t_sim = float(a.sim_values().get("process_time", "nan"))
     a.c.monitor.proc.send_signal(signal.SIGSTOP)
     t_freeze = time.monotonic()
+
+    def lost() -> dict:              # the simulator's first report of the hold, as it was
+        for msg in a.diag["/diagnostics"]:
+            for st in msg.status:
+                if st.name == "simulator: sheet" and "monitor lost" in st.message:
+                    return {kv.key: kv.value for kv in st.values}
+        return {}
     try:
-        a.c.wait(lambda: "monitor lost" in a.sim_values().get("_message", ""), 20.0,
-                 "the simulator to see the frozen monitor")
+        a.c.wait(lambda: bool(lost()), 20.0, "the simulator to see the frozen monitor")
+        held = lost()
         seen = time.monotonic() - t_freeze
         F_max = a.peak_after_hold()
-        moved = float(a.sim_values()["process_time"]) - t_sim
+        # process time from the freeze to the hold (a held tool's sheet steps on, settling:
+        # read later, on a machine at load 16, it had run 67.5 s further)
+        moved = float(held["process_time"]) - t_sim
         print(f"\nfrozen monitor seen by the simulator {seen:.3f} s (wall) after SIGSTOP")
     finally:
         a.c.monitor.proc.send_signal(signal.SIGCONT)
@@ -138,9 +147,11 @@ def test_a_second_planner_yields_and_a_start_is_served_once(ros, procs, tmp_path
     # without a plan of its own (the one pass is the first planner's)
     took = [r.message for r in answers if r.success]
     print(f"\nstart answers: {len(answers)}, taken by the newcomer before it yielded: {took}")
-    # (a refusal of the newcomer itself, on the cell's latched abort, is a refusal too)
-    assert answers and all(r.success or "already started" in r.message
-                           or r.message.startswith("aborted (") for r in answers), \
+    # (a refusal of the newcomer itself, on the cell's latched abort, is a refusal too; on a
+    # machine at load 16 the twin yielded before this client had matched its service: no
+    # answer at all, and the one pass below is what is left to check)
+    assert all(r.success or "already started" in r.message
+               or r.message.startswith("aborted (") for r in answers), \
         [r.message for r in answers]
     procs.all.remove(twin)
     # the first planner ran on: its plan goes on, or the tear plan met the monitor's
