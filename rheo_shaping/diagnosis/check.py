@@ -48,6 +48,8 @@ ORDER = 0.5
 #: (11.7 at half order; 4 at first order).
 ERROR_PER_CHANGE = 1.0 / (1.0 - 2.0 ** -ORDER)
 NUMERICS_FACTOR = ERROR_PER_CHANGE ** 2
+#: Halvings toward the baseline of a candidate's first point whose runs fail (:func:`check`).
+BACKTRACK = 3
 #: The largest share of the baseline's excess misfit the allowance may cover (the model's
 #: discretisation error is a small part of any effect it resolves: docs/model.md, Convergence).
 GAP_SHARE = 0.25
@@ -178,9 +180,33 @@ def check(cands: list[Explanation], ctx: FitContext, base: Baseline, *, m: int,
         points.append((c, np.clip(base.u_s + c.fitted_u[:ctx.n_s], -ctx.sheet_lim,
                                   ctx.sheet_lim), c.values))
     simulate_points(points, ctx, base, m=m, first=True)
+    for _ in range(BACKTRACK):
+        # a first point whose runs fail (a linearised fit far out: a tool offset at its
+        # bounds pressing the sheet through the mould) is not the candidate's end: the point
+        # halfway back to the baseline is run instead, so that its refinement starts
+        points = [(c, base.u_s + 0.5 * (u - base.u_s), halfway(c.names, v))
+                  for c, u, v in points if not math.isfinite(c.J)]
+        if not points:
+            break
+        simulate_points(points, ctx, base, m=m, first=True)
     if responses is None:
         return
     refine_points(cands, ctx, base, m=m, responses=responses)
+
+
+def halfway(names, values: dict) -> dict:
+    """``values`` (effect name -> values) halfway back to no effect: each magnitude halved
+    (power_law's 1 - n)."""
+    out = dict(values)
+    for name in names:
+        kind = PROBES[name][0]
+        v = values[name]
+        if kind == "linear":
+            out[name] = tuple(0.5 * float(x) for x in v)
+        else:
+            a = 0.5 * magnitude(name, float(v[0]))
+            out[name] = ((1.0 - a) if name == "power_law" else a,) + tuple(v[1:])
+    return out
 
 
 def refine_points(cands: list[Explanation], ctx: FitContext, base: Baseline, *, m: int,
@@ -289,6 +315,8 @@ def simulate_points(points, ctx: FitContext, base: Baseline, *, m: int, first: b
         if not all_ok(o):
             if first:
                 c.checked, c.J, c.p = True, math.inf, 1.0
+            else:
+                c.search.damp *= 0.5         # a step whose runs fail lowers nothing either
             continue
         z_raw = G.z(o[:nf])
         if c.chain_free:

@@ -95,10 +95,12 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
     if need:
         numerics(need + [base_c], ctx, base, responses)
     # the holdout's own rest lengths (each record's first seconds, refitted under the
-    # candidate's cell: 17 short runs a record) for the candidates that can lead the verdict:
-    # the first by (checked, p, J) and the first by the effective remainder
-    # (:func:`verdict_stage`); what the others leave on the holdout is judged nowhere
-    leads = ({id(sorted(effects, key=key)[0]) for key in (rank_key, lead_key(base.J))}
+    # candidate's cell: 17 short runs a record) for the candidates that can lead the verdict
+    # and the lead's closest rival: the first by (checked, p, J), the first two by the
+    # effective remainder (:func:`verdict_stage`; the naming rule judges a lead and its
+    # rivals on the worse of fit and holdout records, :func:`naming.left`)
+    by_rem = sorted(effects, key=lead_key(base.J))
+    leads = ({id(sorted(effects, key=rank_key)[0])} | {id(c) for c in by_rem[:2]}
              if effects else set())
     holdout_lengths([c for c in checked if id(c) in leads], ctx)
     return Candidates(effects, responses, m, base_c)
