@@ -22,7 +22,10 @@ pytest.importorskip("rclpy")
 from rheo_shaping.nodes import topics as T  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
-from test_lifecycle import MANAGED, _params, _status, cell_recorder  # noqa: E402
+from _support.managed import (MANAGED, cell_recorder, managed_params,  # noqa: E402
+                              manager_status)
+
+_status, _params = manager_status, managed_params
 
 NS_ = "/busy"
 FOUR = ("simulator", "monitor", "gap_watch", "planner")

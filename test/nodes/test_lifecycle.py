@@ -13,11 +13,9 @@ from __future__ import annotations
 
 import json
 import signal
-from dataclasses import replace
 
 import numpy as np
 import pytest
-import yaml
 
 pytest.importorskip("rclpy")
 
@@ -30,54 +28,17 @@ from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.manager_client import LifecycleManagerClient  # noqa: E402
 from rheo_shaping.nodes import topics as T  # noqa: E402
 from rheo_shaping.nodes.services import query  # noqa: E402
-from rheo_shaping.params.config import dump_cell  # noqa: E402
-from rheo_shaping.params.cell import CellParams  # noqa: E402
 from rheo_shaping.safety.lifecycle import CELL_ORDER  # noqa: E402
 
 from _support.aggregator import group  # noqa: E402
 from _support.cells import REPO  # noqa: E402
+from _support.managed import (MANAGED, cell_recorder, managed_params,  # noqa: E402
+                              manager_status)
 
 CELLS = ("/cellA", "/cellB")
-MANAGED = {"simulator": "simulator_managed", "monitor": "monitor_managed",
-           "planner": "planner_managed"}
-#: Eight processes share the busy machine: 10x real time, as test_namespaces.py.
-REAL_TIME_FACTOR = 10.0
 UP_TIMEOUT_S = 180.0        # eight processes start, settle their sheets and plan
 HEARTBEAT_TIMEOUT_S = 2.0   # the manager's default
-
-
-def _status(rec, ns: str) -> dict:
-    last = rec.last(f"{ns}/lifecycle_manager/status")
-    return json.loads(last.data) if last is not None else {}
-
-
-def _params(tmp_path):
-    """A 15-mass cell at 10x, planner and monitor on its clock (node sections keyed
-    /**/<node> apply in any namespace, docs/ros.md)."""
-    data = yaml.safe_load(dump_cell(replace(CellParams(), sheet=replace(CellParams().sheet,
-                                                                        n_masses=15))))
-    data["/**/simulator"] = {"ros__parameters": {"real_time_factor": REAL_TIME_FACTOR}}
-    for name in ("planner", "monitor"):
-        data[f"/**/{name}"] = {"ros__parameters": {"use_sim_time": True}}
-    params = tmp_path / "cell.yaml"
-    params.write_text(yaml.safe_dump(data, sort_keys=False))
-    return params
-
-
-def cell_recorder(ros, observer: str, ns: str, depth: int = 100):
-    """A recorder of the manager's status, the planner's state and /diagnostics of the cell
-    in ``ns``, and the planner's newest state ("" none yet)."""
-    from _support.ros import Recorder
-    rec = Recorder(ros.node(observer),
-                   {f"{ns}/lifecycle_manager/status": (T.MANAGER_STATUS.type, True),
-                    T.PLANNER_STATE.in_namespace(ns): (T.PLANNER_STATE.type, True)})
-    rec.add(T.DIAGNOSTICS.name, T.DIAGNOSTICS.type,
-            QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE))
-
-    def planner_state() -> str:
-        last = rec.last(T.PLANNER_STATE.in_namespace(ns))
-        return last.data if last is not None else ""
-    return rec, planner_state
+_status, _params = manager_status, managed_params
 
 
 def _start_cell(procs, params, ns: str) -> dict:
