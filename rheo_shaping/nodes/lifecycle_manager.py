@@ -48,6 +48,8 @@ from .ros_params import SchemaParameters
 from .spin import build_or_destroy, run_node
 
 
+#: Wall time [s] between two new clients of a node whose service stays unseen while it beats.
+REMAKE_S = 5.0
 #: Largest forward jump [s] of /clock the manager applies (the nodes' max_clock_jump default).
 MANAGER_CLOCK_JUMP = 5.0
 
@@ -67,7 +69,8 @@ class LifecycleManagerNode(Node):
         self.nodes = s.nodes                # node_names, in the order they come up
         self.core = CellLifecycle(heartbeat_timeout=s.heartbeat_timeout,
                                   ready_timeout=s.heartbeat_timeout, nodes=self.nodes)
-        self._change_state = {}
+        self._remade: dict[str, int] = {}   # steady time a node's clients were made again
+        self._change_state: dict = {}       # each node's change_state client
         self._reset: dict = {}              # each node's ~/reset (a recovery clears latches)
         self.requests = Requests(s.transition_timeout)   # asked, sent, out of time (core)
         # each heartbeat only from its node, /shaping/ready only from the monitor
@@ -79,8 +82,7 @@ class LifecycleManagerNode(Node):
             self.create_subscription(T.HEARTBEAT.type, f"{name}/heartbeat",
                                      partial(self._on_heartbeat, name),
                                      T.HEARTBEAT.qos)
-            self._change_state[name] = self.create_client(ChangeState, f"{name}/change_state")
-            self._reset[name] = self.create_client(Trigger, f"{name}/reset")
+            self._clients_of(name)
         self.create_subscription(T.READY.type, T.READY.name, self._on_ready, T.READY.qos)
         self.pub_abort = self.create_publisher(T.ABORT.type, T.ABORT.name, T.ABORT.qos)
         self.pub_status = self.create_publisher(T.MANAGER_STATUS.type, T.MANAGER_STATUS.name,
@@ -179,9 +181,20 @@ class LifecycleManagerNode(Node):
         for step in self.core.steps(now, self._guard.previous if stalled else None):
             self._do(step, now)
         for name, transition in self.core.unheard(now):
-            self.get_logger().warning(f"{transition} {name} again: its heartbeat shows no sign "
-                                      f"of the request (lost before its service matched)")
-            self.requests.resend(name, self._drop)
+            if self.requests.unsent(name):
+                # the node beats, its service never shows as ready to this client (seen for
+                # 100 s after a restart, the killed node's server gone): a new client, at
+                # most every REMAKE_S (a new one needs its own discovery)
+                if now - self._remade.get(name, -REMAKE_S * NS) >= REMAKE_S * NS:
+                    self._remade[name] = now
+                    self.get_logger().warning(f"{transition} {name}: its service is not seen "
+                                              f"while the node beats: its clients made again")
+                    self._clients_of(name)
+            else:
+                self.get_logger().warning(f"{transition} {name} again: its heartbeat shows no "
+                                          f"sign of the request (lost before its service "
+                                          f"matched)")
+                self.requests.resend(name, self._drop)
         self._collect(now)                      # the new requests sent at once if they can
         if self.core.phase == "failed" and was != "failed":
             self.get_logger().error(f"the cell failed: {self.core.reason}; the tool holds, the "
@@ -199,6 +212,15 @@ class LifecycleManagerNode(Node):
             return
         self.get_logger().info(f"{step.action} {step.node}")
         self.requests.ask(step.node, step.action, now)
+
+    def _clients_of(self, name: str) -> None:
+        """(Re)make ``name``'s ``change_state`` and ``reset`` clients."""
+        for clients in (self._change_state, self._reset):
+            old = clients.pop(name, None)
+            if old is not None:
+                self.destroy_client(old)
+        self._change_state[name] = self.create_client(ChangeState, f"{name}/change_state")
+        self._reset[name] = self.create_client(Trigger, f"{name}/reset")
 
     def _client(self, name: str, transition: str):
         return (self._reset if transition == "reset" else self._change_state)[name]

@@ -45,6 +45,10 @@ class Requests:
         """Ask ``node`` for ``transition`` (sent by :meth:`collect` once its service is seen)."""
         self.waiting[node] = (transition, now_ns)
 
+    def unsent(self, node: str) -> bool:
+        """Whether ``node``'s request still waits for its service (not sent yet)."""
+        return node in self.waiting
+
     def resend(self, node: str, drop: Callable[[str, str, Reply], None]) -> None:
         """Send ``node``'s request again (it did not arrive: the node's heartbeats show no
         sign of it); ``drop`` forgets the first call's pending reply; its time-out still
