@@ -48,8 +48,9 @@ from .ros_params import SchemaParameters
 from .spin import build_or_destroy, run_node
 
 
-#: Wall time [s] between two new clients of a node whose service stays unseen while it beats.
-REMAKE_S = 5.0
+#: What the manager did with a request its node shows no sign of (Requests.unheard).
+UNHEARD = {"resend": "sent again, lost before its service matched",
+           "remake": "its service is not seen while the node beats: its clients made again"}
 #: Largest forward jump [s] of /clock the manager applies (the nodes' max_clock_jump default).
 MANAGER_CLOCK_JUMP = 5.0
 
@@ -69,7 +70,6 @@ class LifecycleManagerNode(Node):
         self.nodes = s.nodes                # node_names, in the order they come up
         self.core = CellLifecycle(heartbeat_timeout=s.heartbeat_timeout,
                                   ready_timeout=s.heartbeat_timeout, nodes=self.nodes)
-        self._remade: dict[str, int] = {}   # steady time a node's clients were made again
         self._change_state: dict = {}       # each node's change_state client
         self._reset: dict = {}              # each node's ~/reset (a recovery clears latches)
         self.requests = Requests(s.transition_timeout)   # asked, sent, out of time (core)
@@ -181,20 +181,12 @@ class LifecycleManagerNode(Node):
         for step in self.core.steps(now, self._guard.previous if stalled else None):
             self._do(step, now)
         for name, transition in self.core.unheard(now):
-            if self.requests.unsent(name):
-                # the node beats, its service never shows as ready to this client (seen for
-                # 100 s after a restart, the killed node's server gone): a new client, at
-                # most every REMAKE_S (a new one needs its own discovery)
-                if now - self._remade.get(name, -REMAKE_S * NS) >= REMAKE_S * NS:
-                    self._remade[name] = now
-                    self.get_logger().warning(f"{transition} {name}: its service is not seen "
-                                              f"while the node beats: its clients made again")
-                    self._clients_of(name)
-            else:
-                self.get_logger().warning(f"{transition} {name} again: its heartbeat shows no "
-                                          f"sign of the request (lost before its service "
-                                          f"matched)")
-                self.requests.resend(name, self._drop)
+            what = self.requests.unheard(name, now, self._drop)       # core: Requests
+            if what == "remake":
+                self._clients_of(name)
+            if what:
+                self.get_logger().warning(f"{transition} {name}: its heartbeat shows no sign of "
+                                          f"the request ({what}: {UNHEARD[what]})")
         self._collect(now)                      # the new requests sent at once if they can
         if self.core.phase == "failed" and was != "failed":
             self.get_logger().error(f"the cell failed: {self.core.reason}; the tool holds, the "

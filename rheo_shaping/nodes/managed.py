@@ -49,7 +49,6 @@ from .hosts import ManagedMixin
 from .gap_watch import GapWatchNode
 from .monitor import MonitorNode
 from .rclpy_private import clock_subscription, lifecycle_label, release_state_machine
-from ..planning.run_state import stop_run
 from ..planning.states import MOVING
 from .planner import PlannerNode
 from .simulator import SimulatorNode
@@ -279,10 +278,7 @@ class ManagedPlannerNode(Managed, PlannerNode):
                 # an abort latched before (its stop sent, now retracting): the retract is
                 # stopped too, or the stream would stay `retracting` while inactive and
                 # refuse the recovery's ~/reset ("the tool is moving")
-                stop = stop_run(self.streamer, self.grid, "planner: deactivated (lifecycle)",
-                                self._executed_ns(self._now_ns()))
-                for t_send in stop[0] if stop is not None else ():
-                    self._publish_setpoint(t_send)
+                self._stop_run("planner: deactivated (lifecycle)")
             else:
                 self._abort("planner: deactivated (lifecycle)")     # the planned stop
             self._send_stop()
@@ -316,7 +312,7 @@ class ManagedGapWatchNode(Managed, GapWatchNode):
         GapWatchNode._end_work(self)
 
     def destroy_node(self) -> None:
-        GapWatchNode._end_work(self)
+        self._end_work()
         Managed.destroy_node(self)
 
 

@@ -256,17 +256,22 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
     def _abort(self, reason: str) -> None:
         if not self.latch.abort(reason):
             return
-        stop = stop_run(self.streamer, self.grid, reason, self._executed_ns(self._now_ns()))
+        stop = self._stop_run(reason)
         if stop is None:
             self.get_logger().error(f"ABORT ({reason}) before the start: the plan will not run "
                                     f"(~/reset to re-arm)")
         else:
-            sends, what = stop
-            for t_send in sends:
-                self._publish_setpoint(t_send)
-            self.get_logger().error(f"ABORT ({reason}): {what}")
+            self.get_logger().error(f"ABORT ({reason}): {stop[1]}")
             self._stream()
         self._update_state()
+
+    def _stop_run(self, reason: str) -> tuple[list[int], str] | None:
+        """The run stopped from the executed pose (core: stop_run), the set-points it
+        rewinds sent again; stop_run's answer."""
+        stop = stop_run(self.streamer, self.grid, reason, self._executed_ns(self._now_ns()))
+        for t_send in stop[0] if stop is not None else ():
+            self._publish_setpoint(t_send)
+        return stop
 
     def _executed_ns(self, now: int) -> int:
         """The time of the executed tool pose during the run [ns] (core: executed_ns)."""

@@ -38,10 +38,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..params.node_params import CELL_NODES
 from ..units import NS
 
-#: The managed nodes of a cell, in the order they are configured and activated.
-CELL_ORDER: tuple[str, ...] = ("simulator", "monitor", "planner")
+#: The managed nodes of a cell, in the order they are configured and activated (the
+#: lifecycle manager's default ``node_names``).
+CELL_ORDER: tuple[str, ...] = CELL_NODES
 #: The node whose readiness the interlocked node waits for, and that node.
 INTERLOCK: tuple[str, str] = ("monitor", "planner")
 #: The order in which a recovery clears the nodes' latches (their ``~/reset``): the monitor

@@ -85,3 +85,21 @@ def test_the_cells_status_and_its_diagnostic_level():
     assert cell_status("held", "the simulator holds: abort", "", states)[1:3] == (
         "ERROR", "the simulator holds: abort")
     assert cell_status("idle", "", "", states)[1:3] == ("WARN", "idle")
+
+
+def test_a_request_its_node_shows_no_sign_of_is_sent_again_or_its_clients_made_again():
+    """Sent: the first call's reply is dropped and the request waits to be sent again, its
+    time-out counted from the first ask.  Never sent (the node's service not seen while it
+    beats): its clients are made again, at most every REMAKE_S."""
+    from rheo_shaping.safety.manager import REMAKE_S
+    r = Requests(timeout=120.0)
+    dropped, sent = [], []
+    r.ask("monitor", "configure", 0)
+    r.collect(NS, lambda n, t: True, lambda n, t: sent.append((n, t)) or Reply(), None)
+    assert r.unheard("monitor", 2 * NS, lambda *a: dropped.append(a[:2])) == "resend"
+    assert dropped == [("monitor", "configure")] and r.waiting == {"monitor": ("configure", 0)}
+    never = lambda *a: None                                  # noqa: E731
+    assert r.unheard("monitor", 3 * NS, never) == "remake"   # now unsent: a new client
+    assert r.unheard("monitor", 3 * NS + int(REMAKE_S * NS) - 1, never) == ""
+    assert r.unheard("monitor", 3 * NS + int(REMAKE_S * NS), never) == "remake"
+    assert r.unheard("planner", 9 * NS, never) == ""          # nothing asked of it
