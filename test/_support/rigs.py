@@ -128,8 +128,11 @@ class Cell:
                 out.append((stamp, float(np.max(self.rec[topic][i].data))))
         return np.array(out, dtype=float).reshape(-1, 2)
 
-    def commands(self):
-        """The executed set-point path (:func:`_support.ros.executed`)."""
+    def commands(self, with_seq: bool = False):
+        """The executed set-point path (:func:`_support.ros.executed`); ``with_seq``: with
+        each set-point's publication sequence number as a third array."""
+        if with_seq:
+            return executed(self.rec["/tool/command"], self.rec.infos["/tool/command"])
         return executed(self.rec["/tool/command"])
 
 

@@ -206,20 +206,28 @@ def procs(tmp_path):
 
 
 # -- motion checks --------------------------------------------------------------------
-def executed(cmds):
+def executed(cmds, infos=None):
     """(stamps [ns], positions [m]) of the path a simulator follows from set-point messages:
     a set-point for a time already commanded replaces what followed (the planner's stop,
-    re-planned from the executed pose, supersedes what it had sent ahead)."""
+    re-planned from the executed pose, supersedes what it had sent ahead).  With ``infos``
+    (the recorder's message infos of the same messages) a third array follows: each kept
+    set-point's publication sequence number, which tells a set-point the observer missed
+    (two kept neighbours more than 1 apart) from one that was never sent."""
     import numpy as np
     from rheo_shaping.nodes import messages as m
+    seqs = ([i["publication_sequence_number"] for i in infos] if infos is not None
+            else [0] * len(cmds))
     path: list = []
-    for c in cmds:
+    for c, seq in zip(cmds, seqs):
         t = m.stamp_ns(c.header.stamp)
         while path and path[-1][0] >= t:
             path.pop()
-        path.append((t, m.pose_xz(c)))
-    return (np.array([q[0] for q in path], dtype=np.int64),
-            np.array([q[1] for q in path], dtype=float).reshape(-1, 2))
+        path.append((t, m.pose_xz(c), seq))
+    out = (np.array([q[0] for q in path], dtype=np.int64),
+           np.array([q[1] for q in path], dtype=float).reshape(-1, 2))
+    if infos is None:
+        return out
+    return out + (np.array([q[2] for q in path], dtype=np.int64),)
 
 
 def motion_bounds(t_ns, p, min_gap: float = 1e-4):

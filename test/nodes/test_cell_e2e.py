@@ -185,14 +185,19 @@ def test_aggressive_plan_is_aborted_before_the_sheet_tears(ros, procs, tmp_path,
            30.0, "the set-points at home")
     samples = c.tension_samples()
     t0 = c.t0()
-    t, p = c.commands()
+    t, p, seq = c.commands(with_seq=True)
+    missed = c.rec.lost("/tool/command")
     c.stop_all()
-    # the observer got every set-point the planner sent (its sequence numbers have no gap),
-    # and the planner sent one per control period at least
-    assert c.rec.lost("/tool/command") == 0, (
-        f"the test's observer lost {c.rec.lost('/tool/command')} set-points (overloaded)")
+    # The planner sent a set-point every control period at least: between two set-points the
+    # observer kept, the stamps advance by at most one period per message the planner
+    # published from one to the other.  DDS's publication sequence numbers count those
+    # messages whether this observer, starved on a busy machine, took each one or not; the
+    # checks below use what it took (a missed set-point thins them, never fools them).
     period_ns = NS // 50
-    assert np.diff(t).max() <= period_ns, f"set-points missing at {t[np.argmax(np.diff(t))]}"
+    sent = np.diff(seq)
+    assert (sent >= 1).all(), "set-points out of their publication order"
+    slack = np.diff(t) - sent * period_ns
+    assert slack.max() <= 0, f"set-points missing at {t[np.argmax(slack)]} ns"
 
     largest = float(samples[:, 1].max())
     plan = movement_plan(cell).plan
@@ -230,9 +235,15 @@ def test_aggressive_plan_is_aborted_before_the_sheet_tears(ros, procs, tmp_path,
     hold = poses[-1][1]
     k_hold = next(k for k, (_, xz) in enumerate(poses) if np.allclose(xz, hold, atol=1e-12))
     assert all(np.allclose(xz, hold, atol=1e-12) for _, xz in poses[k_hold:])
+    checked = 0
     for s_ns, xz in poses[:k_hold]:
+        k = int(np.searchsorted(t, s_ns))      # t[k - 1] < s_ns <= t[k]
+        if k < len(t) and t[k] != s_ns and (k == 0 or seq[k] - seq[k - 1] != 1):
+            continue                           # a set-point between them may be unseen here
         assert xz[0] == pytest.approx(np.interp(s_ns, t, p[:, 0]), abs=1e-12)
         assert xz[1] == pytest.approx(np.interp(s_ns, t, p[:, 1]), abs=1e-12)
+        checked += 1
+    assert checked >= min(k_hold, 3), (checked, k_hold, missed)
     sim_log = "".join(x.text() for x in procs.all if x.exe == "simulator")
     assert "the tool holds at" in sim_log and "abort:" in sim_log
     crossed = samples[samples[:, 1] >= F_abort]
@@ -245,7 +256,8 @@ def test_aggressive_plan_is_aborted_before_the_sheet_tears(ros, procs, tmp_path,
                "t_stop_start": (t_abort - t0) / NS, "t_rest": (t_rest - t0) / NS,
                "crossing_to_rest_s": (t_rest - t_cross) / NS if crossed.size else None,
                "stop_duration_s": (t_rest - t_abort) / NS,
-               "stop_v_max": v, "stop_a_max": a, "stop_j_max": j}
+               "stop_v_max": v, "stop_a_max": a, "stop_j_max": j,
+               "set_points_kept": int(len(t)), "set_points_missed_by_the_observer": missed}
     _save(f"abort_{'trend' if trend else 'threshold'}", figures)
     print("E2E abort:", json.dumps(figures))
     assert offline.F_max > Fb                       # without the monitor: torn
