@@ -281,6 +281,7 @@ class ManagedPlannerNode(Managed, PlannerNode):
                 self._stop_run("planner: deactivated (lifecycle)")
             else:
                 self._abort("planner: deactivated (lifecycle)")     # the planned stop
+            self.streamer.hold_after_stop()     # an inactive planner streams no retract
             self._send_stop()
         self._set_state("inactive")
 
@@ -299,6 +300,17 @@ class ManagedPlannerNode(Managed, PlannerNode):
     def _stream(self) -> None:
         if self._active:
             PlannerNode._stream(self)
+
+    def _abort(self, reason: str) -> None:
+        """An abort while inactive (the simulator's own deactivation, a monitor's) latches
+        only: a stop begun then would never be streamed, and the stream would stay moving
+        and refuse the recovery's ~/reset."""
+        if self._active:
+            PlannerNode._abort(self, reason)
+        elif self.latch.abort(reason):
+            self.get_logger().warning(f"abort while inactive ({reason}): latched, nothing "
+                                      f"moves (~/reset to re-arm)")
+            self._update_state()
 
 
 class ManagedGapWatchNode(Managed, GapWatchNode):

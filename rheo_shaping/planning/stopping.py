@@ -262,6 +262,13 @@ class TrajectoryStreamer:
         self._state, self._final_state = "stopping", "holding"
         self._advance(t)
 
+    def hold_after_stop(self) -> None:
+        """While ``stopping``: hold where the stop ends instead of retracting after it (a
+        planner deactivated mid-run streams no retract, so a retract begun would stay
+        ``retracting`` and refuse :meth:`reset`)."""
+        if self._state == "stopping":
+            self._queue = []
+
     def reset(self) -> None:
         """Back to ``idle`` (clears the abort).  Only when the tool is at rest
         (``idle``, ``done`` or ``holding``); it then holds where it is."""

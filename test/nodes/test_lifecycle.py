@@ -286,7 +286,12 @@ def test_a_gap_watch_named_in_node_names_is_managed_with_the_cell(ros, procs, tm
     client = LifecycleManagerClient(node, ns, spin_once=ros.spin_for)
 
     def phase(want: str, nodes: str, what: str) -> None:
-        ros.spin_until(lambda: _status(rec, ns).get("phase") == want, 120.0, what)
+        try:
+            ros.spin_until(lambda: _status(rec, ns).get("phase") == want, 120.0, what)
+        except pytest.fail.Exception as exc:     # what the manager said and did, for the reader
+            pytest.fail(f"{exc}; the manager's status {_status(rec, ns)}; its log:\n"
+                        f"{cell['lifecycle_manager'].text()[-2000:]}\nthe planner's log:\n"
+                        f"{cell['planner'].text()[-4000:]}")
         assert _status(rec, ns)["nodes"] == {n: nodes for n in four}, _status(rec, ns)
     assert client.pause() in (True, None)              # (a reply can be lost; not the effect)
     phase("paused", "inactive", "the cell paused")

@@ -23,6 +23,7 @@ from rheo_shaping.nodes.managed import (ManagedMonitorNode, ManagedPlannerNode, 
                                         ManagedSimulatorNode)
 
 from rheo_shaping.units import NS  # noqa: E402
+from rheo_shaping.planning.run_state import reset_refusal  # noqa: E402
 
 from _support.ros import Recorder, executed  # noqa: E402
 
@@ -135,6 +136,11 @@ def test_the_planner_activates_only_behind_a_ready_monitor_and_a_run_stops_on_de
     assert planner.abort_reason == "planner: deactivated (lifecycle)"
     assert planner.state == "inactive"
     st = planner.streamer
+    # at rest where the stop ends, no retract begun (an inactive planner streams none): the
+    # recovery's ~/reset is taken (else refused, "the tool is moving (retracting)", every
+    # time: seen in test_lifecycle.py's pause and resume under stress-ng --cpu 8)
+    assert st.state == "holding"
+    assert reset_refusal(st.state) == ""
     end = int(round((st.abort_time + st.stop_plan.duration) * NS))
     # the stop was sent to its end, at rest, with the deactivation; nothing after it
     ros.spin_until(lambda: any(m.stamp_ns(c.header.stamp) == end for c in rec["/tool/command"]),

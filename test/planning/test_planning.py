@@ -478,6 +478,31 @@ def test_abort_while_accelerating_is_continuous_and_latched(frac):
     assert states[-1] == "holding" and not vel[-1].any()
 
 
+def test_a_stop_told_to_hold_ends_at_rest_holding_without_a_retract():
+    """hold_after_stop (a planner deactivated mid-run): the stop streamed to its end holds
+    there, never retracting, so reset() is taken; before it the stop would retract."""
+    plan = plan_waypoints(START, MOVEMENT, FAST)
+    t_abort = 0.5 * (plan.segments[1].t_start + plan.segments[1].t_end)
+    for hold in (False, True):
+        s = TrajectoryStreamer(home_xz=(0.05, 0.12), retract_limits=RETRACT)
+        s.start(plan, 0.0)
+        s.setpoint(t_abort)
+        s.abort(t_abort, "deactivated")
+        if hold:
+            s.hold_after_stop()
+        p_rest, _, _ = s.stop_plan.sample(s.stop_plan.duration)
+        _, pos, vel, _, states = stream(s, t_abort, s.rest_time + 5.0)
+        if not hold:
+            assert states[-1] == "retracting"
+            continue
+        assert set(states) == {"stopping", "holding"} and not vel[-1].any()
+        assert np.allclose(pos[-1], p_rest, atol=1e-12)
+        s.reset()
+        assert s.state == "idle"
+    s.hold_after_stop()                         # outside a stop: nothing changes
+    assert s.state == "idle"
+
+
 def test_abort_during_retract_stops_and_holds():
     plan = plan_waypoints(START, MOVEMENT[:2], FAST)
     s = TrajectoryStreamer(home_xz=(0.05, 0.12), retract_limits=RETRACT)
