@@ -29,6 +29,14 @@ from .worker import ShaperProcess
 #: 2-core machine (docs/closed-loop.md, "The cost of a refresh"), with margin.
 FIRST_REFRESH_S = 0.5
 
+#: Wall time [s] a paced simulated cell's simulator waits for a set-point (its
+#: ``command_timeout``) while the stream waits at a refresh's join: four times the largest
+#: refresh measured on a loaded machine (0.55 s, docs/closed-loop.md), and below the
+#: monitor's wall-clock bound on a silent simulator (10 x max_data_age, 5 s by default).
+#: A refresh slower still costs a step with the tool holding its set-point, named in the
+#: simulator's log.
+PACED_COMMAND_TIMEOUT = 2.0
+
 
 def join_lead(span: float, pace: float, refresh_wall_s: float) -> float:
     """Process time [s] from the newest set-point sent to a re-plan's join: twice the larger
@@ -80,9 +88,17 @@ class StreamedLoop:
     ``process``: the worker that refreshes it)."""
 
     def __init__(self, online: OnlineShaper, process: ShaperProcess,
-                 monotonic: Callable[[], float] = time.monotonic):
-        """``monotonic``: a wall clock [s] (the cell's pace and each refresh's wall time)."""
-        self.online, self.process = online, process
+                 monotonic: Callable[[], float] = time.monotonic, paced: bool = False):
+        """``monotonic``: a wall clock [s] (the cell's pace and each refresh's wall time).
+
+        ``paced``: the stream waits for its loop (a simulated cell, whose simulator steps
+        only on set-points it has): while a refresh runs, no set-point is sent beyond its
+        join (:meth:`limit_ns`), so every re-plan joins at ``join_lead`` of the shaper's
+        config after what was streamed, whatever the refresh's wall time at the cell's
+        pace.  Unpaced (a real cell, which cannot wait), the join is put beyond what the
+        stream will send meanwhile (:func:`join_lead`)."""
+        self.online, self.process, self.paced = online, process, paced
+        self.cap_ns: int | None = None        # paced: the running refresh's join [ns]
         self.samples: list[Sample] = []       # taken since the last refresh was submitted
         self.work: Future | None = None       # the refresh running in the worker
         self.span = 0.0                       # s of process time the last refresh took
@@ -115,7 +131,7 @@ class StreamedLoop:
         if self._start is None and grid.last_ns is not None:      # the stream's first tick
             self._start = (self._clock(), (grid.last_ns - t0) / NS)
         if self.work is not None and self.work.done():
-            work, self.work = self.work, None
+            work, self.work, self.cap_ns = self.work, None, None
             last = grid.last_ns
             assert last is not None             # a refresh begins after a set-point is sent
             self.span = (last - t0) / NS - self.began
@@ -138,10 +154,19 @@ class StreamedLoop:
         wall = now - self._start[0]
         pace = (streamed - self._start[1]) / wall if wall > 0.0 else 0.0
         self._submitted = now
+        # paced: the shaper's own join_lead (its config), the stream held at the join
+        lead = 0.0 if self.paced else join_lead(self.span, pace, self.refresh_wall_s)
         self.work = self.process.submit(samples, t, reason, (float(pose[0]), float(pose[1])),
-                                        streamed, join_lead(self.span, pace,
-                                                            self.refresh_wall_s))
+                                        streamed, lead)
+        if self.paced:                          # the join's time itself is not sent
+            self.cap_ns = t0 + round((max(t, streamed) + self.online.config.join_lead)
+                                     * NS) - 1
         return taken
+
+    def limit_ns(self) -> int | None:
+        """The newest set-point time [ns] the stream may send now: a paced loop's running
+        refresh's join (the stream waits there for its re-plan); None: no limit."""
+        return self.cap_ns
 
     def take(self, index: int, step: OnlineStep, st: TrajectoryStreamer) -> Refresh:
         """Refresh ``index``'s result: the running stream switches to its re-plan at the

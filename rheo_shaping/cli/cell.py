@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from ..adaptive.streamed import PACED_COMMAND_TIMEOUT
 from ..jsonable import json_safe
 from . import UserError
 from .common import add_movement_argument, add_params_argument, cell_from_args, ros_namespace
@@ -46,7 +47,9 @@ def add_parser(sub) -> None:
     p.add_argument("--adaptive", action="store_true",
                    help="the planner's closed loop (planner parameter adaptive: true): it "
                         "estimates the material while it shapes and re-plans the rest of the "
-                        "movement (docs/closed-loop.md)")
+                        "movement (docs/closed-loop.md); this simulated cell waits for each "
+                        "re-plan (planner adaptive_pace, simulator command_timeout "
+                        f"{PACED_COMMAND_TIMEOUT:g} s)")
     p.add_argument("--json", action="store_true", help="print one JSON object at the end")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--verbose", action="store_true", help="show the nodes' INFO log lines too")

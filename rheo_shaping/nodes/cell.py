@@ -22,6 +22,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 
 from ..planning.states import AT_REST
+from ..adaptive.streamed import PACED_COMMAND_TIMEOUT
 from .monitor import MonitorNode
 from .planner import PlannerNode
 from .session import eta, ros_session
@@ -86,11 +87,16 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
         args += [*CLOCK_REMAP]
     common = [] if movement is None else [Parameter("movement.number", value=int(movement))]
     extra = {k: list(v) for k, v in (overrides or {}).items()}
-    if adaptive:                        # the planner's closed loop (docs/closed-loop.md)
-        extra["planner"] = [Parameter("adaptive", value=True), *extra.get("planner", ())]
+    paced: list[Parameter] = []
+    if adaptive:                        # the planner's closed loop (docs/closed-loop.md),
+        # paced: the simulated cell waits at each refresh's join for its re-plan
+        extra["planner"] = [Parameter("adaptive", value=True),
+                            Parameter("adaptive_pace", value=True), *extra.get("planner", ())]
+        paced = [Parameter("command_timeout", value=PACED_COMMAND_TIMEOUT)]
     sim_params = [Parameter("real_time_factor", value=float(real_time_factor)),
                   Parameter("step_period", value=SIM_STEP / float(real_time_factor)),
-                  Parameter("progress_period", value=0.0), *common, *extra.get("simulator", ())]
+                  Parameter("progress_period", value=0.0), *paced, *common,
+                  *extra.get("simulator", ())]
     sim_time = [Parameter("use_sim_time", value=True)]
     with ros_session(args, EventsExecutor) as (context, executor, nodes):
         level = getattr(rclpy.logging.LoggingSeverity, log_level.upper())

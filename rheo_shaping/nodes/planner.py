@@ -320,7 +320,7 @@ class PlannerNode(PlannerSupervision, PlannerAdaptive, Node):
         self._lead_note = note
         self._adaptive_tick()                   # a finished re-plan first, then the set-points
         skipped = self.grid.skipped
-        for t in self.grid.due(now, limit, sim_time_active(self)):
+        for t in self.grid.due(now, self._adaptive_limit(limit), sim_time_active(self)):
             self._publish_setpoint(t)
         if self.grid.skipped > skipped:
             self.get_logger().warning(f"the clock jumped {self.grid.skipped - skipped} control "

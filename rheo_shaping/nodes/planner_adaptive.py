@@ -29,6 +29,7 @@ from ..jsonable import json_safe
 from . import messages as m
 from . import topics as T
 from .hosts import PlannerMixin
+from .guards import sim_time_active
 
 
 class PlannerAdaptive(PlannerMixin):
@@ -87,11 +88,20 @@ class PlannerAdaptive(PlannerMixin):
             return plan
         s = self.settings
         online = self._shaper_process.start(self.cell_used, self._online_config())
-        self.loop = StreamedLoop(online, self._shaper_process)
+        paced = s.adaptive_pace and sim_time_active(self)
+        if s.adaptive_pace and not paced:
+            self.get_logger().warning("adaptive_pace is ignored on wall time: a real tool "
+                                      "cannot wait for a refresh")
+        self.loop = StreamedLoop(online, self._shaper_process, paced=paced)
         self.get_logger().info(f"adaptive: estimating the material every "
                                f"{s.adaptive_refresh:g} s of process time; the pessimistic "
                                f"F_max kept under {online.limits.F_limit:.3f} N")
         return online.plan
+
+    def _adaptive_limit(self, limit_ns: int) -> int:
+        """The newest set-point time [ns] to send: ``limit_ns``, or a paced loop's join."""
+        cap = None if self.loop is None else self.loop.limit_ns()
+        return limit_ns if cap is None else min(limit_ns, cap)
 
     def _adaptive_pose(self, xz, stamp_ns: int) -> None:
         """A sample of the run at the executed pose's time, when the shaper wants one."""

@@ -233,6 +233,11 @@ class PlannerNodeParams:
         1.0, "a re-plan joins the running plan this much process time after the newest "
         "set-point sent when it began (its compute time must fit in it: else it is dropped, "
         "named in the log)", "s", 0.1, 30.0)
+    adaptive_pace: bool = param(
+        False, "closed loop on simulated time: while a refresh runs, stream no set-point "
+        "beyond its join, so a simulated cell faster than real time waits for its loop (its "
+        "simulator in lockstep, with a command_timeout longer than a refresh's wall time) "
+        "instead of running past the join; ignored on wall time: a real tool cannot wait")
 
 
 #: The largest ``abort_ratio`` any cell may set: a threshold at F_break leaves no time to stop

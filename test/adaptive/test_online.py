@@ -206,3 +206,71 @@ def test_a_re_plan_joins_after_what_a_refresh_streams_at_the_cells_pace():
     assert join_lead(0.0, 20.0, FIRST_REFRESH_S) == 20.0          # x20: 10 s a refresh
     assert join_lead(6.0, 20.0, 0.2) == 12.0                      # the span measured
     assert join_lead(3.0, 20.0, 0.3) == 12.0                      # the pace x wall
+
+
+def test_a_paced_loop_holds_the_stream_at_the_join_until_its_re_plan_comes():
+    """A simulated cell at x20 whose refresh takes 0.3 s of wall time (6 s of its process
+    time): paced, the stream sends nothing at or beyond the running refresh's join (the
+    simulator, in lockstep, waits), so every re-plan joins exactly ``join_lead`` after what
+    was streamed and none is dropped; the cap goes once the re-plan is taken."""
+    from rheo_shaping.adaptive.streamed import StreamedLoop
+    from rheo_shaping.adaptive.worker import ShaperProcess
+    from rheo_shaping.planning.run_state import SetpointGrid
+
+    class Late:                           # the worker's future, seen done 0.3 s wall later
+        def __init__(self, fut, ready_at: float):
+            self.fut, self.ready_at = fut, ready_at
+
+        def done(self) -> bool:
+            return clock["t"] >= self.ready_at and self.fut.done()
+
+        def result(self, timeout=None):
+            return self.fut.result(timeout)
+
+    cell = movement_1()
+    true = material_cell(cell, NOMINAL * [0.7, 0.7, 1.2])
+    proc = ShaperProcess(cell)
+    try:
+        online = proc.start(cell, OnlineConfig(join_lead=0.5))
+        clock = {"t": 0.0}                    # the wall [s]; the cell runs at x20 of it
+        loop = StreamedLoop(online, proc, monotonic=lambda: clock["t"], paced=True)
+        streamer = TrajectoryStreamer()
+        streamer.start(online.plan, 0.0)
+        grid = SetpointGrid(0, round(DT * NS))
+        run = SetpointRun(true, tool_start=online.plan.start)
+        taken, began, waits, t = [], [], 0, 0.0
+        while t < 10.0:
+            target = round((t + DT) * NS)
+            cap = loop.limit_ns()
+            for t_ns in grid.due(target, target if cap is None else min(target, cap),
+                                 sim_time=False):
+                assert cap is None or t_ns <= cap
+                p = streamer.setpoint(t_ns / NS)[0]
+                run.command(t_ns, float(p[0]), float(p[1]))
+            if grid.last_ns is not None and grid.last_ns >= target:    # lockstep: a step
+                t = round(t + DT, 9)
+                clock["t"] += DT / 20.0
+                run.advance(target)
+                sample = sample_of(run.sim)
+                loop.pose(run.sim.state.tool, target, 0, sample.wrench,
+                          sample.contact_tension)
+            else:                                                   # waits for the loop
+                waits += 1
+                clock["t"] += 0.05
+                assert loop.work is not None and cap is not None
+            had = loop.work
+            r = loop.tick(streamer, grid, round(t * NS), run.sim.state.tool)
+            if loop.work is not None and loop.work is not had:     # a refresh submitted
+                began.append(loop.began)
+                loop.work = Late(loop.work, clock["t"] + 0.3)
+            if r is not None:
+                taken.append(r)
+                assert loop.limit_ns() is None or loop.work is not None
+        replans = [r for r in taken if r.step.plan is not None]
+        assert len(replans) >= 2 and waits > 0
+        assert all(r.switched for r in replans), [r.note for r in replans]
+        for r in taken:                    # the join: what was streamed + join_lead
+            joins = [b + 0.5 for b in began]
+            assert any(abs(j - r.step.t_join) < 1e-9 for j in joins), (r.step.t_join, joins)
+    finally:
+        proc.close()
