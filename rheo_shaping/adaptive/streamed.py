@@ -163,10 +163,11 @@ class StreamedLoop:
                                      * NS) - 1
         return taken
 
-    def limit_ns(self) -> int | None:
-        """The newest set-point time [ns] the stream may send now: a paced loop's running
-        refresh's join (the stream waits there for its re-plan); None: no limit."""
-        return self.cap_ns
+    def limit_ns(self, state: str) -> int | None:
+        """The newest set-point time [ns] the stream in ``state`` may send now: a paced
+        loop's running refresh's join while the stream runs (it waits there for its
+        re-plan); None: no limit (a stop or a retract never waits for a refresh)."""
+        return self.cap_ns if state == "running" else None
 
     def take(self, index: int, step: OnlineStep, st: TrajectoryStreamer) -> Refresh:
         """Refresh ``index``'s result: the running stream switches to its re-plan at the

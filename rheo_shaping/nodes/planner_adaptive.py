@@ -100,7 +100,8 @@ class PlannerAdaptive(PlannerMixin):
 
     def _adaptive_limit(self, limit_ns: int) -> int:
         """The newest set-point time [ns] to send: ``limit_ns``, or a paced loop's join."""
-        cap = None if self.loop is None else self.loop.limit_ns()
+        st = self.streamer
+        cap = None if self.loop is None or st is None else self.loop.limit_ns(st.state)
         return limit_ns if cap is None else min(limit_ns, cap)
 
     def _adaptive_pose(self, xz, stamp_ns: int) -> None:

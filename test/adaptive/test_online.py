@@ -241,7 +241,7 @@ def test_a_paced_loop_holds_the_stream_at_the_join_until_its_re_plan_comes():
         taken, began, waits, t = [], [], 0, 0.0
         while t < 10.0:
             target = round((t + DT) * NS)
-            cap = loop.limit_ns()
+            cap = loop.limit_ns(streamer.state)
             for t_ns in grid.due(target, target if cap is None else min(target, cap),
                                  sim_time=False):
                 assert cap is None or t_ns <= cap
@@ -265,10 +265,11 @@ def test_a_paced_loop_holds_the_stream_at_the_join_until_its_re_plan_comes():
                 loop.work = Late(loop.work, clock["t"] + 0.3)
             if r is not None:
                 taken.append(r)
-                assert loop.limit_ns() is None or loop.work is not None
+                assert loop.limit_ns(streamer.state) is None or loop.work is not None
         replans = [r for r in taken if r.step.plan is not None]
         assert len(replans) >= 2 and waits > 0
         assert all(r.switched for r in replans), [r.note for r in replans]
+        assert loop.limit_ns("stopping") is None   # a stop never waits for a refresh
         for r in taken:                    # the join: what was streamed + join_lead
             joins = [b + 0.5 for b in began]
             assert any(abs(j - r.step.t_join) < 1e-9 for j in joins), (r.step.t_join, joins)
