@@ -11,7 +11,14 @@ aborts, tears (F_max >= F_break), the cycle time (the plan's end plus the params
 settle time after its fixed plan), re-plans.  Progress with an ETA on stderr.
 
     .venv/bin/python benchmarks/closed_loop_nodes.py --cells 200 --seed 4301 --jobs 2 \\
-        [--real-time-factor 20] [--json] [--save FILE.json]
+        [--real-time-factor 20] [--json] [--save FILE.json] [--optimum] [--plot FILE.png]
+
+``--optimum`` adds each cell's offline optimum (``adaptive.optimum``: the fastest plan that
+meets both limits, computed knowing the true cell on the sheet model, in this process) and
+the adaptive arm's median cycle time over it; ``--plot`` draws the shaped rate against the
+material's deviation and the cycle time over the optimum.  With ``--cells`` no larger than
+the cells a ``--save`` file holds, nothing is run: its figures are computed (a campaign cut
+short is summarised on its first N cells, in the seed's order).
 
 ``--save`` is written after every run; a campaign started again with the same file, seed
 and real-time factor runs only what it lacks (a campaign cut short resumes).
@@ -93,6 +100,19 @@ def run_one(d: dict, adaptive: bool, rtf: float, domain: int, folder: Path) -> d
             "x_real_time": out["achieved_factor"]}
 
 
+def optimum(d: dict) -> dict:
+    """The offline optimum of draw ``d`` (``closed_loop_campaign``'s yardstick)."""
+    from closed_loop_campaign import cells
+    from rheo_shaping.adaptive.loop import LoopConfig, replan_limits
+    from rheo_shaping.adaptive.optimum import offline_optimum
+    from rheo_shaping.adaptive.replan import ReplanStatus
+    cell, true = cells(d)
+    opt = offline_optimum(true, cell, replan_limits(cell, LoopConfig()))
+    ok = opt.status in (ReplanStatus.REPLANNED, ReplanStatus.KEPT)
+    return {"status": opt.status.value,
+            "cycle_time": opt.schedule.cycle_time if ok else float("nan")}
+
+
 def key(adaptive: bool) -> str:
     return "adaptive" if adaptive else "fixed"
 
@@ -106,6 +126,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--domain", type=int, default=120, help="first ROS domain id of the jobs")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--save", type=Path)
+    ap.add_argument("--optimum", action="store_true",
+                    help="each cell's offline optimum and the adaptive cycle time over it")
+    ap.add_argument("--plot", type=Path, help="the campaign's figure (PNG)")
     a = ap.parse_args(argv)
     if a.cells < 1 or a.jobs < 1 or not 0 < a.real_time_factor <= 100:
         ap.error(f"--cells {a.cells}, --jobs {a.jobs}, --real-time-factor "
@@ -169,6 +192,24 @@ def main(argv: list[str] | None = None) -> int:
     report["cycle_ratio_median"] = (float(np.median([r["adaptive"]["cycle_time"]
                                                      / r["fixed"]["cycle_time"] for r in both]))
                                     if both else None)
+    if a.optimum or a.plot:
+        for i in rows:
+            if "optimum" not in rows[i]:
+                rows[i]["optimum"] = optimum(rows[i]["draw"])
+        ratio = [rows[i]["adaptive"]["cycle_time"] / rows[i]["optimum"]["cycle_time"]
+                 for i in rows if rows[i].get("adaptive", {}).get("shaped")
+                 and np.isfinite(rows[i]["optimum"]["cycle_time"])]
+        report["adaptive_cycle_over_optimum_median"] = (float(np.median(ratio)) if ratio
+                                                        else None)
+        report["optimum_infeasible"] = sum(1 for i in rows
+                                           if not np.isfinite(rows[i]["optimum"]["cycle_time"]))
+    if a.plot:
+        from closed_loop_plot import campaign_figure
+        done_rows = [dict(rows[i], **{arm: dict(rows[i][arm], cycle_time=(
+            rows[i][arm]["cycle_time"] if rows[i][arm]["shaped"] else float("nan")))
+            for arm in ("fixed", "adaptive")}) for i in rows
+            if "fixed" in rows[i] and "adaptive" in rows[i]]
+        campaign_figure(json.loads(json.dumps(json_safe(done_rows))), str(a.plot))
     if a.save:
         a.save.write_text(json.dumps(json_safe({"report": report, "rows": rows}), indent=1))
     shown = {k: v for k, v in report.items() if k != "loads"}
