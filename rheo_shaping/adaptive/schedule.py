@@ -102,6 +102,13 @@ def as_waypoint(cell: CellParams, move: Move, choice: Choice,
                     movement_limits(cell, move_speed(cell, move, choice)))
 
 
+def cycle_end(process_time: float, nominal_duration: float, plan_duration: float) -> float:
+    """Process time [s] at which a run of a ``plan_duration`` [s] plan is judged: the plan's
+    end plus the settle the params file leaves after its nominal plan (``process_time`` -
+    ``nominal_duration``), never before ``process_time`` (:attr:`Schedule.cycle_time`)."""
+    return max(process_time, plan_duration + max(process_time - nominal_duration, 0.0))
+
+
 def fixed_schedule(cell: CellParams, choice: Choice | None = None) -> Schedule:
     """The params file's movement as a :class:`Schedule` (its plan equals
     :func:`~rheo_shaping.planning.movement.movement_plan`'s for the default ``choice``)."""

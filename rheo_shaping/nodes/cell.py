@@ -22,6 +22,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 
 from ..planning.states import AT_REST
+from ..adaptive.schedule import cycle_end
 from ..adaptive.streamed import PACED_COMMAND_TIMEOUT
 from .monitor import MonitorNode
 from .planner import PlannerNode
@@ -132,6 +133,9 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
         t_started = None
         while time.monotonic() < deadline and context.ok():
             executor.spin_once(timeout_sec=0.05)
+            ran = planner.streamer.plan if planner.streamer is not None else None
+            if adaptive and ran is not None:    # a re-planned cycle is judged at its end
+                sim.run.end_at(cycle_end(pt, planner.plan.duration, ran.duration))
             if t_started is None and sim.started:
                 t_started = time.monotonic()
             t = sim.process_time if sim.started else 0.0

@@ -10,7 +10,7 @@ the process end and beyond, and the peak tension of the process.  Times on the n
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -30,6 +30,7 @@ class SetpointRun:
 
     def __init__(self, cell: CellParams, tool_start):
         self.cell = cell
+        self._own_end = float(cell.movement.process_time)    # the params file's [s]
         self.sim = Simulation(cell, tool_start=tool_start)
         self.cmds: list[tuple[int, float, float]] = []   # (stamp [ns], x [m], z [m])
         self.offset_ns: int | None = None  # process time 0 on the node clock, once started
@@ -161,6 +162,14 @@ class SetpointRun:
             self.history.append((float(state.t), value))
         if state.t <= self.cell.movement.process_time + 1e-9 and value > self.peak.value:
             self.peak = PeakTension(value, i + 1, float(state.t))
+
+    def end_at(self, process_time: float) -> None:
+        """The process ends at ``process_time`` [s] (the cycle of a re-planned movement: its
+        gap judged at its own end, its peak counted to there), never before the cell's own
+        process time; a time already passed, or a process already ended, changes nothing."""
+        if self.summary is None and process_time > self.sim.state.t:
+            self.cell = replace(self.cell, movement=replace(
+                self.cell.movement, process_time=max(float(process_time), self._own_end)))
 
     def summary_so_far(self) -> RunSummary:
         """:attr:`summary` once the process has ended, else the figures up to now."""

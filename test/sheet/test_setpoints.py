@@ -83,6 +83,39 @@ def test_process_end_summary_and_peak_stop_at_process_time(cell):
     assert run.history[-1][0] == pytest.approx(5.0)
 
 
+def test_a_process_ended_later_is_judged_at_its_new_end(cell):
+    """end_at (a re-planned cycle): the summary comes at the newest end asked before it was
+    reached (a later one, then an earlier one: each re-plan moves it), with the peak over
+    the whole of it and the gap there; never before the cell's own end, and no change once
+    the end was reached or for a time already passed."""
+    run = streamed_movement_1(cell, 6.0)
+    run.advance(T0 + 2 * NS)
+    run.end_at(2.5)                                      # before the cell's 3 s: 3 s
+    assert run.cell.movement.process_time == 3.0
+    run.end_at(4.5)
+    run.end_at(1.0)                                      # passed: no change
+    assert run.cell.movement.process_time == 4.5
+    run.end_at(4.0)                                      # a shorter re-plan, not yet reached
+    assert run.advance(T0 + 5 * NS) == 4.0 and run.process_time == pytest.approx(4.0)
+    s = run.summary
+    assert s.F_max == max(f for t, f in run.history if t <= 4.0 + 1e-9)
+    assert s.delta == run.sim.delta()
+    run.end_at(5.0)                                      # ended: stays at 4 s
+    assert run.cell.movement.process_time == 4.0 and run.summary is s
+
+
+def test_a_cycle_ends_at_its_plan_end_plus_the_params_files_settle():
+    from rheo_shaping.adaptive.schedule import cycle_end, fixed_schedule
+    cell = CellParams()
+    nominal = movement_plan(cell).duration
+    assert cycle_end(120.0, nominal, nominal) == 120.0           # the fixed plan
+    assert cycle_end(120.0, nominal, nominal - 10.0) == 120.0    # shorter: judged at 120 s
+    assert cycle_end(120.0, nominal, nominal + 7.0) == pytest.approx(127.0)
+    assert cycle_end(120.0, 130.0, 131.0) == 131.0               # no settle left
+    sched = fixed_schedule(cell)                                 # Schedule.cycle_time's rule
+    assert sched.cycle_time == pytest.approx(cycle_end(120.0, nominal, sched.plan.duration))
+
+
 def test_a_failed_solver_publishes_nan(cell):
     run = SetpointRun(cell, (0.05, 0.10))
     run.broken = "ConvergenceError: test"
