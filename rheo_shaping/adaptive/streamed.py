@@ -163,6 +163,12 @@ class StreamedLoop:
                                      * NS) - 1
         return taken
 
+    def finished_at_join(self) -> bool:
+        """A paced loop whose refresh has finished while its stream waits at the join: the
+        node takes it now (:meth:`tick`), not at a control tick of a clock that waits for
+        the stream (simulated time in lockstep stands still meanwhile)."""
+        return self.cap_ns is not None and self.work is not None and self.work.done()
+
     def limit_ns(self, state: str) -> int | None:
         """The newest set-point time [ns] the stream in ``state`` may send now: a paced
         loop's running refresh's join while the stream runs (it waits there for its

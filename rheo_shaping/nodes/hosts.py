@@ -72,6 +72,7 @@ class PlannerHost(Protocol):
     def _retract_limits(self) -> MotionLimits: ...
     def _stream(self) -> None: ...
     def _adaptive_plan(self, plan: Plan) -> Plan: ...      # PlannerAdaptive's
+    def _adaptive_waits(self) -> bool: ...                  # PlannerAdaptive's
 
 
 class SimulatorHost(Protocol):

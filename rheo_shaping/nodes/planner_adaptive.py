@@ -104,6 +104,11 @@ class PlannerAdaptive(PlannerMixin):
         cap = None if self.loop is None or st is None else self.loop.limit_ns(st.state)
         return limit_ns if cap is None else min(limit_ns, cap)
 
+    def _adaptive_waits(self) -> bool:
+        """A paced stream waits at its join for a refresh that has finished: to be taken now
+        (the control timer runs on the cell's clock, which waits for the stream)."""
+        return self.loop is not None and self.loop.finished_at_join()
+
     def _adaptive_pose(self, xz, stamp_ns: int) -> None:
         """A sample of the run at the executed pose's time, when the shaper wants one."""
         if self.loop is not None:

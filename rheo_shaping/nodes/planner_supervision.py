@@ -83,6 +83,8 @@ class PlannerSupervision(PlannerMixin):
                 self._refusal())
             if stop:
                 self._abort(stop)
+            elif self._adaptive_waits():
+                self._stream()          # the paced stream's re-plan, taken on the wall clock
         self._update_state()
 
     def _say_wait(self, state: str, monitor_why: str) -> None:

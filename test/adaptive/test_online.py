@@ -238,7 +238,7 @@ def test_a_paced_loop_holds_the_stream_at_the_join_until_its_re_plan_comes():
         streamer.start(online.plan, 0.0)
         grid = SetpointGrid(0, round(DT * NS))
         run = SetpointRun(true, tool_start=online.plan.start)
-        taken, began, waits, t = [], [], 0, 0.0
+        taken, began, waits, seen_done, t = [], [], 0, 0, 0.0
         while t < 10.0:
             target = round((t + DT) * NS)
             cap = loop.limit_ns(streamer.state)
@@ -258,6 +258,7 @@ def test_a_paced_loop_holds_the_stream_at_the_join_until_its_re_plan_comes():
                 waits += 1
                 clock["t"] += 0.05
                 assert loop.work is not None and cap is not None
+                seen_done += loop.finished_at_join()    # the node takes it on the wall
             had = loop.work
             r = loop.tick(streamer, grid, round(t * NS), run.sim.state.tool)
             if loop.work is not None and loop.work is not had:     # a refresh submitted
@@ -267,7 +268,7 @@ def test_a_paced_loop_holds_the_stream_at_the_join_until_its_re_plan_comes():
                 taken.append(r)
                 assert loop.limit_ns(streamer.state) is None or loop.work is not None
         replans = [r for r in taken if r.step.plan is not None]
-        assert len(replans) >= 2 and waits > 0
+        assert len(replans) >= 2 and waits > 0 and seen_done > 0
         assert all(r.switched for r in replans), [r.note for r in replans]
         assert loop.limit_ns("stopping") is None   # a stop never waits for a refresh
         for r in taken:                    # the join: what was streamed + join_lead
