@@ -24,6 +24,10 @@ import math
 from types import SimpleNamespace
 
 from rheo_shaping.diagnosis.naming import RULE, THRESHOLDS, judge, lead_key, moved
+from rheo_shaping_validation.benchmark.score import row_level
+
+#: The floor file of rows stored without their floor level (``--floor``).
+FLOOR: list[str | None] = [None]
 
 FACTORS = (0.8, 1.2)
 
@@ -46,8 +50,8 @@ def name_of(row: dict, rule) -> str:
     if not effects:
         return "unexplained"
     Jb, Jbh = float(row["J_baseline"]), float(row["J_baseline_holdout"] or math.nan)
-    lead = sorted(effects, key=lead_key(Jb, rule))[0]
-    r = judge(lead, effects, Jb, Jbh, math.isfinite(Jbh), float(row["floor_q95"]), rule)
+    lead = sorted(effects, key=lead_key(Jb, Jbh, rule))[0]
+    r = judge(lead, effects, Jb, Jbh, math.isfinite(Jbh), row_level(row, FLOOR[0]), rule)
     return lead.names[0] if r.named else "unexplained"
 
 
@@ -85,7 +89,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("files", nargs="+")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--floor", default=None, help="the floor file of rows stored without "
+                    "their floor level (their level from its median over its 95 %% quantile)")
     a = ap.parse_args()
+    FLOOR[0] = a.floor
     rows = []
     for fn in a.files:
         with open(fn) as f:
