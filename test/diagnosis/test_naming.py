@@ -292,3 +292,47 @@ def test_the_lead_is_the_least_remainder_on_the_worse_of_fit_and_holdout():
     assert sorted([thin, off], key=lead_key(J_b))[0] is thin          # fit records alone
     assert sorted([thin, off], key=lead_key(J_b, J_bh))[0] is off
     assert judge(off, [thin, off], J_b, J_bh, True, 0.26).named
+
+
+def test_the_holdouts_are_refitted_until_the_first_two_by_the_rules_order_have_theirs(
+        monkeypatch):
+    """verdict.holdout_leads: the holdout's rest lengths are refitted under the first by p, the
+    first two by the fit records and the first two by the rule's own order (the worse of fit
+    and holdout); where that refit moves a candidate judged on the baseline's lengths into the
+    first two, its holdout is refitted too, each candidate once; one never in the first two
+    is not refitted."""
+    from types import SimpleNamespace
+    from rheo_shaping.diagnosis import verdict as vmod
+    J_b = J_bh = 6.0                                 # R = 5: J = 1 + 5 u
+    base = SimpleNamespace(J=J_b, J_h=J_bh)
+
+    def cands(after: dict):
+        out = [ex("friction_tool", (0.3,), 1.5, 5.5),    # fit 0.1, holdout 0.9; first by p
+               ex("bending", (5e-6,), 2.0, 5.0),         # 0.2, 0.8
+               ex("power_law", (0.7,), 2.5, 2.6),        # 0.3, 0.32
+               ex("thinning", (1.0,), 4.0, 5.1)]         # 0.6, 0.82
+        for e, p in zip(out, (1e-6, 1e-5, 1e-4, 1e-3)):
+            e.p = p
+        calls: list = []
+
+        def refit(todo, ctx):
+            calls.append([e.names[0] for e in todo])
+            for e in todo:
+                e.J_holdout = after[e.names[0]]
+        monkeypatch.setattr(vmod, "holdout_lengths", refit)
+        vmod.holdout_leads(out, out, None, base)
+        return out, calls
+    # the refit keeps the first two: one round (friction_tool by p and fit, bending by fit
+    # and the rule's order, power_law by the rule's order); thinning never refitted
+    out, calls = cands({"friction_tool": 5.6, "bending": 1.9, "power_law": 2.4,
+                        "thinning": 1.2})
+    assert calls == [["friction_tool", "bending", "power_law"]]
+    assert out[3].J_holdout == 5.1
+    assert [e.names[0] for e in sorted(out, key=lead_key(J_b, J_bh))[:2]] == \
+        ["bending", "power_law"]
+    # the power law's own lengths make its holdout worse: the thinning, judged on the
+    # baseline's lengths, comes second and is refitted in a second round
+    out, calls = cands({"friction_tool": 5.6, "bending": 1.9, "power_law": 5.8,
+                        "thinning": 1.2})
+    assert calls == [["friction_tool", "bending", "power_law"], ["thinning"]]
+    assert out[3].J_holdout == 1.2
