@@ -25,6 +25,9 @@ tool-force RMS [N], and the noise, in ``rheo_shaping/data/diagnosis_floor.json``
 Each finished case is appended to ``FILE.partial.jsonl`` first; ``--assemble`` builds
 the data file from that (an interrupted run keeps its cases).  ``--variations all`` draws
 the world's form per case (issue 46, :mod:`rheo_shaping_validation.worlds.forms`), and
+``--stratify`` spreads them over the cases instead (each variation off in half of them, on in
+half with its values one to each equal part of its range: the soft mould's end included,
+which 25 random draws missed), and
 ``--assemble --without V --out FILE_V`` (with ``FILE``'s partial file copied to
 ``FILE_V.partial.jsonl``) keeps only the cases with V off: the floor a held-out V is
 judged against.
@@ -60,7 +63,8 @@ def one_case(shared: dict, index: int) -> list[dict]:
     t0 = time.monotonic()
     case = make_case(index, "none", shared["seed"], base_cell(31, T), world="dynamic",
                      n_records=max(nf + nh for nf, nh in shared["groupings"]),
-                     variations=tuple(shared.get("variations", ())))
+                     variations=tuple(shared.get("variations", ())),
+                     strata=int(shared.get("strata", 0)))
     t_world = time.monotonic() - t0
     rows = []
     for n in shared["n_masses"]:
@@ -135,6 +139,10 @@ def main(argv=None) -> int:
     ap.add_argument("--variations", default="",
                     help="the dynamic world's form variations drawn per case (issue 46): 'all' "
                          "or names separated by commas (default none)")
+    ap.add_argument("--stratify", action="store_true",
+                    help="the variations stratified over the --cases cases (a Latin hypercube: "
+                         "each off in half, on in half with its values spread over its whole "
+                         "range, ends included) instead of drawn at random per case")
     ap.add_argument("--without", default=None, metavar="VARIATION",
                     help="build the data file from the cases with this variation off only (a "
                          "leave-one-world-out floor)")
@@ -158,6 +166,7 @@ def main(argv=None) -> int:
     how = {"script": "benchmarks/diagnosis_floor.py", "args": sys.argv[1:] if argv is None
            else list(argv), "seed": a.seed, "cases_per_length": a.cases, "world": "dynamic",
            "commit": commit, "variations": variations,
+           "strata": a.cases if a.stratify and variations else 0,
            "what": "baseline excess J - 1 (fit, holdout) on effect-free dynamic-world records, "
                    "initial state read from the records (auto), written scenario and chain "
                    "off within +-0.8 tolerance, a drawn laying, movements 1-4 in a drawn "
@@ -174,7 +183,8 @@ def main(argv=None) -> int:
         t0 = time.monotonic()
         with executor_from_spec(a.executor or f"local:{a.jobs}", a.jobs) as ex:
             futs = {ex.submit(one_case, {"seed": a.seed, "process_time": T, "n_masses": ns,
-                                         "groupings": groupings, "variations": variations},
+                                         "groupings": groupings, "variations": variations,
+                                         "strata": a.cases if a.stratify else 0},
                               i): (T, i) for T, i in todo}
             for k, f in enumerate(as_completed(futs)):
                 rows = f.result()

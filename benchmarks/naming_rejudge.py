@@ -21,6 +21,10 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from rheo_shaping.diagnosis.naming import RULE, judge, lead_key
+from rheo_shaping_validation.benchmark.score import row_level
+
+#: The floor file of rows stored without their floor level (``--floor``).
+FLOOR: list[str | None] = [None]
 
 
 def _expl(c: dict | None, chain: bool = False):
@@ -39,7 +43,7 @@ def verdict(row: dict, rule=RULE) -> str:
     if row["p_gap"] > 0.05:
         return "none"
     Jb, Jbh = float(row["J_baseline"]), float(row["J_baseline_holdout"] or math.nan)
-    has_h, q = math.isfinite(Jbh), float(row["floor_q95"])
+    has_h, q = math.isfinite(Jbh), row_level(row, FLOOR[0])
     cands = [_expl(c) for c in row["candidates"]]
     singles = [c for c in cands if len(c.names) == 1]
     pairs = [c for c in cands if len(c.names) == 2 and c.checked]
@@ -53,7 +57,7 @@ def verdict(row: dict, rule=RULE) -> str:
                       and row.get("side") == "sheet")
     chain_ok = named(chain) and not timing_refused
     if singles:
-        lead = sorted(singles, key=lead_key(Jb, rule))[0]
+        lead = sorted(singles, key=lead_key(Jb, Jbh, rule))[0]
         if named(lead) and not (chain_ok and chain.J < lead.J):
             return lead.names[0]
     if chain_ok:
@@ -85,7 +89,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("files", nargs="+")
     ap.add_argument("--changed", action="store_true", help="list the cases whose verdict moves")
+    ap.add_argument("--floor", default=None, help="the floor file of rows stored without "
+                    "their floor level (their level from its median over its 95 %% quantile)")
     a = ap.parse_args()
+    FLOOR[0] = a.floor
     for fn in a.files:
         rows = [json.loads(ln)["row"] for ln in Path(fn).read_text().splitlines() if ln.strip()]
         rows = [r for r in rows if "verdict" in r]

@@ -24,6 +24,10 @@ import math
 from types import SimpleNamespace
 
 from rheo_shaping.diagnosis.naming import RULE, THRESHOLDS, judge, lead_key, moved
+from rheo_shaping_validation.benchmark.score import row_level
+
+#: The floor file of rows stored without their floor level (``--floor``).
+FLOOR: list[str | None] = [None]
 
 FACTORS = (0.8, 1.2)
 
@@ -46,12 +50,19 @@ def name_of(row: dict, rule) -> str:
     if not effects:
         return "unexplained"
     Jb, Jbh = float(row["J_baseline"]), float(row["J_baseline_holdout"] or math.nan)
-    lead = sorted(effects, key=lead_key(Jb, rule))[0]
-    r = judge(lead, effects, Jb, Jbh, math.isfinite(Jbh), float(row["floor_q95"]), rule)
+    lead = sorted(effects, key=lead_key(Jb, Jbh, rule))[0]
+    r = judge(lead, effects, Jb, Jbh, math.isfinite(Jbh), row_level(row, FLOOR[0]), rule)
     return lead.names[0] if r.named else "unexplained"
 
 
-def check_row(row: dict) -> dict:
+def check_row(row: dict, rejudge: bool = False) -> dict:
+    """The flips of ``row``'s verdict; ``rejudge``: of the verdict the rule as it is now gives
+    on the row's stored candidates (a single effect or ``unexplained`` where the stored one is
+    either; the gap test's ``none`` as stored), so that rows of an older rule are judged by
+    this one."""
+    if rejudge and row["verdict"] not in ("none", "measurement chain") \
+            and "+" not in row["verdict"] and row.get("floor_q95") is not None:
+        row = dict(row, verdict=name_of(row, RULE))
     out: dict = {"index": row["index"], "kind": row["kind"], "verdict": row["verdict"]}
     q = row.get("floor_q95")
     if q is None:
@@ -85,12 +96,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("files", nargs="+")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--floor", default=None, help="the floor file of rows stored without "
+                    "their floor level (their level from its median over its 95 %% quantile)")
+    ap.add_argument("--rejudge", action="store_true", help="judge the verdicts the rule as "
+                    "it is now gives on the stored candidates (rows of an older rule)")
     a = ap.parse_args()
+    FLOOR[0] = a.floor
     rows = []
     for fn in a.files:
         with open(fn) as f:
             data = json.load(f)
-        rows += [dict(check_row(r), file=fn) for r in data["case_results"]]
+        rows += [dict(check_row(r, a.rejudge), file=fn) for r in data["case_results"]]
     judged = [r for r in rows if r.get("judged")]
     flipped = [r for r in judged if r["flips"]]
     print(f"{len(rows)} cases, {len(judged)} judged again, {len(flipped)} flip under some "

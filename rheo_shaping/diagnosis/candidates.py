@@ -13,7 +13,12 @@ from .evaluate import Candidate
 from .linear import Solver, Stack
 
 #: Probe values per effect: (kind, values).  "curve": a scalar effect probed at two magnitudes,
-#: the response piecewise linear through 0 and both; "linear": one column per probe (signed).
+#: the response piecewise linear through 0 and both; "linear": one column per probe (signed),
+#: a parameter probed on both sides taking the column of the side its value lies on
+#: (:func:`linear_sides`, :func:`side_columns`).  The tool offset is probed on both sides of
+#: each axis: a tool pressing deeper than written meets the contact, one held higher leaves
+#: it, and a column from one side continued through zero sent a deep offset's search the
+#: wrong way.
 PROBES: dict = {
     "friction_mould": ("curve", (0.2, 0.5), 0.8),
     "friction_tool": ("curve", (0.2, 0.5), 0.8),
@@ -21,7 +26,7 @@ PROBES: dict = {
     "kelvin_c1": ("curve", (500.0, 2000.0), 3000.0),
     "power_law": ("curve", (0.8, 0.55), 0.35),
     "thinning": ("curve", (0.6, 1.6), 2.5),
-    "tool_offset": ("linear", ((1e-3, 0.0), (0.0, 1e-3)), None),
+    "tool_offset": ("linear", ((1e-3, 0.0), (0.0, 1e-3), (-1e-3, 0.0), (0.0, -1e-3)), None),
     "mass_error": ("linear", ((0.25,),), None),
 }
 GRID = 41          # magnitudes tried per curve effect on the linearised model
@@ -136,13 +141,50 @@ def curve_probes(name: str, resp) -> list[tuple[float, np.ndarray]]:
     return mags
 
 
-def linear_columns(name: str, resp) -> list[tuple[int, np.ndarray]]:
-    """A linear effect's columns: per probe (values ``v``, response ``d``) the parameter it
-    moves (its largest entry) and the response per unit of that parameter."""
-    out = []
+def _side_of(v) -> tuple[int, float]:
+    """The parameter a linear probe ``v`` moves (its largest entry) and the side (+-1)."""
+    k = int(np.argmax(np.abs(v)))
+    return k, (1.0 if v[k] > 0 else -1.0)
+
+
+def _by_side(resp) -> dict[int, dict[float, np.ndarray]]:
+    """A linear effect's probe responses per unit, by parameter and side."""
+    by_k: dict[int, dict[float, np.ndarray]] = {}
     for v, d in resp:
-        k = int(np.argmax(np.abs(v)))
-        out.append((k, d / v[k]))
+        k, side = _side_of(v)
+        by_k.setdefault(k, {})[side] = d / v[k]
+    return by_k
+
+
+def linear_sides(name: str, resp) -> list[list[tuple[int, np.ndarray, float, float]]]:
+    """A linear effect's fits to try (:func:`fit_single`, :func:`fit_pair`): each a choice of
+    one column per parameter, as (parameter index, response per unit, lower bound, upper
+    bound).  A parameter probed on both sides gives two choices, its positive side's column
+    within [0, hi] and its negative side's within [lo, 0] (the response piecewise linear
+    through zero); one probed on one side only, its column within the effect's bounds."""
+    e = EFFECTS[name]
+    by_k = _by_side(resp)
+    options = []
+    for k in sorted(by_k):
+        lo, hi = e.bounds[k]
+        sides = by_k[k]
+        if len(sides) == 1:
+            options.append([(k, next(iter(sides.values())), lo, hi)])
+        else:
+            options.append([(k, sides[1.0], max(lo, 0.0), hi),
+                            (k, sides[-1.0], lo, min(hi, 0.0))])
+    return [list(c) for c in itertools.product(*options)]
+
+
+def side_columns(name: str, resp, value) -> list[tuple[int, np.ndarray]]:
+    """A linear effect's columns at ``value``: per parameter, the column of the side its value
+    lies on (the positive side at zero), or of the one side it was probed on."""
+    by_k = _by_side(resp)
+    out = []
+    for k in sorted(by_k):
+        sides = by_k[k]
+        want = -1.0 if k < len(value) and value[k] < 0 else 1.0
+        out.append((k, sides.get(want, next(iter(sides.values())))))
     return out
 
 
@@ -160,23 +202,28 @@ def fit_single(name: str, resp, lin: LinearFit) -> Explanation | None:
         if not resp:
             return None
     if kind == "linear":
-        cols = linear_columns(name, resp)
-        E = np.column_stack([c for _, c in cols])
-        elo = np.array([e.bounds[k][0] for k, _ in cols])
-        ehi = np.array([e.bounds[k][1] for k, _ in cols])
-        u, J = solver.solve(lin.z, lin.lo, lin.hi, E, (elo, ehi))
+        best = None
+        for option in linear_sides(name, resp):
+            E = np.column_stack([col for _, col, _, _ in option])
+            elo = np.array([lo for _, _, lo, _ in option])
+            ehi = np.array([hi for _, _, _, hi in option])
+            u, J = solver.solve(lin.z, lin.lo, lin.hi, E, (elo, ehi))
+            if best is None or J < best[0]:
+                best = (J, u, E, option)
+        assert best is not None         # a probe ran: one option at least
+        J, u, E, option = best
         vals_fit = [0.0] * e.n_params
-        for (k, _), x in zip(cols, u[solver.A.shape[1]:]):
+        for (k, _, _, _), x in zip(option, u[solver.A.shape[1]:]):
             vals_fit[k] = float(x)
         z = solver.residual(lin.z, u, E)
-        c = Explanation((name,), {name: tuple(vals_fit)}, J, lin.stack.J_parts(z), k=len(cols),
-                        baseline_u=u[:solver.A.shape[1]])
+        c = Explanation((name,), {name: tuple(vals_fit)}, J, lin.stack.J_parts(z),
+                        k=len(option), baseline_u=u[:solver.A.shape[1]])
         # 95 % interval: the value whose LR drop is 3.84 (effective sample size), the baseline
         # refitted (the column with the baseline's columns projected out)
         e_perp = E - solver.Q @ (solver.Q.T @ E)
         ntot = sum(n_eff.values())
         ivs = [(v, v) for v in vals_fit]
-        for (k, _), col in zip(cols, e_perp.T):
+        for (k, _, _, _), col in zip(option, e_perp.T):
             h = float(col @ col)
             half = math.sqrt(3.84 * J / (ntot * h)) if h > 0 else math.inf
             ivs[k] = (vals_fit[k] - half, vals_fit[k] + half)
@@ -247,28 +294,30 @@ def fit_pair(a: Explanation, b: Explanation, responses, lin: LinearFit) -> Expla
         else:
             grid = np.linspace(0, magnitude(n, top), 17)
             curve.append((n, "curve", (curve_probes(n, resp), grid)))
-    E, elo, ehi, kidx = None, [], [], []
-    if lin_e:
-        cols = []
-        for n, _, resp in lin_e:
-            e = EFFECTS[n]
-            for k, col in linear_columns(n, resp):
+    # each choice of sides of the linear effects (:func:`linear_sides`): columns, bounds,
+    # (effect, parameter) per column
+    choices: list[tuple[np.ndarray | None, list, list, list]] = []
+    for sides in itertools.product(*[linear_sides(n, resp) for n, _, resp in lin_e]):
+        cols, elo, ehi, kidx = [], [], [], []
+        for (n, _, _), option in zip(lin_e, sides):
+            for k, col, lo, hi in option:
                 cols.append(col)
-                elo.append(e.bounds[k][0])
-                ehi.append(e.bounds[k][1])
+                elo.append(lo)
+                ehi.append(hi)
                 kidx.append((n, k))
-        E = np.column_stack(cols)
+        choices.append((np.column_stack(cols) if cols else None, elo, ehi, kidx))
     # one combination of curve magnitudes each (without curve effects: one, the empty one)
     for combo in itertools.product(*[g[2][1] for g in curve]):
         shift = np.zeros_like(lin.z)
         for (n, _, (mags, _g)), x in zip(curve, combo):
             shift = shift + response_at(mags, x)
-        u, J = solver.solve(lin.z + shift, lin.lo, lin.hi, E,
-                            (np.array(elo), np.array(ehi)) if E is not None else None)
-        if best is None or J < best[0]:
-            best = (J, u, combo, shift)
+        for E, elo, ehi, kidx in choices:
+            u, J = solver.solve(lin.z + shift, lin.lo, lin.hi, E,
+                                (np.array(elo), np.array(ehi)) if E is not None else None)
+            if best is None or J < best[0]:
+                best = (J, u, combo, shift, E, kidx)
     assert best is not None         # the product of non-empty grids has a combination
-    J, u, combo, shift = best
+    J, u, combo, shift, E, kidx = best
     values: dict[str, tuple[float, ...]] = {}
     for (n, _, _), x in zip(curve, combo):
         values[n] = ((1.0 - x) if n == "power_law" else float(x),)

@@ -31,7 +31,7 @@ from ..params.cell import CellParams
 
 from ..sheet.effects import EFFECTS
 from . import stats
-from .candidates import PROBES, REFINE_STEPS, Explanation, linear_columns, magnitude
+from .candidates import PROBES, REFINE_STEPS, Explanation, magnitude, side_columns
 from .context import Baseline, FitContext, Group, forward_jacobian
 from .evaluate import Task, all_ok, apply
 from .laid_length import fit_offsets, length_fitted, with_offsets
@@ -125,12 +125,13 @@ def numerics(cands: list[Explanation], ctx: FitContext, base: Baseline, response
 
 def effect_columns(name: str, responses, value) -> list[tuple[int, np.ndarray]] | None:
     """The linearised response of effect ``name`` at ``value``: (parameter index, column)
-    pairs from its probes (a linear effect: one per probe; a curve: the slope of the
-    piecewise-linear response where ``value`` lies); None with fewer than two curve probes."""
+    pairs from its probes (a linear effect: one per parameter, the side ``value`` lies on,
+    :func:`.candidates.side_columns`; a curve: the slope of the piecewise-linear response
+    where ``value`` lies); None with fewer than two curve probes."""
     kind, _vals, _top = PROBES[name]
     resp = [(v, d) for v, d in responses[name] if d is not None]
     if kind == "linear":
-        return linear_columns(name, resp)
+        return side_columns(name, resp, value)
     mags = [(magnitude(name, v[0]), d) for v, d in resp]
     if len(mags) < 2:
         return None

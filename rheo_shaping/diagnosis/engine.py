@@ -142,12 +142,12 @@ def diagnose(records: Sequence[Record], holdout: Sequence[Record] = (),
         cands = candidates_stage(ctx, base, gap, chain_c, library)
 
         judged: dict[int, naming_mod.Naming] = {}   # id(explanation) -> naming.judge's
-        q95 = fl.quantile()
+        level = fl.level()
 
         def naming_of(c) -> naming_mod.Naming:
             if id(c) not in judged:
                 judged[id(c)] = naming_mod.judge(c, cands.effects, base.J, base.J_h,
-                                                 bool(ctx.hold_d), q95)
+                                                 bool(ctx.hold_d), level)
             return judged[id(c)]
 
         def clear(c) -> bool:
@@ -230,7 +230,7 @@ def _floor_report(floor, base: Baseline, verdict_fit, naming, below_tol: bool, t
     return FloorReport(
         source=floor.source, config=floor.config, cases=int(floor.fit.size),
         q95_fit=floor.quantile(), q95_holdout=q_h, q95_profile_m=floor.profile_sys_m,
-        q95_force_N=floor.force_sys_N,
+        q95_force_N=floor.force_sys_N, level=floor.level(),
         baseline=fl_mod.remainder(base.J, base.parts, sp, sf, floor),
         baseline_holdout=(fl_mod.holdout_remainder(base.J_h, floor)
                           if math.isfinite(base.J_h) else None),

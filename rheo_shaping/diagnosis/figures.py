@@ -115,6 +115,7 @@ class FloorReport:
     model_form_discrepancy: float | None = None    # the bound's squared size (J - 1 units)
     model_form_spread: dict | None = None   # how the width was estimated (intervals.Spread)
     model_form_bound: dict | None = None    # the worst-case bound: widths, the interval
+    level: float = math.nan         # the naming rule's floor level (median J - 1, fit records)
 
     @property
     def model_form(self) -> bool:

@@ -80,6 +80,12 @@ class Floor:
         with stats.using_null(self.sample):
             return stats.null_quantile(holdout, shift=shift)
 
+    def level(self) -> float:
+        """The floor's level: the median of its effect-free excess J - 1 on the fit records,
+        what a record of another form typically leaves (the naming rule's a,
+        :func:`.naming.judge`); nan without a sample."""
+        return float(np.median(self.fit)) if self.fit.size else math.nan
+
     def p_value(self, excess: float, holdout: bool = False, shift=None) -> float:
         with stats.using_null(self.sample):
             return stats.gap_p_value(excess, holdout, shift=shift)

@@ -97,13 +97,33 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
     # the holdout's own rest lengths (each record's first seconds, refitted under the
     # candidate's cell: 17 short runs a record) for the candidates that can lead the verdict
     # and the lead's closest rival: the first by (checked, p, J), the first two by the
-    # effective remainder (:func:`verdict_stage`; the naming rule judges a lead and its
-    # rivals on the worse of fit and holdout records, :func:`naming.left`)
-    by_rem = sorted(effects, key=lead_key(base.J))
-    leads = ({id(sorted(effects, key=rank_key)[0])} | {id(c) for c in by_rem[:2]}
-             if effects else set())
-    holdout_lengths([c for c in checked if id(c) in leads], ctx)
+    # effective remainder (:func:`naming.lead_key`, the worse of fit and holdout records:
+    # the naming rule judges a lead and its rivals so, :func:`naming.left`) and the first two
+    # by the fit records alone; again while that order, with the holdouts refitted, puts
+    # first a candidate whose holdout was judged on the baseline's lengths
+    holdout_leads(effects, checked, ctx, base)
     return Candidates(effects, responses, m, base_c)
+
+
+def holdout_leads(effects: list[Explanation], checked: list[Explanation], ctx: FitContext,
+                  base: Baseline, rounds: int = 3) -> None:
+    """:func:`check.holdout_lengths` for the checked candidates that can lead the verdict or
+    be the lead's closest rival (:func:`candidates_stage`), until the first two by the
+    effective remainder have their own holdout lengths (at most ``rounds`` times)."""
+    if not effects:
+        return
+    done: set[int] = set()
+    mine = {id(c) for c in checked}
+    first = [sorted(effects, key=rank_key)[0]] + sorted(effects, key=lead_key(base.J))[:2]
+    for _ in range(rounds):
+        by_rem = sorted(effects, key=lead_key(base.J, base.J_h))
+        todo = list({id(c): c for c in first + by_rem[:2]
+                     if id(c) in mine and id(c) not in done}.values())
+        if not todo:
+            break
+        holdout_lengths(todo, ctx)
+        done |= {id(c) for c in todo}
+        first = []
 
 
 def pairs_stage(ctx: FitContext, base: Baseline, gap: GapTest,
@@ -155,7 +175,8 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
     ``rule(explanation) -> bool`` (:func:`naming.judge`: with its prior, most of the
     baseline's excess on the fit and holdout records, and a remainder clearly below the best
     other explanation's) decides alone, the lead the checked effect of least effective
-    remainder (:func:`naming.lead_key`: J plus the prior's cost); what the named one
+    remainder (:func:`naming.lead_key`: the worse of fit and holdout plus the prior's
+    cost); what the named one
     leaves is reported against the floor (flagged when beyond it), never a reason to refuse
     a cause that explains most.  The likelihood ratio is reported there, not asked: it
     counts each observable's residuals as independent noise, while against a model-form
@@ -185,7 +206,7 @@ def verdict_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Explan
         # too puts the lag on the tool (or the camera's clock), which no knob holds
         timing = lag_check(ctx.fit_d, base.outs[:ctx.nf], chain_c.fitted_u[n_s:])
         chain_ok = not timing["tool_lags"]
-    ranked = sorted(effects, key=rank_key if rule is None else lead_key(base.J))
+    ranked = sorted(effects, key=rank_key if rule is None else lead_key(base.J, base.J_h))
     if gap.left and ranked:
         lead = ranked[0]
         if explains(lead) and not (chain_ok and chain_c.J < lead.J):

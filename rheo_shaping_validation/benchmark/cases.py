@@ -67,12 +67,13 @@ class NoCase(RuntimeError):
 def make_case(index: int, kind: str, seed: int, base: CellParams,
               measurement: MeasurementParams = MeasurementParams(),
               world: str = "finer-chain", n_records: int = 3,
-              variations: tuple = (), always_on: tuple = ()) -> dict:
+              variations: tuple = (), always_on: tuple = (), strata: int = 0) -> dict:
     """Draw a case (its own seed) and record its ``n_records`` runs (movements drawn from 1-4
     without repeats) in ``world`` (:data:`~.world.WORLDS`); on the dynamic world, in a form
-    with ``variations`` drawn (none drawn: the plain dynamic world)."""
+    with ``variations`` drawn (none drawn: the plain dynamic world; ``strata`` > 0: stratified
+    over that many cases, a floor's calibration)."""
     case_world = WORLDS[check_world(world)].for_case(seed, index, variations, always_on,
-                                                     measurement)
+                                                     measurement, strata)
     rng = random.Random(seed * 1000 + index)
     why = {"tore": 0, "failed": 0, "outside": 0}
     for _attempt in range(DRAWS):

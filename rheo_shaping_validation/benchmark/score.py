@@ -4,6 +4,7 @@ over the cases (:func:`summarise`) and the figures each world is held to (:data:
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -103,6 +104,7 @@ def score_case(case: dict, diag) -> dict:
     fl = diag.floor
     row["floor_source"] = fl.source
     row["floor_q95"] = fl.q95_fit
+    row["floor_level"] = fl.level
     row["naming"] = None if fl.naming is None else fl.naming.as_json()
     row["form"] = case.get("form")
     # what the verdict leaves against the floor (fit or holdout records beyond it), for a
@@ -139,6 +141,24 @@ def score_case(case: dict, diag) -> dict:
 #: A fitted value below this share of its effect's library range is "near zero": its
 #: interval's width is taken relative to the range, not to the value.
 NEAR_ZERO = 0.1
+
+
+def row_level(row: dict, floor_file: str | None = None) -> float:
+    """The naming rule's floor level of a stored case ``row`` (noise units): its
+    ``floor_level``, or for a row stored before it was, its ``floor_q95`` times the median over
+    the 95 % quantile of the fit sample of ``floor_file``'s calibration at the row's chain
+    size (the records' noise is the world's, the same in every case); nan when neither."""
+    if row.get("floor_level") is not None:
+        return float(row["floor_level"])
+    if floor_file is None or row.get("floor_q95") is None:
+        return math.nan
+    import json
+    from rheo_shaping.diagnosis.floor import _q95
+    cfgs = json.loads(Path(floor_file).read_text())["configs"]
+    n = row.get("n_masses", 63)
+    cfg = next((c for c in cfgs if c["n_masses"] == n), cfgs[0])
+    fit = np.asarray(cfg["fit"], float)
+    return float(row["floor_q95"]) * float(np.median(fit)) / _q95(fit)
 
 
 def relative_width(name: str, fit, ivs) -> float | None:

@@ -36,8 +36,10 @@ class World(Protocol):
     @classmethod
     def for_case(cls, seed: int, index: int, variations: Iterable = (),
                  always_on: Iterable = (),
-                 measurement: MeasurementParams = MeasurementParams()) -> World:
-        """The world of case ``index`` of ``seed`` (its own random stream)."""
+                 measurement: MeasurementParams = MeasurementParams(),
+                 strata: int = 0) -> World:
+        """The world of case ``index`` of ``seed`` (its own random stream; ``strata`` > 0:
+        its form one of that many stratified calibration cases, where it has a form)."""
 
     def drawn(self, rng: random.Random, extra: WorldEffects) -> World:
         """This world for one draw of a case, with what it draws from ``rng``."""
@@ -100,7 +102,8 @@ class FinerChain:
     @classmethod
     def for_case(cls, seed: int, index: int, variations: Iterable = (),
                  always_on: Iterable = (),
-                 measurement: MeasurementParams = MeasurementParams()) -> FinerChain:
+                 measurement: MeasurementParams = MeasurementParams(),
+                 strata: int = 0) -> FinerChain:
         return cls(measurement)
 
     def drawn(self, rng: random.Random, extra: WorldEffects) -> FinerChain:
@@ -141,11 +144,12 @@ class DynamicWorld:
     @classmethod
     def for_case(cls, seed: int, index: int, variations: Iterable = (),
                  always_on: Iterable = (),
-                 measurement: MeasurementParams = MeasurementParams()) -> DynamicWorld:
+                 measurement: MeasurementParams = MeasurementParams(),
+                 strata: int = 0) -> DynamicWorld:
         """The case's form: ``variations`` drawn on a random stream of its own
         (:func:`~rheo_shaping_validation.worlds.forms.case_form`; none drawn: the plain
         dynamic world)."""
-        return cls(form=case_form(seed, index, variations, always_on))
+        return cls(form=case_form(seed, index, variations, always_on, strata))
 
     def drawn(self, rng: random.Random, extra: WorldEffects) -> DynamicWorld:
         """With ``extra`` (its own effects) and a laying drawn from four numbers of ``rng``."""

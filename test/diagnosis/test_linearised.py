@@ -224,3 +224,41 @@ def test_cause_ranking_follows_its_rules():
     assert _kinds(sub)[0] == "tool position calibration"
     weak = dict(late, partial_substitutes={"tool position calibration": 0.5 * SUBSTITUTE_SHARE})
     assert _kinds(weak)[0] == "contact friction"
+
+
+def test_a_tool_offset_is_probed_on_both_sides_and_fitted_on_the_side_it_lies():
+    """The tool offset's response is not odd: pressing deeper meets the contact, held higher it
+    leaves it (here each axis responds three times as strongly below zero as above).  Probed on
+    both sides, the fit takes each axis's column on the side its value lies and recovers a
+    deep offset (+1.2 mm in x, -1.8 mm in z) to the noise; from the positive probes alone
+    (the column continued through zero, the search before) it cannot."""
+    assert set(PROBES["tool_offset"][1]) == {(1e-3, 0.0), (0.0, 1e-3), (-1e-3, 0.0),
+                                             (0.0, -1e-3)}
+    A, g, noise = _world(3)
+    up, down = g[:, :2], 3.0 * g[:, :2] + g[:, 2:3]   # per metre, above and below zero
+
+    def resp(v):
+        v = np.asarray(v, float)
+        return up @ np.maximum(v, 0.0) + down @ np.minimum(v, 0.0)
+    truth = (1.2e-3, -1.8e-3)
+    z = -(A @ np.array([0.2, -0.1, 0.3]) + resp(truth)) + noise
+    both = [(v, resp(v)) for v in PROBES["tool_offset"][1]]
+    c = fit_single("tool_offset", both, _lin(A, z))
+    np.testing.assert_allclose(c.values["tool_offset"], truth, atol=2e-5)
+    assert c.J == pytest.approx(float(noise @ noise), rel=0.05)
+    for (lo, hi), t in zip(c.interval["tool_offset"], truth):
+        assert lo < t < hi
+    one = fit_single("tool_offset", both[:2], _lin(A, z))
+    assert one.J > 10 * c.J
+    assert abs(one.values["tool_offset"][1] - truth[1]) > 3e-4
+    # the chord's columns are the side each value lies on
+    from rheo_shaping.diagnosis.check import effect_columns
+    cols = dict(effect_columns("tool_offset", {"tool_offset": both}, (1e-3, -1e-3)))
+    np.testing.assert_allclose(cols[0], up[:, 0])
+    np.testing.assert_allclose(cols[1], down[:, 1])
+    # a pair with a curve effect takes the sides too
+    gb = g[:, 0] * 3.0
+    zp = z - gb * 4e-6
+    pc = fit_pair(c, Explanation(("bending",), {"bending": (4e-6,)}, 0.0),
+                  {"tool_offset": both, "bending": _probes("bending", gb)}, _lin(A, zp))
+    np.testing.assert_allclose(pc.values["tool_offset"], truth, atol=1e-4)

@@ -6,6 +6,7 @@ moves what it should by the size docs/diagnosis.md states ("A family of worlds",
 of 1.5; the sensor variations act exactly as they say; the draws are the case's own."""
 from __future__ import annotations
 
+import math
 import random
 from dataclasses import replace
 
@@ -156,3 +157,35 @@ def test_bad_variations_are_named():
         FormParams(mould_softness=0.5)
     with pytest.raises(ValueError, match="thickness_seed = -1"):
         FormParams(thickness_seed=-1)
+
+
+def test_a_stratified_calibration_covers_each_variations_whole_range_soft_mould_included():
+    """The floor's calibration cases (``benchmarks/diagnosis_floor.py --stratify``): over n
+    cases each variation is off in half and on in half, its on values one to each of n / 2
+    equal parts of its range (log for a log-drawn one), so the soft mould's end is always
+    held; the per-case draws are the case's own and switchable."""
+    from rheo_shaping_validation.worlds.forms import stratified_form
+    n = 40
+    forms = [stratified_form(7, i, n, list(Variation)) for i in range(n)]
+    for v, r in VARIATIONS.items():
+        on = [abs(getattr(f, v.value)) for f in forms if getattr(f, v.value) !=
+              getattr(FormParams(), v.value)]
+        assert len(on) == n // 2, v
+        if r.log:
+            x = [(math.log(a) - math.log(r.low)) / (math.log(r.high) - math.log(r.low))
+                 for a in on]
+        else:
+            x = [(a - r.low) / (r.high - r.low) for a in on]
+        parts = sorted(int(xx * n / 2) for xx in x)
+        assert parts == list(range(n // 2)), v
+    soft = max(f.mould_softness for f in forms)
+    assert soft >= VARIATIONS[Variation.MOULD_SOFTNESS].at(1 - 2 / n)      # >= 1725 of 2000
+    # the same case again, another seed another hypercube, only the chosen ones on
+    assert stratified_form(7, 3, n, list(Variation)) == forms[3]
+    assert [stratified_form(8, i, n, list(Variation)) for i in range(n)] != forms
+    only = stratified_form(7, 3, n, ["mould_softness"])
+    assert only.mould_softness == forms[3].mould_softness
+    assert only.tool_softness == FormParams().tool_softness
+    assert case_form(7, 3, list(Variation), strata=n) == forms[3]
+    with pytest.raises(ValueError, match="strata = 1"):
+        stratified_form(7, 0, 1, list(Variation))
