@@ -30,12 +30,15 @@ from .worker import ShaperProcess
 FIRST_REFRESH_S = 0.5
 
 #: Wall time [s] a paced simulated cell's simulator waits for a set-point (its
-#: ``command_timeout``) while the stream waits at a refresh's join: four times the largest
-#: refresh measured on a loaded machine (0.55 s, docs/closed-loop.md), and below the
-#: monitor's wall-clock bound on a silent simulator (10 x max_data_age, 5 s by default).
-#: A refresh slower still costs a step with the tool holding its set-point, named in the
-#: simulator's log.
-PACED_COMMAND_TIMEOUT = 2.0
+#: ``command_timeout``) while the stream waits at a refresh's join: below the monitor's
+#: wall-clock bound on a silent simulator (10 x max_data_age, 5 s by default).
+PACED_COMMAND_TIMEOUT = 4.0
+
+#: Wall time [s] a paced stream waits at a refresh's join at most, below the simulator's
+#: wait (:data:`PACED_COMMAND_TIMEOUT`), so that it never runs out of set-points and steps
+#: on without the stream: a refresh slower still (a loaded machine) is not waited for; the
+#: stream goes on and its re-plan, joined where the stream has passed, is dropped, named.
+PACE_WAIT_S = 2.5
 
 
 def join_lead(span: float, pace: float, refresh_wall_s: float) -> float:
@@ -163,17 +166,21 @@ class StreamedLoop:
                                      * NS) - 1
         return taken
 
-    def finished_at_join(self) -> bool:
-        """A paced loop whose refresh has finished while its stream waits at the join: the
-        node takes it now (:meth:`tick`), not at a control tick of a clock that waits for
-        the stream (simulated time in lockstep stands still meanwhile)."""
-        return self.cap_ns is not None and self.work is not None and self.work.done()
+    def serve_now(self) -> bool:
+        """A paced stream waiting at its join is to be served now, on the node's wall-clock
+        tick (its control timer runs on the cell's clock, which stands still while the
+        simulator waits for the stream): the refresh has finished (:meth:`tick` takes it),
+        or the wait ran out (:data:`PACE_WAIT_S`: the stream goes on without it)."""
+        return self.cap_ns is not None and self.work is not None and (
+            self.work.done() or self._clock() - self._submitted > PACE_WAIT_S)
 
     def limit_ns(self, state: str) -> int | None:
         """The newest set-point time [ns] the stream in ``state`` may send now: a paced
-        loop's running refresh's join while the stream runs (it waits there for its
-        re-plan); None: no limit (a stop or a retract never waits for a refresh)."""
-        return self.cap_ns if state == "running" else None
+        loop's running refresh's join while the stream runs and the wait has not run out
+        (:data:`PACE_WAIT_S`); None: no limit (a stop or a retract never waits)."""
+        if state != "running" or self._clock() - self._submitted > PACE_WAIT_S:
+            return None
+        return self.cap_ns
 
     def take(self, index: int, step: OnlineStep, st: TrajectoryStreamer) -> Refresh:
         """Refresh ``index``'s result: the running stream switches to its re-plan at the

@@ -105,9 +105,9 @@ class PlannerAdaptive(PlannerMixin):
         return limit_ns if cap is None else min(limit_ns, cap)
 
     def _adaptive_waits(self) -> bool:
-        """A paced stream waits at its join for a refresh that has finished: to be taken now
-        (the control timer runs on the cell's clock, which waits for the stream)."""
-        return self.loop is not None and self.loop.finished_at_join()
+        """A paced stream waits at its join and is to be served now: its refresh finished,
+        or the wait ran out (core: StreamedLoop.serve_now)."""
+        return self.loop is not None and self.loop.serve_now()
 
     def _adaptive_pose(self, xz, stamp_ns: int) -> None:
         """A sample of the run at the executed pose's time, when the shaper wants one."""

@@ -256,9 +256,10 @@ def test_a_paced_loop_holds_the_stream_at_the_join_until_its_re_plan_comes():
                           sample.contact_tension)
             else:                                                   # waits for the loop
                 waits += 1
+                loop.work.fut.result(120)     # the worker's real time is not this wall's
                 clock["t"] += 0.05
                 assert loop.work is not None and cap is not None
-                seen_done += loop.finished_at_join()    # the node takes it on the wall
+                seen_done += loop.serve_now()           # the node takes it on the wall
             had = loop.work
             r = loop.tick(streamer, grid, round(t * NS), run.sim.state.tool)
             if loop.work is not None and loop.work is not had:     # a refresh submitted
@@ -271,6 +272,12 @@ def test_a_paced_loop_holds_the_stream_at_the_join_until_its_re_plan_comes():
         assert len(replans) >= 2 and waits > 0 and seen_done > 0
         assert all(r.switched for r in replans), [r.note for r in replans]
         assert loop.limit_ns("stopping") is None   # a stop never waits for a refresh
+        # a refresh slower than PACE_WAIT_S is not waited for: the stream goes on
+        from rheo_shaping.adaptive.streamed import PACE_WAIT_S
+        loop.cap_ns, loop.work, loop._submitted = 10 * NS, Late(loop.work, 1e9), clock["t"]
+        assert loop.limit_ns("running") == 10 * NS and not loop.serve_now()
+        clock["t"] += PACE_WAIT_S + 0.01
+        assert loop.limit_ns("running") is None and loop.serve_now()
         for r in taken:                    # the join: what was streamed + join_lead
             joins = [b + 0.5 for b in began]
             assert any(abs(j - r.step.t_join) < 1e-9 for j in joins), (r.step.t_join, joins)
