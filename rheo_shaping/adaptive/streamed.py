@@ -172,15 +172,19 @@ class StreamedLoop:
         simulator waits for the stream): the refresh has finished (:meth:`tick` takes it),
         or the wait ran out (:data:`PACE_WAIT_S`: the stream goes on without it)."""
         return self.cap_ns is not None and self.work is not None and (
-            self.work.done() or self._clock() - self._submitted > PACE_WAIT_S)
+            self.work.done() or self._waited_out())
 
     def limit_ns(self, state: str) -> int | None:
         """The newest set-point time [ns] the stream in ``state`` may send now: a paced
         loop's running refresh's join while the stream runs and the wait has not run out
         (:data:`PACE_WAIT_S`); None: no limit (a stop or a retract never waits)."""
-        if state != "running" or self._clock() - self._submitted > PACE_WAIT_S:
+        if state != "running" or self._waited_out():
             return None
         return self.cap_ns
+
+    def _waited_out(self) -> bool:
+        """The running refresh was submitted over :data:`PACE_WAIT_S` of wall time ago."""
+        return self._clock() - self._submitted > PACE_WAIT_S
 
     def take(self, index: int, step: OnlineStep, st: TrajectoryStreamer) -> Refresh:
         """Refresh ``index``'s result: the running stream switches to its re-plan at the

@@ -167,9 +167,11 @@ class SetpointRun:
         """The process ends at ``process_time`` [s] (the cycle of a re-planned movement: its
         gap judged at its own end, its peak counted to there), never before the cell's own
         process time; a time already passed, or a process already ended, changes nothing."""
-        if self.summary is None and process_time > self.sim.state.t:
-            self.cell = replace(self.cell, movement=replace(
-                self.cell.movement, process_time=max(float(process_time), self._own_end)))
+        end = max(float(process_time), self._own_end)
+        if (self.summary is None and process_time > self.sim.state.t
+                and end != self.cell.movement.process_time):     # called at every spin
+            self.cell = replace(self.cell, movement=replace(self.cell.movement,
+                                                            process_time=end))
 
     def summary_so_far(self) -> RunSummary:
         """:attr:`summary` once the process has ended, else the figures up to now."""
