@@ -64,6 +64,7 @@ ATTACKS = [OLD + t for t in (
     "test_a_rogue_parameter_change_of_the_running_monitor_is_refused[ratio]",
     "test_malformed_announcements_and_messages_crash_no_node",
     "test_a_chain_from_the_domain_alone_does_not_tear",
+    "test_a_frozen_monitor_of_a_managed_cell_with_a_forged_heartbeat_holds_the_tool",
 )]
 F_RE = re.compile(r"F_max ([0-9.]+) N \(threshold ([0-9.]+) N, allowed ([0-9.]+) N, "
                   r"F_break ([0-9.]+) N\)")
@@ -135,7 +136,8 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=50, help="runs per attack and rate")
     ap.add_argument("--rates", default="1,10", help="real-time factors (default 1,10)")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("-k", default="", help="only attacks whose name contains this")
+    ap.add_argument("-k", default="",
+                    help="only attacks whose name contains this (several: comma-separated)")
     ap.add_argument("--domain", type=int, default=None,
                     help="the ROS domain of a one-job campaign (default: one claimed per job)")
     ap.add_argument("--jobs", type=int, default=1, help="attacks run at once (default 1)")
@@ -161,7 +163,9 @@ def main(argv=None) -> int:
         return 0
     rng = random.Random(args.seed)
     rates = [float(r) for r in args.rates.split(",")]
-    todo = [(a, r) for a in ATTACKS if args.k in a for r in rates for _ in range(args.runs)]
+    wanted = [k for k in args.k.split(",") if k] or [""]
+    todo = [(a, r) for a in ATTACKS if any(k in a for k in wanted)
+            for r in rates for _ in range(args.runs)]
     rng.shuffle(todo)
     if args.jobs < 1:
         ap.error(f"--jobs {args.jobs}: expected a whole number >= 1")

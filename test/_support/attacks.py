@@ -54,6 +54,26 @@ def tear_cell():
     return replace(base, movement=replace(base.movement, number=3, speed=0.002))
 
 
+def tear_limits(cell) -> tuple[float, float]:
+    """The monitor's abort threshold [N] on the tear plan and what the stopping budget
+    allows above it [N] (threshold + the tension's rate over the abort horizon)."""
+    h = abort_horizon(cell, 0.1, 0.0)
+    threshold, rate, _ = configured_speed_threshold(cell, h, 0.005)
+    return threshold, threshold + rate * h
+
+
+def check_tear(cell, F_max: float, procs, logs) -> None:
+    """Below the threshold + the budget's allowance, below F_break; no traceback."""
+    threshold, allowed = tear_limits(cell)
+    Fb = cell.material.F_break
+    print(f"F_max {F_max:.4f} N (threshold {threshold:.4f} N, allowed {allowed:.4f} N, "
+          f"F_break {Fb:g} N)")
+    tracebacks = [p.exe for p in procs.all if "Traceback" in p.text()]
+    print(f"process tracebacks: {len(tracebacks)} {tracebacks}")
+    assert F_max < allowed and F_max < Fb
+    assert not tracebacks, logs()
+
+
 class Attacked:
     """The tear plan's cell as three processes, with what the attacks need."""
 
@@ -71,9 +91,7 @@ class Attacked:
                       sampled=("/sheet/profile", "/sheet/tensions", "/tool/pose"))
         self.ros, self.procs = ros, procs
         self.diag = Recorder(self.c.node, {"/diagnostics": DiagnosticArray})
-        h = abort_horizon(self.cell, 0.1, 0.0)
-        self.threshold, self.rate, _ = configured_speed_threshold(self.cell, h, 0.005)
-        self.horizon = h
+        self.threshold, self.allowed = tear_limits(self.cell)
 
     # -- what the cell says -----------------------------------------------------------
     def sim_values(self) -> dict:
@@ -109,14 +127,8 @@ class Attacked:
 
     def check(self, F_max: float) -> None:
         """Below the threshold + the budget's allowance, below F_break; no traceback."""
-        Fb = self.cell.material.F_break
-        allowed = self.threshold + self.rate * self.horizon
-        print(f"\nF_max {F_max:.4f} N (threshold {self.threshold:.4f} N, allowed "
-              f"{allowed:.4f} N, F_break {Fb:g} N); aborts: {self.aborts()}")
-        tracebacks = [p.exe for p in self.procs.all if "Traceback" in p.text()]
-        print(f"process tracebacks: {len(tracebacks)} {tracebacks}")
-        assert F_max < allowed and F_max < Fb
-        assert not tracebacks, self.c.logs()
+        print(f"\naborts: {self.aborts()}")
+        check_tear(self.cell, F_max, self.procs, self.c.logs)
 
     def stop(self, allowed_codes=None) -> None:
         codes = {p.exe + str(i): p.stop() for i, p in enumerate(self.procs.all)}

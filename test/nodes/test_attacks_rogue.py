@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import signal
+import time
 
 import pytest
 
@@ -201,3 +202,105 @@ def test_a_chain_from_the_domain_alone_does_not_tear(ros, procs, tmp_path):
         assert p.proc.poll() is None, f"{p.exe} exited\n" + p.text()[-3000:]
     a.check(F_max)
     a.stop()
+
+
+def test_a_frozen_monitor_of_a_managed_cell_with_a_forged_heartbeat_holds_the_tool(
+        ros, procs, tmp_path):
+    """The monitor of a managed cell SIGSTOPped late in the tear plan while a rogue node
+    forges its lifecycle heartbeat ("active", its instance and transitions mirrored) and
+    acknowledges the tension samples: 2 tears in 3 runs.  The simulator takes
+    acknowledgements from its monitor only, the manager heartbeats from the monitor's node
+    only: the tool holds below the budget, and the manager does not say `active` while the
+    monitor is frozen."""
+    import yaml
+
+    from _support.attacks import RTF, STEP, check_tear, tear_cell
+    from _support.managed import MANAGED, cell_recorder, manager_status
+    from rheo_shaping.params.config import dump_cell
+
+    ns, cell = "/ra", tear_cell()
+    data = yaml.safe_load(dump_cell(cell))
+    data["/**/simulator"] = {"ros__parameters": {
+        "real_time_factor": RTF, "step_period": STEP, "diagnostics_period": 0.2,
+        "publish_clock": True}}                               # at x1 too: the cell's clock
+    data["/**/monitor"] = {"ros__parameters": {"use_sim_time": True, "max_data_age": 0.5}}
+    data["/**/planner"] = {"ros__parameters": {"use_sim_time": True, "adaptive": ADAPTIVE}}
+    params = tmp_path / "tear_managed.yaml"
+    params.write_text(yaml.safe_dump(data, sort_keys=False))
+    ros_args = ["--ros-args", "--params-file", str(params), "-r", f"__ns:={ns}",
+                *T.CLOCK_REMAP]
+    started = {node: procs(exe, *ros_args) for node, exe in MANAGED.items()}
+    started["lifecycle_manager"] = procs("lifecycle_manager", *ros_args)
+    rec, planner_state = cell_recorder(ros, "managed_attack_observer", ns)
+    rec.add(T.TOOL_POSE.in_namespace(ns), T.TOOL_POSE.type, T.TOOL_POSE.qos)
+    rec.add(T.PLANNED_TRAJECTORY.in_namespace(ns), T.PLANNED_TRAJECTORY.type,
+            T.PLANNED_TRAJECTORY.qos)
+    beat_topic = f"{ns}/monitor/heartbeat"
+    rec.add(beat_topic, T.HEARTBEAT.type, T.HEARTBEAT.qos)
+
+    def sim_values() -> dict:
+        for msg in reversed(rec[T.DIAGNOSTICS.name]):
+            for st in msg.status:
+                if st.name == "ra/simulator: sheet":
+                    return {kv.key: kv.value for kv in st.values} | {"_message": st.message}
+        return {}
+
+    def process_time() -> float:
+        pose = rec.last(T.TOOL_POSE.in_namespace(ns))
+        plan = rec[T.PLANNED_TRAJECTORY.in_namespace(ns)]
+        return ((m.stamp_ns(pose.header.stamp) - m.stamp_ns(plan[0].header.stamp)) / NS
+                if pose is not None and plan else -1.0)
+
+    def logs() -> str:
+        return "\n".join(f"--- {n} ---\n{p.text()[-3000:]}" for n, p in started.items())
+
+    def until(predicate, timeout: float, what: str) -> None:
+        try:
+            ros.spin_until(predicate, timeout, what)
+        except pytest.fail.Exception as exc:
+            pytest.fail(f"{exc}\nstatus {manager_status(rec, ns)}\n" + logs())
+
+    until(lambda: manager_status(rec, ns).get("phase") == "active"
+          and planner_state() == "running", 180.0, "the managed cell running")
+    until(lambda: process_time() >= LATE_ATTACK_AT, 120.0,
+          f"process time {LATE_ATTACK_AT:.2f} s")
+    real = json.loads(rec.last(beat_topic).data)            # the monitor's own, mirrored
+    rogue = ros.node("rogue_beat")
+    beat = rogue.create_publisher(String, beat_topic, T.HEARTBEAT.qos)
+    ack = rogue.create_publisher(UInt64, f"{ns}/shaping/checked", T.CHECKED.qos)
+    forged = String(data=json.dumps({**real, "state": "active", "latch": ""}))
+    monitor = started["monitor"]
+    monitor.proc.send_signal(signal.SIGSTOP)
+    phases: list[str] = []
+    try:
+        end = time.monotonic() + 4.0
+        while time.monotonic() < end:
+            beat.publish(forged)
+            ack.publish(UInt64(data=2**62))
+            ros.spin_for(0.005)
+        until(lambda: "holds" in sim_values().get("_message", ""), 30.0,
+              "the simulator's tool to hold")
+        # the manager must have left `active`: the tool cannot move
+        until(lambda: manager_status(rec, ns).get("phase") not in ("active", None), 30.0,
+              "the manager to leave active")
+        n = len(rec[T.DIAGNOSTICS.name])
+        t_end = time.monotonic() + 2.0
+        until(lambda: time.monotonic() > t_end and len(rec[T.DIAGNOSTICS.name]) > n, 20.0,
+              "2 s more of the simulator's diagnostics")
+        phases = [json.loads(s.data)["phase"] for s in rec[f"{ns}/lifecycle_manager/status"]]
+        F_max = float(sim_values()["F_max"])
+        message = sim_values()["_message"]
+        status = manager_status(rec, ns)
+    finally:
+        monitor.proc.send_signal(signal.SIGCONT)
+    print(f"\nsimulator: {message}\nmanager: {status}")
+    assert (f"a second writer of {ns}/shaping/checked: /rogue_beat" in message
+            or "monitor lost" in message or "reached the abort threshold" in message
+            or "stale data" in message), message
+    assert status.get("phase") != "active", status
+    # the forged beats were refused by name (logged once), never taken for the monitor's
+    assert "/rogue_beat" in started["lifecycle_manager"].text(), logs()
+    assert phases and phases[-1] != "active", phases
+    check_tear(cell, F_max, procs, logs)
+    for name, p in started.items():
+        assert p.proc.poll() is None, f"{name} exited\n" + p.text()[-3000:]
