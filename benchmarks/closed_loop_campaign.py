@@ -85,7 +85,7 @@ def run_case(d: dict, world: bool) -> dict:
     cell, true = cells(d)
     config = LoopConfig(seed=d["seed"])
     out: dict = {"draw": d}
-    opt = offline_optimum(true, cell, replan_limits(cell, config))
+    opt = offline_optimum(true, cell, replan_limits(cell, config.detect_time, config.noise_sigma))
     ok = opt.status in (ReplanStatus.REPLANNED, ReplanStatus.KEPT)
     out["optimum"] = {"status": opt.status.value,
                       "cycle_time": opt.schedule.cycle_time if ok else math.nan,

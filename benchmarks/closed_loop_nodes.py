@@ -107,7 +107,9 @@ def optimum(d: dict) -> dict:
     from rheo_shaping.adaptive.optimum import offline_optimum
     from rheo_shaping.adaptive.replan import ReplanStatus
     cell, true = cells(d)
-    opt = offline_optimum(true, cell, replan_limits(cell, LoopConfig()))
+    config = LoopConfig()
+    limits = replan_limits(cell, config.detect_time, config.noise_sigma)
+    opt = offline_optimum(true, cell, limits)
     ok = opt.status in (ReplanStatus.REPLANNED, ReplanStatus.KEPT)
     return {"status": opt.status.value,
             "cycle_time": opt.schedule.cycle_time if ok else float("nan")}

@@ -24,7 +24,7 @@ from ..params.cell import CellParams
 from ..params.validators import check_finite, check_positive
 from ..planning.plans import Plan
 from .estimator import Estimate, Estimator, EstimatorParams
-from .loop import monitor_threshold
+from .loop import replan_limits
 from .observe import Sample
 from .replan import Replan, ReplanLimits, ReplanStatus, replan
 from .schedule import Schedule, fixed_schedule
@@ -95,8 +95,7 @@ class OnlineShaper:
         self.config = config
         self.schedule = fixed_schedule(cell)
         self._fixed = self.schedule.choice
-        F_abort = monitor_threshold(cell, config.detect_time, config.noise_sigma)
-        self.limits = (ReplanLimits(F_limit=F_abort - 3.0 * config.noise_sigma)
+        self.limits = (replan_limits(cell, config.detect_time, config.noise_sigma)
                        if limits is None else limits)
         self.estimator = Estimator(cell, config.estimator)
         self._pending: list[Sample] = []

@@ -25,5 +25,6 @@ def offline_optimum(true_cell: CellParams, cell: CellParams, limits: ReplanLimit
     ``true_cell`` under ``limits``, every candidate predicted on the true cell (friction
     and all); status REPLANNED or KEPT (the fixed plan is the fastest) when one exists,
     INFEASIBLE when none does."""
-    exact = replace(limits, kappa=0.0, min_gain=0.0, max_evaluations=10_000)
+    exact = replace(limits, kappa=0.0, gap_margin=0.0, min_gain=0.0,
+                    max_evaluations=10_000)
     return replan(true_cell, truth(true_cell), fixed_schedule(cell), 0.0, exact)

@@ -58,7 +58,8 @@ class ReplanStatus(enum.Enum):
 @dataclass(frozen=True)
 class ReplanLimits:
     """What a re-plan must keep: ``F_limit`` [N] (the monitor's threshold less its noise
-    margin), ``delta_max`` [m] (the quality limit, paper Sec. 4.1: 5 mm), the stroke speeds
+    margin), ``delta_max`` [m] (the quality limit, paper Sec. 4.1: 5 mm) less ``gap_margin``
+    [m] (the model's form error on the gap, kept off the limit), the stroke speeds
     [m/s] and dwell factors [-] it may choose (speeds within the abort budget's 5x of the
     paper's 1 mm/s and the tool's limits), ``kappa`` (sigmas to the pessimistic end),
     ``min_gain`` [s] (a plan is changed for at least this much less cycle time) and
@@ -66,6 +67,7 @@ class ReplanLimits:
 
     F_limit: float
     delta_max: float = 5e-3
+    gap_margin: float = 0.0
     speeds: tuple[float, ...] = (0.5e-3, 0.75e-3, 1e-3, 1.5e-3, 2e-3, 3e-3, 4e-3, 5e-3)
     dwell_factors: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5)
     kappa: float = 2.0
@@ -75,6 +77,10 @@ class ReplanLimits:
     def __post_init__(self) -> None:
         check_positive("ReplanLimits.F_limit [N]", self.F_limit)
         check_positive("ReplanLimits.delta_max [m]", self.delta_max)
+        check_finite("ReplanLimits.gap_margin [m]", self.gap_margin, non_negative=True)
+        if self.gap_margin >= self.delta_max:
+            raise ValueError(f"ReplanLimits.gap_margin = {self.gap_margin!r} m: expected "
+                             f"less than delta_max ({self.delta_max!r} m)")
         check_finite("ReplanLimits.kappa [-]", self.kappa, non_negative=True)
         check_finite("ReplanLimits.min_gain [s]", self.min_gain, non_negative=True)
         if not self.speeds or not self.dwell_factors:
@@ -87,6 +93,11 @@ class ReplanLimits:
         if self.max_evaluations < 1:
             raise ValueError(f"ReplanLimits.max_evaluations = {self.max_evaluations!r}: "
                              "expected an integer >= 1")
+
+    @property
+    def gap_limit(self) -> float:
+        """The largest predicted gap a plan may end with [m]: delta_max - gap_margin."""
+        return self.delta_max - self.gap_margin
 
 
 @dataclass(frozen=True)
@@ -101,7 +112,7 @@ class Prediction:
 
     def feasible(self, limits: ReplanLimits) -> bool:
         """Both limits met."""
-        return self.F_max <= limits.F_limit and self.delta <= limits.delta_max
+        return self.F_max <= limits.F_limit and self.delta <= limits.gap_limit
 
     def whole(self, limits: ReplanLimits) -> bool:
         """The tension limit met (the sheet stays whole; the gap may not close)."""
@@ -265,7 +276,7 @@ def replan(cell: CellParams, estimate: Estimate, schedule: Schedule, t_join: flo
 def _words(verb: str, p: Prediction, limits: ReplanLimits, est: Estimate) -> str:
     return (f"{verb} {p.choice.speed * 1e3:g} mm/s, dwell x{p.choice.dwell_factor:g}: "
             f"pessimistic F_max {p.F_max:.3f} N (limit {limits.F_limit:.3f}), Delta "
-            f"{p.delta * 1e3:.2f} mm (limit {limits.delta_max * 1e3:g}), cycle "
+            f"{p.delta * 1e3:.2f} mm (limit {limits.gap_limit * 1e3:g}), cycle "
             f"{p.cycle_time:.1f} s; k1 {est.k1:.1f} N/m, c2 {est.c2:.0f} N s/m, m "
             f"{est.mass_per_length:.4f} kg/m (+-{100 * est.sigma_rel[0]:.1f}/"
             f"{100 * est.sigma_rel[1]:.1f}/{100 * est.sigma_rel[2]:.1f} %)")

@@ -12,7 +12,7 @@ import pytest
 from rheo_shaping.adaptive.estimator import material_cell
 from rheo_shaping.adaptive.join import ToolState
 from rheo_shaping.adaptive.optimum import truth
-from rheo_shaping.adaptive.replan import (GAP_CORNER, TENSION_CORNER, ReplanLimits,
+from rheo_shaping.adaptive.replan import (GAP_CORNER, TENSION_CORNER, Prediction, ReplanLimits,
                                           ReplanStatus, replan)
 from rheo_shaping.adaptive.schedule import Choice, fixed_schedule
 from rheo_shaping.params.cell import CellParams
@@ -132,3 +132,18 @@ def test_a_bad_estimate_or_a_tool_off_its_setpoint_is_not_replanned():
 def test_bad_limits_are_refused_with_the_name(field, value):
     with pytest.raises(ValueError, match=field):
         ReplanLimits(**{"F_limit": 0.9, field: value})
+
+
+def test_the_gap_margin_is_kept_off_the_quality_limit():
+    """A prediction within delta_max but inside the margin is not feasible; the loop's
+    limits keep GAP_MARGIN off 5 mm, the offline optimum (the true cell, exact) none."""
+    from rheo_shaping.adaptive.loop import GAP_MARGIN, replan_limits
+    cell = CellParams()
+    limits = replan_limits(cell, 0.1, 0.005)
+    assert limits.gap_margin == GAP_MARGIN and limits.gap_limit == 5e-3 - GAP_MARGIN
+    edge = Prediction(choice=Choice(1e-3, 1.0), F_max=0.5, delta=5e-3 - 0.5 * GAP_MARGIN,
+                      cycle_time=100.0)
+    assert edge.whole(limits) and not edge.feasible(limits)
+    assert edge.feasible(replace(limits, gap_margin=0.0))
+    with pytest.raises(ValueError, match="gap_margin"):
+        ReplanLimits(F_limit=1.0, gap_margin=5e-3)
