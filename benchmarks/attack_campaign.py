@@ -177,6 +177,14 @@ def main(argv=None) -> int:
     meta = {"seed": args.seed, "runs_per_attack_and_rate": args.runs, "rates": rates,
             "jobs": args.jobs, "commit": _commit(), "adaptive": args.adaptive}
 
+    logs = (args.json or Path("attack_campaign.json")).with_suffix(".logs")
+    if args.json:
+        # made before any run: a test checks that nothing appears in the source tree while
+        # it runs (test/conftest.py), and a campaign run from a clone writes into it
+        args.json.write_text(json.dumps({"partial": True, "meta": meta, "loads": [],
+                                         "runs": []}, indent=1))
+    logs.mkdir(exist_ok=True)
+
     def job(i):
         domain = free.pop()
         try:
@@ -191,8 +199,6 @@ def main(argv=None) -> int:
                 args.json.write_text(json.dumps({"partial": True, "meta": meta, "loads": loads,
                                                  "runs": results}, indent=1))
             if "output" in res:
-                logs = (args.json or Path("attack_campaign.json")).with_suffix(".logs")
-                logs.mkdir(exist_ok=True)
                 name = res["attack"].split("::")[-1][:60]
                 (logs / f"{i:04d}_{name}_x{res['rtf']:g}.log").write_text(res.pop("output"))
             el = time.monotonic() - t0

@@ -115,8 +115,10 @@ def test_a_rogue_parameter_change_of_the_running_monitor_is_refused(
             return
     a.c.wait(lambda: a.aborts(), 120.0, "the monitor's abort")
     first = a.aborts()[0]
-    # the monitor's own threshold (or, on a busy machine, its stale-data rule)
-    assert "reached the abort threshold" in first or first.startswith("stale data"), first
+    # the monitor's own threshold (or, on a busy machine, its stale-data rule, or the
+    # simulator's hold on a monitor starved past monitor_timeout: seen at x1, load 14)
+    assert ("reached the abort threshold" in first or first.startswith("stale data")
+            or first.startswith("simulator: monitor lost")), first
     a.check(a.peak_after_hold())
     a.stop()
 
