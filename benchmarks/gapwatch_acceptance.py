@@ -25,7 +25,7 @@ from rheo_shaping.diagnosis.baseline import BASELINE_MODES
 from rheo_shaping_validation.gapwatch_campaign import Case, default_shared, run_case
 from rheo_shaping.gapwatch.floor import ResidualFloor
 from rheo_shaping.params.config import load_cell
-from rheo_shaping.params.node_params import GapWatchNodeParams
+from rheo_shaping.params.gapwatch_params import GapWatchNodeParams
 from rheo_shaping.parallel import executor_from_spec, run_tasks
 from rheo_shaping.sheet.effects import EFFECT_NAMES
 

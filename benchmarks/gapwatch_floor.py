@@ -20,7 +20,7 @@ import numpy as np
 from rheo_shaping_validation.gapwatch_campaign import Case, default_shared
 from rheo_shaping.gapwatch.floor import DEFAULT_FLOOR, ResidualFloor
 from rheo_shaping.params.config import load_cell
-from rheo_shaping.params.node_params import GapWatchNodeParams
+from rheo_shaping.params.gapwatch_params import GapWatchNodeParams
 from rheo_shaping.parallel import executor_from_spec, run_tasks
 
 HERE = os.path.dirname(os.path.abspath(__file__))

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from rheo_shaping.diagnosis.baseline import SHEET, with_sheet
-from rheo_shaping.params.node_params import GapWatchNodeParams
+from rheo_shaping.params.gapwatch_params import GapWatchNodeParams
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.planning.movement import synthesize_record

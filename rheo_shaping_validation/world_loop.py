@@ -48,7 +48,8 @@ def run_world_loop(true_cell: CellParams, cell: CellParams, config: LoopConfig =
                    limits: ReplanLimits | None = None, lay: LayParams = LayParams(),
                    numerics: WorldNumerics = WorldNumerics()) -> LoopResult:
     """:func:`~.loop.run_closed_loop` with the dynamic world as the true cell."""
-    limits = replan_limits(cell, config) if limits is None else limits
+    limits = (replan_limits(cell, config.detect_time, config.noise_sigma)
+              if limits is None else limits)
     F_abort = monitor_threshold(cell, config.detect_time, config.noise_sigma)
     rng = np.random.default_rng(config.seed)
     sched = fixed_schedule(cell)

@@ -19,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..params.node_params import GapWatchNodeParams
+from ..params.gapwatch_params import GapWatchNodeParams
 from ..params.cell import CellParams
 from ..records.record import Record
 from .floor import ResidualFloor

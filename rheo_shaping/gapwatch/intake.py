@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..diagnosis.compare import POSE_WINDOW
-from ..params.node_params import GapWatchNodeParams
+from ..params.gapwatch_params import GapWatchNodeParams
 
 #: Largest coordinate [m] of a tool pose or a profile point taken: a cell is metres across
 #: (a pose at 1e300 m sent the model into a loop it never left, its queue growing to 1 GB).

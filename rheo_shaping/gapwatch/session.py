@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from ..params.cell import CellParams
-from ..params.node_params import GapWatchNodeParams
+from ..params.gapwatch_params import GapWatchNodeParams
 from ..records.record import Record
 from .floor import ResidualFloor
 from .queue import SampleQueue

@@ -43,7 +43,7 @@ import numpy as np
 
 from ..diagnosis.compare import POSE_WINDOW
 from ..diagnosis.where import PHASES
-from ..params.node_params import GapWatchNodeParams
+from ..params.gapwatch_params import GapWatchNodeParams
 from ..params.cell import CellParams
 from ..records.record import Record
 from ..sheet.metrics import residual_gap

@@ -46,7 +46,7 @@ from ..gapwatch.floor import ResidualFloor, ResidualFloorError
 from ..gapwatch.session import WatchSession
 from ..jsonable import json_safe
 from ..params.config import ConfigError, load_cell
-from ..params.node_params import GapWatchNodeParams
+from ..params.gapwatch_params import GapWatchNodeParams
 from ..params.cell import CellParams
 from ..params.schema import ParameterError
 from ..units import NS

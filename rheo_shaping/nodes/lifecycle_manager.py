@@ -33,7 +33,7 @@ from rclpy.task import Future
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from ..params.node_params import LifecycleManagerParams
+from ..params.manager_params import LifecycleManagerParams
 from ..safety.lifecycle import CellLifecycle, Step
 from ..safety.clock_guard import ClockGuard
 from ..safety.manager import Reply, Requests, cell_status

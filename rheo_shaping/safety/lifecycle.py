@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..params.node_params import CELL_NODES
+from ..params.manager_params import CELL_NODES
 from ..units import NS
 
 #: The managed nodes of a cell, in the order they are configured and activated (the

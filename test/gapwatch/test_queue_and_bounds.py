@@ -65,7 +65,7 @@ def test_the_intake_refuses_poses_points_and_forces_out_of_any_cell():
     from rheo_shaping.gapwatch.watch import GapWatch
     from rheo_shaping.gapwatch.floor import ResidualFloor
     from rheo_shaping.params.cell import CellParams
-    from rheo_shaping.params.node_params import GapWatchNodeParams
+    from rheo_shaping.params.gapwatch_params import GapWatchNodeParams
     w = GapWatch(CellParams(), ResidualFloor.load(), GapWatchNodeParams())
     w.start(0.0)
     assert "farther than 10 m" in w.pose(0.1, 1e300, 0.0)

@@ -12,7 +12,7 @@ import pytest
 from rheo_shaping.gapwatch.floor import ResidualFloor
 from rheo_shaping.gapwatch.session import AT_END, ON_WARN, WORKER_STALL, WatchSession
 from rheo_shaping.params.config import load_cell
-from rheo_shaping.params.node_params import GapWatchNodeParams
+from rheo_shaping.params.gapwatch_params import GapWatchNodeParams
 from rheo_shaping.planning.movement import synthesize_record
 from rheo_shaping.records.measurement import MeasurementParams
 

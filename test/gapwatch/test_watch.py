@@ -25,7 +25,7 @@ from rheo_shaping.gapwatch.floor import DEFAULT_FLOOR, ResidualFloor, ResidualFl
 from rheo_shaping.gapwatch.residuals import signed_distance
 from rheo_shaping.gapwatch.watch import GapWatch
 from rheo_shaping.params.config import load_cell
-from rheo_shaping.params.node_params import GapWatchNodeParams
+from rheo_shaping.params.gapwatch_params import GapWatchNodeParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.planning.movement import synthesize_record
 from rheo_shaping.records.measurement import MeasurementParams

@@ -74,7 +74,7 @@ def test_the_gap_watch_diagnoses_with_the_diagnosis_baseline_modes():
     (the schema keeps its own literal: params imports no diagnosis)."""
     from dataclasses import fields
     from rheo_shaping.diagnosis.baseline import BASELINE_MODES
-    from rheo_shaping.params.node_params import GapWatchNodeParams
+    from rheo_shaping.params.gapwatch_params import GapWatchNodeParams
     spec = next(f for f in fields(GapWatchNodeParams)
                 if f.name == "diagnosis_baseline").metadata["spec"]
     assert sorted(spec.choices) == sorted(BASELINE_MODES)

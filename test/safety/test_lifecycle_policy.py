@@ -51,7 +51,7 @@ def test_node_names_with_the_gap_watch_bring_it_up_before_the_planner_and_lose_t
     """node_names in any order: simulator, monitor, gap_watch, planner (the planner last,
     behind the interlock); a managed gap watch that goes silent fails the cell (a node the
     manager was given is one the cell needs)."""
-    from rheo_shaping.params.node_params import LifecycleManagerParams
+    from rheo_shaping.params.manager_params import LifecycleManagerParams
     settings = LifecycleManagerParams(node_names=("planner", "gap_watch", "monitor",
                                                   "simulator"))
     c = CellLifecycle(heartbeat_timeout=1.0, nodes=settings.nodes)
@@ -71,7 +71,7 @@ def test_node_names_with_the_gap_watch_bring_it_up_before_the_planner_and_lose_t
 
 
 def test_node_names_must_name_every_node_of_a_cell():
-    from rheo_shaping.params.node_params import LifecycleManagerParams
+    from rheo_shaping.params.manager_params import LifecycleManagerParams
     with pytest.raises(ValueError, match="missing monitor"):
         LifecycleManagerParams(node_names=("simulator", "planner", "gap_watch"))
     assert LifecycleManagerParams().nodes == CELL_ORDER
@@ -377,7 +377,8 @@ def test_a_stall_of_the_manager_itself_defers_the_verdict_by_one_check():
 
 def test_docs_lifecycle_manager_parameter_table_is_current():
     from pathlib import Path
-    from rheo_shaping.params.node_params import LifecycleManagerParams, parameter_table
+    from rheo_shaping.params.manager_params import LifecycleManagerParams
+    from rheo_shaping.params.node_params import parameter_table
     doc = (Path(__file__).resolve().parents[2] / "docs" / "ros.md").read_text()
     assert parameter_table(LifecycleManagerParams) in doc, \
         "docs/ros.md: regenerate the `lifecycle_manager` table"
