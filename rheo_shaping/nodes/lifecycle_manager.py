@@ -34,7 +34,8 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
 from ..params.manager_params import LifecycleManagerParams
-from ..safety.lifecycle import CellLifecycle, Step
+from ..safety.lifecycle import CellLifecycle
+from ..safety.lifecycle_terms import Step
 from ..safety.clock_guard import ClockGuard
 from ..safety.manager import Reply, Requests, cell_status
 from ..safety.watchdog import StallGuard

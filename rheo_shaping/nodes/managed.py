@@ -42,7 +42,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, String
 
 from ..params.schema import ParameterError
-from ..safety.lifecycle import HEARTBEAT_PERIOD
+from ..safety.lifecycle_terms import HEARTBEAT_PERIOD
 from ..params.wire import Field
 from ..units import NS
 from .hosts import ManagedMixin

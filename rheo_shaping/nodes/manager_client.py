@@ -22,7 +22,7 @@ from lifecycle_msgs.srv import ChangeState
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from ..safety.lifecycle import COMMANDS
+from ..safety.lifecycle_terms import COMMANDS
 from .services import query
 
 

@@ -28,7 +28,7 @@ from rheo_shaping.nodes import messages as m  # noqa: E402
 from rheo_shaping.nodes.manager_client import LifecycleManagerClient  # noqa: E402
 from rheo_shaping.nodes import topics as T  # noqa: E402
 from rheo_shaping.nodes.services import query  # noqa: E402
-from rheo_shaping.safety.lifecycle import CELL_ORDER  # noqa: E402
+from rheo_shaping.safety.lifecycle_terms import CELL_ORDER  # noqa: E402
 
 from _support.aggregator import group  # noqa: E402
 from _support.cells import REPO  # noqa: E402

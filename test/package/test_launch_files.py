@@ -155,5 +155,5 @@ def test_managed_launch_starts_each_managed_node_under_its_plain_name_and_the_ma
     assert ast.unparse(names.value) == ("['simulator', 'monitor', 'planner'] + (['gap_watch'] "
                                         "if gap_watch else [])")
     assert [ast.unparse(kw.value) for kw in manager.keywords if kw.arg is None] == ["common"]
-    from rheo_shaping.safety.lifecycle import CELL_ORDER
+    from rheo_shaping.safety.lifecycle_terms import CELL_ORDER
     assert set(CELL_ORDER) == {"simulator", "monitor", "planner"}

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from rheo_shaping.safety.lifecycle import (ACTIVATE_RETRIES, CELL_ORDER, RESET_RETRIES,
-                                           CellLifecycle, Step, interlock_refusal)
+from rheo_shaping.safety.lifecycle import CellLifecycle
+from rheo_shaping.safety.lifecycle_terms import (ACTIVATE_RETRIES, CELL_ORDER, RESET_RETRIES,
+                                                 Step, interlock_refusal)
 
 S = 1_000_000_000          # ns per s
 
