@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
 from ..params.cell import CellParams, EffectsParams
+from .chain import SheetEffects
 
 
 @dataclass(frozen=True)
@@ -90,3 +91,13 @@ def nominal(params: CellParams) -> CellParams:
     return replace(params, effects=replace(EffectsParams(),
                                            power_law_ref_tension=(
                                                params.effects.power_law_ref_tension)))
+
+
+def sheet_effects(params: CellParams) -> SheetEffects:
+    """The sheet model's optional physics from ``params.effects`` (rheo_shaping.sheet.effects)."""
+    e = params.effects
+    return SheetEffects(
+        friction=(("cake", e.friction_mould), ("workplane",
+                  e.friction_mould), ("tool", e.friction_tool)),
+        bending=e.bending, power_law_n=e.power_law, power_law_ref=e.power_law_ref_tension,
+        thinning=e.thinning, tool_shift=tuple(e.tool_offset))

@@ -29,7 +29,8 @@ from .geometry import Cake, Workplane
 from .metrics import (PeakTension, RunSummary, contact_tension, peak_tension, residual_gap,
                       safety_factor)
 from ..params.cell import CellParams
-from .chain import ChainConstants, Obstacle, SheetEffects, SheetModel, SheetState, StepRecord
+from .chain import ChainConstants, Obstacle, SheetModel, SheetState, StepRecord
+from .effects import sheet_effects
 from .paths import PolylinePath, ToolPath
 from .tools import tool_shape
 
@@ -222,16 +223,6 @@ class Simulation:
 
     def delta(self, state: SheetState | None = None) -> float:
         return residual_gap(self.nodes(state), self.params.sheet.thickness)
-
-
-def sheet_effects(params: CellParams) -> SheetEffects:
-    """The sheet model's optional physics from ``params.effects`` (rheo_shaping.sheet.effects)."""
-    e = params.effects
-    return SheetEffects(
-        friction=(("cake", e.friction_mould), ("workplane",
-                  e.friction_mould), ("tool", e.friction_tool)),
-        bending=e.bending, power_law_n=e.power_law, power_law_ref=e.power_law_ref_tension,
-        thinning=e.thinning, tool_shift=tuple(e.tool_offset))
 
 
 def settle(model: SheetModel, x0: np.ndarray, duration: float, dt: float, tool=(np.nan, np.nan),
