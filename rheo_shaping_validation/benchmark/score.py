@@ -174,6 +174,16 @@ def relative_width(name: str, fit, ivs) -> float | None:
     return float(max(out)) if out else None
 
 
+def _ool_right(r: dict) -> bool:
+    """An out-of-library case read `unexplained`, named with its remainder flagged beyond the
+    floor, or put on the measurement chain where the effect is a sensor's."""
+    if r["verdict"] == "unexplained" or bool(r.get("verdict_beyond_floor")):
+        return True
+    names = list(r.get("truth") or {})
+    return (r["verdict"] == "measurement chain" and len(names) == 1
+            and names[0] in WORLD_EFFECTS and WORLD_EFFECTS[names[0]].kind == "sensor")
+
+
 def summarise(rows: list[dict], wall: float) -> dict:
     def frac(sel, key="correct"):
         sel = [r for r in sel if r.get(key) is not None]
@@ -233,6 +243,18 @@ def summarise(rows: list[dict], wall: float) -> dict:
             sum(r["verdict"] == "unexplained" or bool(r.get("verdict_beyond_floor"))
                 for r in by["out_of_library"]) / len(by["out_of_library"])
             if by["out_of_library"] else None),
+        # the same with the measurement chain's verdict counted right for a sensor's effect
+        # (issue 46's table: `unexplained`, flagged, or `measurement chain` for a sensor effect)
+        "out_of_library_unexplained_flagged_or_chain_rate": (
+            sum(_ool_right(r) for r in by["out_of_library"]) / len(by["out_of_library"])
+            if by["out_of_library"] else None),
+        "out_of_library_per_effect": {
+            n: {"cases": len(sel), "unexplained_or_flagged": sum(
+                r["verdict"] == "unexplained" or bool(r.get("verdict_beyond_floor"))
+                for r in sel)}
+            for n in WORLD_EFFECTS
+            for sel in [[r for r in by["out_of_library"]
+                         if list(r.get("truth") or {}) == [n]]] if sel},
         # a name: an effect, a pair or the measurement chain (its knobs beyond tolerance)
         "out_of_library_name_unflagged_rate": (
             sum(r["verdict"] not in NAMES_NOTHING

@@ -98,3 +98,20 @@ def test_out_of_library_counts_the_measurement_chain_as_a_name_flagged_or_not():
     assert s["out_of_library_name_unflagged_rate"] == 2 / 6
     assert s["out_of_library_unexplained_rate"] == 1 / 6
     assert s["out_of_library_wrong_name_rate"] == 2 / 6      # sheet effects named
+
+
+def test_the_measurement_chain_is_right_for_a_sensors_out_of_library_effect_only():
+    # issue 46's figure: `unexplained`, flagged, or `measurement chain` for a sensor effect;
+    # the chain unflagged for a load cell's drift counts, for a tool's lag it does not
+    cases = (("load_cell_drift", "measurement chain"), ("tool_lag", "measurement chain"),
+             ("camera_scale", "none"), ("adhesion", "unexplained"))
+    rows = [{"index": i, "kind": "out_of_library", "truth": {n: [1.0]}, "verdict": v,
+             "verdict_beyond_floor": False, "correct": v == "unexplained", "p_gap": 0.01,
+             "simulations": 1, "baseline_error_u": {}} for i, (n, v) in enumerate(cases)]
+    s = summarise(rows, 0.0)
+    assert s["out_of_library_unexplained_or_flagged_rate"] == 1 / 4
+    assert s["out_of_library_unexplained_flagged_or_chain_rate"] == 2 / 4
+    assert s["out_of_library_per_effect"]["tool_lag"] == {"cases": 1,
+                                                          "unexplained_or_flagged": 0}
+    assert s["out_of_library_per_effect"]["adhesion"] == {"cases": 1,
+                                                          "unexplained_or_flagged": 1}
