@@ -12,7 +12,8 @@ from . import stats
 from .adequacy import adequate, needs_numerics
 from .baseline import CHAIN
 from .candidates import PAIRED, PROBES, Explanation, fit_pair, fit_single, rank_key
-from .check import check, holdout_lengths, numerics, refine_points, relinearise
+from .check import check, numerics, refine_points, relinearise
+from .holdout_lengths import holdout_lengths
 from .converge import converge, to_check
 from .context import Baseline, FitContext
 from .naming import lead_key
@@ -107,8 +108,8 @@ def candidates_stage(ctx: FitContext, base: Baseline, gap: GapTest, chain_c: Exp
 
 def holdout_leads(effects: list[Explanation], checked: list[Explanation], ctx: FitContext,
                   base: Baseline, rounds: int = 3) -> None:
-    """:func:`check.holdout_lengths` for the checked candidates that can lead the verdict or
-    be the lead's closest rival (:func:`candidates_stage`), until the first two by the
+    """:func:`~.holdout_lengths.holdout_lengths` for the checked candidates that can lead the
+    verdict or be the lead's closest rival (:func:`candidates_stage`), until the first two by the
     effective remainder have their own holdout lengths (at most ``rounds`` times)."""
     if not effects:
         return

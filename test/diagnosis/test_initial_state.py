@@ -150,14 +150,14 @@ def test_each_record_s_first_seconds_fit_its_rest_length(released):
 def test_a_candidate_is_judged_on_holdout_records_with_lengths_fitted_under_its_own_cell(
         released):
     """A laid record's rest length is a nuisance fitted under the cell being judged
-    (:func:`~rheo_shaping.diagnosis.check.holdout_lengths`): a candidate whose top bond
+    (:func:`~rheo_shaping.diagnosis.holdout_lengths.holdout_lengths`): a candidate whose top bond
     moved 1 mm from the cell the record's length was fitted for is judged with the length
     its own cell gives, and misfits the holdout record less than with the stale one."""
     from functools import partial
     from types import SimpleNamespace
     from rheo_shaping.diagnosis.baseline import SHEET
     from rheo_shaping.diagnosis.candidates import Explanation
-    from rheo_shaping.diagnosis.check import holdout_lengths
+    from rheo_shaping.diagnosis.holdout_lengths import holdout_lengths
     from rheo_shaping.diagnosis.compare import RecordData
     from rheo_shaping.diagnosis.context import FitContext, Group
     from rheo_shaping.diagnosis.evaluate import Runner, Task
@@ -182,7 +182,7 @@ def test_a_candidate_is_judged_on_holdout_records_with_lengths_fitted_under_its_
     assert c.J_holdout < 0.9 * J_stale          # measured: 1.30 against 1.87
     # the same record also fitted: the shift its window asks under the candidate's cell is
     # asked by every record alike, which the candidate's knobs carry on the whole records;
-    # the holdout does not take it alone (check.common_shift)
+    # the holdout does not take it alone (holdout_lengths.common_shift)
     ctx2 = SimpleNamespace(H=H, hold_d=[d], fit_d=[d], data=[d, d], nf=1, n_s=len(SHEET),
                            params=params, run=run)
     c2 = Explanation(("mass_error",), {"mass_error": (0.0,)}, 1.0, checked=True,
