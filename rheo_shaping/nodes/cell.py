@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 import rclpy
+from rclpy.duration import Duration
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 
@@ -33,6 +34,9 @@ from .topics import CLOCK, CLOCK_REMAP, CLOCK_TOPICS
 #: Simulated seconds per step of the runner's simulator (its step period is
 #: this divided by the real-time factor).
 SIM_STEP = 0.2
+#: Wall time [s] the run's end waits for its latched last messages to be acknowledged (a
+#: reliable subscriber that matched them; a busy machine lost the planner's `done`).
+END_ACK_S = 2.0
 
 
 @dataclass
@@ -153,6 +157,10 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
                 finished = True
                 break
         wall = time.monotonic() - t_wall
+        # the end's latched messages (the planner's last state, an abort) acknowledged by
+        # the subscribers that asked for them before the process ends with its session
+        for pub in (planner.pub_state, monitor.pub_abort, sim.pub_abort):
+            pub.wait_for_all_acked(Duration(seconds=END_ACK_S))
         run_wall = time.monotonic() - (t_started if t_started is not None else t_wall)
         s = sim.run.summary_so_far()      # timed out or aborted before the end: so far
         done = sim.summary is not None
