@@ -21,6 +21,7 @@ from rheo_shaping_validation.benchmark.score import summarise
 
 KEYS = ("no_effect_none_rate", "no_effect_library_name_rate", "top1_accuracy_beyond_noise",
         "top1_accuracy", "out_of_library_unexplained_or_flagged_rate",
+        "out_of_library_unexplained_flagged_or_chain_rate",
         "out_of_library_name_unflagged_rate", "sensor_no_sheet_name_rate",
         "holdout_gap_shrink_median", "interval_coverage", "interval_width_rel_median",
         "interval_coverage_bound", "interval_width_rel_median_bound",
