@@ -157,11 +157,12 @@ def run_cell(params_file: str | Path | None = None, *, movement: int | None = No
                 finished = True
                 break
         wall = time.monotonic() - t_wall
+        run_wall = time.monotonic() - (t_started if t_started is not None else t_wall)
         # the end's latched messages (the planner's last state, an abort) acknowledged by
         # the subscribers that asked for them before the process ends with its session
+        # (after the run's times: the wait is not the run's)
         for pub in (planner.pub_state, monitor.pub_abort, sim.pub_abort):
             pub.wait_for_all_acked(Duration(seconds=END_ACK_S))
-        run_wall = time.monotonic() - (t_started if t_started is not None else t_wall)
         s = sim.run.summary_so_far()      # timed out or aborted before the end: so far
         done = sim.summary is not None
         return CellResult(
