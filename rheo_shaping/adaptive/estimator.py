@@ -6,8 +6,9 @@ theta = (ln k1/k1_0, ln c2/c2_0, ln m/m_0), with a Gaussian prior theta ~ N(0, P
 P = diag(1/s_k1^2, 1/s_c2^2, 1/s_m^2) (the batch-to-batch spread).  The model is the
 core's own sheet (:func:`~rheo_shaping.sheet.simulation.run_scenario`, paper Sec. 4.1,
 the three-element links of Eq. 1) driven by the executed tool poses from t = 0 to the newest
-sample; its observables (:mod:`.observe`) against the measured ones give the whitened
-residual r(theta) = (h(theta) - y) / sigma.  Each refresh takes at most ``max_iterations``
+sample, from its settled sheet taken to first order about the estimate (:mod:`.settle`);
+its observables (:mod:`.observe`) against the measured ones give the whitened residual
+r(theta) = (h(theta) - y) / sigma.  Each refresh takes at most ``max_iterations``
 Levenberg-Marquardt steps from the previous estimate,
 
     (J^T J + P + lambda diag(J^T J + P)) dtheta = -(J^T r + P theta),
@@ -38,6 +39,7 @@ from ..sheet.chain import ConvergenceError
 from ..sheet.paths import PolylinePath
 from ..sheet.simulation import RunResult, run_scenario
 from .observe import NoiseModel, Sample, observation_matrix, predict
+from .settle import LinearSettle
 
 #: The knobs estimated, in the order of theta.
 KNOBS = ("k1", "c2", "mass_per_length")
@@ -167,6 +169,8 @@ class Estimator:
                                  cell.sheet.mass_per_length])
         self.samples: list[Sample] = []
         self.theta = np.zeros(3)
+        # the runs' settled sheets, to first order about the estimate (settle.py)
+        self.settle = LinearSettle(lambda th: material_cell(self.cell, self.nominal * np.exp(th)))
         self._cov = np.linalg.inv(params.prior_precision())
         self.bad = ""                       # latched reason of a bad status
         self._t_gap = -math.inf             # time of the newest gap kept
@@ -233,7 +237,7 @@ class Estimator:
         cell = material_cell(self.cell, self.nominal * np.exp(theta))
         if cell.movement.process_time < t_end:
             cell = replace(cell, movement=replace(cell.movement, process_time=t_end))
-        return run_scenario(cell, self._path(), t_end=t_end)
+        return run_scenario(cell, self._path(), t_end=t_end, start=self.settle.state(theta))
 
     def residual(self, theta: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whitened residual of the measured observables (NaN-free, flat)."""
@@ -273,6 +277,7 @@ class Estimator:
         theta = self.theta.copy()
         lam = 1e-3
         try:
+            self.settle.recentre(theta)
             cost, r = self._objective(theta, t, y)
             steps = 0
             for _ in range(self.params.max_iterations):

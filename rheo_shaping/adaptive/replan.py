@@ -41,8 +41,9 @@ from ..params.validators import check_finite, check_positive
 from ..planning.scenarios import ScenarioPlan
 from ..sheet.chain import ConvergenceError
 from ..sheet.simulation import Simulation
-from .estimator import Estimate
+from .estimator import Estimate, material_cell
 from .schedule import Choice, Schedule
+from .settle import LinearSettle
 
 
 class ReplanStatus(enum.Enum):
@@ -109,6 +110,7 @@ class Prediction:
     F_max: float
     delta: float
     cycle_time: float
+    complete: bool = True       # False: its run stopped past the tension limit (F_max a bound)
 
     def feasible(self, limits: ReplanLimits) -> bool:
         """Both limits met."""
@@ -140,41 +142,79 @@ class Replan:
         return self.status in (ReplanStatus.REPLANNED, ReplanStatus.INFEASIBLE)
 
 
+#: Steps per kernel call of a tension corner's run that may stop past the limit.
+CHUNK = 32
+
 #: The corners (z_k1, z_c2, z_m) per kappa: where each limit is worst (module docstring).
 TENSION_CORNER = (1.0, 1.0, 1.0)
 GAP_CORNER = (-1.0, 1.0, -1.0)
 
 
+#: Each corner's settled sheets (settle.py), per params file's cell: a corner moves from
+#: re-plan to re-plan as the estimate narrows and comes to rest once it has.
+_SETTLES: dict[tuple[CellParams, tuple[float, float, float]], LinearSettle] = {}
+
+
+def _corner_start(base: CellParams, corner: CellParams, z: tuple[float, float, float]):
+    """The settled sheet of the ``corner`` cell (the params file's ``base`` with the corner's
+    material), to first order about where that corner came to rest (:mod:`.settle`)."""
+    key = (base, z)
+    if key not in _SETTLES:
+        if len(_SETTLES) >= 16:
+            _SETTLES.clear()
+        nominal = np.array([base.material.k1, base.material.c2, base.sheet.mass_per_length])
+        _SETTLES[key] = LinearSettle(lambda th: material_cell(base, nominal * np.exp(th)))
+    s = _SETTLES[key]
+    knobs = np.array([corner.material.k1, corner.material.c2, corner.sheet.mass_per_length])
+    nominal = np.array([base.material.k1, base.material.c2, base.sheet.mass_per_length])
+    return s.follow(np.log(knobs / nominal))
+
+
 class _Corner:
     """The sheet at one corner, at t_j on the executed path, and its futures."""
 
-    def __init__(self, cell: CellParams, schedule: Schedule, t_join: float):
+    def __init__(self, cell: CellParams, schedule: Schedule, t_join: float, start=None):
         path = ScenarioPlan(schedule.plan)
-        self.sim = Simulation(cell, tool_start=path.position(0.0))
+        self.sim = Simulation(cell, tool_start=path.position(0.0), start=start)
         self._advance(path, t_join)
         self.state = self.sim.state.copy()
 
-    def _advance(self, path: ScenarioPlan, t_end: float) -> float:
-        """Step along ``path`` to ``t_end`` [s]; the largest tension [N] on the way."""
+    def _advance(self, path: ScenarioPlan, t_end: float,
+                 stop_above: float = math.inf) -> tuple[float, bool]:
+        """Step along ``path`` to ``t_end`` [s]: (the largest tension [N] on the way, whether
+        it got there).  Past ``stop_above`` [N] it stops (the candidate is infeasible
+        whatever comes after); the steps are those of one kernel call per knot, run
+        :data:`CHUNK` at a time when it may stop (the same steps, the same states)."""
         peak = -math.inf
         knots = [k for k in path.knots() if self.sim.state.t < k < t_end] + [t_end]
+        chunk = CHUNK if stop_above < math.inf else 0
         for k in knots:
             if k <= self.sim.state.t:
                 continue
-            rec = self.sim.advance_record(k, path.position(k), path.position)
-            if len(rec):
-                peak = max(peak, float(np.max(rec.tension)))
-        return peak
+            dts, poses = self.sim.schedule(k, path.position(k), path.position)
+            for i in range(0, len(dts), chunk or max(len(dts), 1)):
+                rec = self.sim.advance_path(dts[i:i + (chunk or len(dts))],
+                                            poses[i:i + (chunk or len(dts))])
+                if len(rec):
+                    peak = max(peak, float(np.max(rec.tension)))
+                if peak > stop_above:
+                    return peak, False
+        return peak, True
 
-    def future(self, schedule: Schedule) -> tuple[float, float]:
-        """(largest tension [N] from t_j, gap [m] at the cycle's end) of ``schedule``."""
+    def future(self, schedule: Schedule, stop_above: float = math.inf
+               ) -> tuple[float, float, bool]:
+        """(largest tension [N] from t_j, gap [m] at the cycle's end, complete) of
+        ``schedule``; past ``stop_above`` [N] the run stops: the gap is inf and complete
+        False."""
         self.sim.state = self.state.copy()
+        start = float(np.max(self.state.tension))
         try:
-            peak = self._advance(ScenarioPlan(schedule.plan), schedule.cycle_time)
-            delta = self.sim.delta()
+            peak, complete = self._advance(ScenarioPlan(schedule.plan), schedule.cycle_time,
+                                           stop_above)
+            delta = self.sim.delta() if complete else math.inf
         except (ConvergenceError, FloatingPointError, ValueError):
-            return math.inf, math.inf
-        return max(peak, float(np.max(self.state.tension))), delta
+            return math.inf, math.inf, True
+        return max(peak, start), delta, complete
 
 
 class _Predictor:
@@ -187,17 +227,21 @@ class _Predictor:
 
         def corner(z: tuple[float, float, float]) -> _Corner:
             c = estimate.cell(cell, tuple(limits.kappa * v for v in z))
+            start = _corner_start(cell, c, z)
             c = replace(c, movement=replace(c.movement, process_time=horizon))
-            return _Corner(c, schedule, t_join)
+            return _Corner(c, schedule, t_join, start)
 
         self.limits = limits
         self.tension = corner(TENSION_CORNER)
         self.gap = corner(GAP_CORNER)
 
-    def future(self, schedule: Schedule) -> Prediction:
-        F, _ = self.tension.future(schedule)
+    def future(self, schedule: Schedule, whole_run: bool = False) -> Prediction:
+        """The prediction of ``schedule``: its tension corner run stops once past the limit
+        (then F_max is a lower bound and ``complete`` False) unless ``whole_run``."""
+        F, _, complete = self.tension.future(
+            schedule, math.inf if whole_run else self.limits.F_limit)
         delta = self.gap.future(schedule)[1] if F <= self.limits.F_limit else math.inf
-        return Prediction(schedule.choice, F, delta, schedule.cycle_time)
+        return Prediction(schedule.choice, F, delta, schedule.cycle_time, complete)
 
 
 def replan(cell: CellParams, estimate: Estimate, schedule: Schedule, t_join: float,
@@ -266,6 +310,9 @@ def replan(cell: CellParams, estimate: Estimate, schedule: Schedule, t_join: flo
         preds.append((predictor.future(safest), safest))
         n += 1
     whole = [ps for ps in preds if ps[0].whole(limits)]
+    if not whole:                 # the lowest tension is chosen: each one's whole run
+        preds = [(p if p.complete else predictor.future(sc, whole_run=True), sc)
+                 for p, sc in preds]
     pred, chosen = (min(whole, key=lambda ps: (ps[0].delta, ps[0].cycle_time)) if whole
                     else min(preds, key=lambda ps: ps[0].F_max))
     return done(ReplanStatus.INFEASIBLE, "no rest of the movement meets both limits; "

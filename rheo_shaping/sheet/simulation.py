@@ -101,9 +101,12 @@ def build_chain(params: CellParams,
 class Simulation:
     """The sheet of one cell, stepped under a tool pose."""
 
-    def __init__(self, params: CellParams, tool_start=None, laid: LaidSheet | None = None):
-        self.params = params
-        self.laid = laid
+    def __init__(self, params: CellParams, tool_start=None, laid: LaidSheet | None = None,
+                 start: SheetState | None = None):
+        """``start``: the sheet at t = 0 instead of the settled one (adaptive.settle's)."""
+        if start is not None and laid is not None:
+            raise ValueError("Simulation: give a laid sheet or a start state, not both")
+        self.params, self.laid, self.start = params, laid, start
         self.constants, self.x0 = build_chain(params, laid)
         obstacles = [
             Obstacle("cake", Cake.of(params.cake)),
@@ -122,6 +125,8 @@ class Simulation:
         if self.laid is not None:
             self.state: SheetState = self.model.initial_state(self.x0, self.tool_start,
                                                               float(self.laid.t0))
+        elif self.start is not None:
+            self.state = replace(self.start.copy(), t=0.0, tool=self.tool_start.copy())
         else:
             self.state = settled_state(self.params, self.model, self.x0, self.tool_start)
         self.steps = 0
@@ -356,12 +361,12 @@ def _whole_schedule(sim: Simulation, path: ToolPath, knots: list, t_end: float,
 
 def run_scenario(params: CellParams, path: ToolPath, t_end: float | None = None,
                  progress: Callable[[float], None] | None = None,
-                 laid: LaidSheet | None = None) -> RunResult:
+                 laid: LaidSheet | None = None, start: SheetState | None = None) -> RunResult:
     """Run the cell over a tool path from t = 0 to ``t_end`` (default: process time); with
-    ``laid``, from the laid sheet's release at ``laid.t0`` (:class:`LaidSheet`)."""
+    ``laid`` from its release at ``laid.t0``, with ``start`` from that sheet (Simulation)."""
     t_end = params.movement.process_time if t_end is None else float(t_end)
     t_start = 0.0 if laid is None else float(laid.t0)
-    sim = Simulation(params, tool_start=path.position(t_start), laid=laid)
+    sim = Simulation(params, tool_start=path.position(t_start), laid=laid, start=start)
     s0 = sim.state
     knots = [k for k in np.asarray(path.knots(), float) if s0.t < k < t_end] + [t_end]
     wall = time.perf_counter()
