@@ -144,6 +144,9 @@ def main(argv=None) -> int:
     ap.add_argument("--adaptive", action="store_true",
                     help="the planner's closed loop on in every run (RHEO_ATTACK_ADAPTIVE=1)")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--resume", action="store_true",
+                    help="go on with the cut-short campaign in --json: the same seed, runs, "
+                         "rates, -k and commit; the runs it holds are not run again")
     ap.add_argument("--summarise", type=Path, nargs="+", default=None, metavar="JSON",
                     help="print the figures of campaigns already run (their --json files, "
                          "finished or cut short) and exit")
@@ -176,9 +179,29 @@ def main(argv=None) -> int:
     results, t0, loads = [], time.monotonic(), []
     meta = {"seed": args.seed, "runs_per_attack_and_rate": args.runs, "rates": rates,
             "jobs": args.jobs, "commit": _commit(), "adaptive": args.adaptive}
+    if args.resume:
+        if not args.json or not args.json.exists():
+            ap.error(f"--resume: --json {args.json} is not a campaign's file")
+        old = json.loads(args.json.read_text())
+        old_meta = old.get("meta") or {}
+        for key in ("seed", "runs_per_attack_and_rate", "rates", "commit", "adaptive"):
+            if old_meta.get(key) != meta[key]:
+                ap.error(f"--resume {args.json}: its {key} is {old_meta.get(key)!r}, this "
+                         f"campaign's {meta[key]!r}; expected the same")
+        if not old.get("partial"):
+            ap.error(f"--resume {args.json}: that campaign finished; nothing to resume")
+        results, loads = old["runs"], old["loads"]
+        done = {(r["attack"], r["rtf"], r["seed"]) for r in results}
+        if not done <= {(a, r, s) for (a, r), s in zip(todo, seeds)}:
+            ap.error(f"--resume {args.json}: its runs are not this campaign's (another -k?)")
+        keep = [i for i, (a, r) in enumerate(todo) if (a, r, seeds[i]) not in done]
+        todo, seeds = [todo[i] for i in keep], [seeds[i] for i in keep]
+        meta["resumed"] = old_meta.get("resumed", []) + [
+            {"after_runs": len(results), "jobs": args.jobs}]
+        meta["jobs"] = old_meta.get("jobs", args.jobs)
 
     logs = (args.json or Path("attack_campaign.json")).with_suffix(".logs")
-    if args.json:
+    if args.json and not args.resume:
         # made before any run: a test checks that nothing appears in the source tree while
         # it runs (test/conftest.py), and a campaign run from a clone writes into it
         args.json.write_text(json.dumps({"partial": True, "meta": meta, "loads": [],
@@ -191,8 +214,9 @@ def main(argv=None) -> int:
             return one_run(*todo[i], seeds[i], domain, args.adaptive)
         finally:
             free.append(domain)
+    before = len(results)
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-        for i, res in enumerate(pool.map(job, range(len(todo))), 1):
+        for i, res in enumerate(pool.map(job, range(len(todo))), before + 1):
             results.append(res)
             loads.append(os.getloadavg()[0])
             if args.json:                   # what ran so far, should the campaign be cut short
@@ -202,7 +226,9 @@ def main(argv=None) -> int:
                 name = res["attack"].split("::")[-1][:60]
                 (logs / f"{i:04d}_{name}_x{res['rtf']:g}.log").write_text(res.pop("output"))
             el = time.monotonic() - t0
-            print(f"\r[{i}/{len(todo)}] {el:.0f} s, ETA {el / i * (len(todo) - i):.0f} s, "
+            n = i - before
+            print(f"\r[{i}/{before + len(todo)}] {el:.0f} s, "
+                  f"ETA {el / n * (len(todo) - n):.0f} s, "
                   f"failed {sum(not r['passed'] for r in results)}, "
                   f"tears {sum(r['tear'] for r in results)}", end="", flush=True)
     print()
