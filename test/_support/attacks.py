@@ -74,6 +74,18 @@ def check_tear(cell, F_max: float, procs, logs) -> None:
     assert not tracebacks, logs()
 
 
+def simulator_values(diagnostics: list, ns: str = "") -> dict:
+    """The newest values of the simulator's status in the recorded ``diagnostics``
+    (DiagnosticArray messages) of namespace ``ns`` ("" or "/ra"), its message as
+    ``"_message"``; {} before the first."""
+    name = f"{ns.strip('/')}/simulator: sheet" if ns.strip("/") else "simulator: sheet"
+    for msg in reversed(diagnostics):
+        for st in msg.status:
+            if st.name == name:
+                return {kv.key: kv.value for kv in st.values} | {"_message": st.message}
+    return {}
+
+
 class Attacked:
     """The tear plan's cell as three processes, with what the attacks need."""
 
@@ -96,11 +108,7 @@ class Attacked:
     # -- what the cell says -----------------------------------------------------------
     def sim_values(self) -> dict:
         """The newest /diagnostics values of the simulator."""
-        for msg in reversed(self.diag["/diagnostics"]):
-            for st in msg.status:
-                if st.name == "simulator: sheet":
-                    return {kv.key: kv.value for kv in st.values} | {"_message": st.message}
-        return {}
+        return simulator_values(self.diag["/diagnostics"])
 
     def process_time(self) -> float:
         pose = self.c.rec.last("/tool/pose")

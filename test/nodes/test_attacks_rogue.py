@@ -31,7 +31,7 @@ from rheo_shaping.safety.one_of_each import Announcement  # noqa: E402
 from rheo_shaping.units import NS  # noqa: E402
 
 from _support.attacks import (ADAPTIVE, ATTACK_AT, LATE_ATTACK_AT, Attacked,  # noqa: E402
-                              publish_for)
+                              publish_for, simulator_values)
 from _support.ros import wait_for_subscribers  # noqa: E402
 
 #: 100,000 '[': json.loads raised RecursionError in every node that read it.
@@ -241,11 +241,7 @@ def test_a_frozen_monitor_of_a_managed_cell_with_a_forged_heartbeat_holds_the_to
     rec.add(beat_topic, T.HEARTBEAT.type, T.HEARTBEAT.qos)
 
     def sim_values() -> dict:
-        for msg in reversed(rec[T.DIAGNOSTICS.name]):
-            for st in msg.status:
-                if st.name == "ra/simulator: sheet":
-                    return {kv.key: kv.value for kv in st.values} | {"_message": st.message}
-        return {}
+        return simulator_values(rec[T.DIAGNOSTICS.name], ns)
 
     def process_time() -> float:
         pose = rec.last(T.TOOL_POSE.in_namespace(ns))
