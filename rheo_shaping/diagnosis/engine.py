@@ -1,4 +1,5 @@
-"""The diagnosis: a calibrated baseline first, then which side of the sensors, then which effect.
+"""The diagnosis: a calibrated baseline first, then whether a gap is left, which side of the
+sensors, which effect.
 
 1. Noise.  s_p [m] and s_f [N] from the nominal residuals (MAD of second
    differences, :func:`compare.noise_level`).
@@ -11,27 +12,29 @@
    residuals; a bounded least-squares step on the balanced misfit, checked by
    simulation, then one chord step (same Jacobian) checked again; the better
    is the baseline.  The verdict is about what this baseline cannot explain.
-3. Which side.  The chain's part: the baseline with the chain free against
-   the chain held within its tolerances (likelihood ratio, :mod:`stats`); a
-   chain value beyond its tolerance with p <= ALPHA puts (part of) the gap on
-   the measurement side, reported before any effect of the sheet.
-4. Gap test.  The baseline's excess misfit against its calibrated
-   effect-free distribution (p_gap).  p_gap > ALPHA: ``none``.  For a written
-   cell with a Kelvin dashpot that distribution is the stored one plus the
-   model's own replay misfit, measured here (:mod:`replay`).
-5. Which effect.  Each library effect is probed at the baseline by two
-   simulations per fit record (one per axis for tool_offset, one for
-   mass_error, both linear) and fitted jointly with the baseline's knobs on
-   the linearised model (piecewise linear in the effect's magnitude); the two
-   best (by their likelihood-ratio p-value) are checked by simulation on the
-   fit and holdout records.  Named: p (Bonferroni over the candidates) <=
-   ALPHA, and what it leaves is adequate (:func:`adequacy.adequate`: excess
-   within the effect-free null's 95 % quantile on fit and holdout records,
-   plus the model's own discretisation error at the candidate, measured by
-   re-running it refined, :func:`check.numerics`; and the holdout improves).
-   Else the pairs among the three best (linearised, the best checked by
-   simulation), same rule; else ``unexplained``, with the residual's
-   signature and the kinds of cause it points to (:mod:`signature`).
+3. The floor and the gap test.  The baseline's excess misfit against what an
+   effect-free record leaves (p_gap): the floor (:mod:`floor`; ``model-form`` by
+   default, the dynamic world's effect-free remainders per configuration, or
+   ``numerics``, or a calibration file; scaled to the cell by ``reference`` records).
+   p_gap > ALPHA, or a remainder below the user's ``tolerance``: ``none``.  For a written
+   cell with a Kelvin dashpot the numerics null adds the model's own replay misfit
+   (:mod:`replay`).
+4. Which side.  The chain's hypothesis: the baseline with the chain free against the
+   chain held within its tolerances (:func:`stages.sensor_stage`); a chain value beyond
+   its tolerance that explains the gap puts it on the measurement side (a load cell's lag
+   only when the profile does not lag too, :mod:`timing`).
+5. Which effect.  Each library effect is probed at the baseline (two magnitudes per fit
+   record for a scalar effect, both sides of each axis for tool_offset, one run for
+   mass_error) and fitted jointly with the baseline's knobs on the linearised model.  The
+   effects :func:`converge.to_check` picks (the two best by p, the two of least J, every one
+   whose first fit explains at least 15 % of the excess) are checked by simulation on the
+   fit and holdout records, and every strong one refined to convergence
+   (:func:`converge.converge`).  Named, against the numerics floor: p (Bonferroni over the
+   candidates) <= ALPHA and adequate (:func:`adequacy.adequate`); against a model-form
+   floor: the naming rule of :mod:`naming` (the lead's remainder, with its prior's cost,
+   clearly below the baseline's and every rival's).  Else the pairs among the three best,
+   same rule; else ``unexplained``, with the residual's signature and the kinds of cause it
+   points to (:mod:`signature`).
 6. How far.  Gap figures: nominal, baseline and verdict on fit and holdout
    records (:mod:`gap`).
 

@@ -29,10 +29,12 @@ record length, fit and holdout record counts).
   :mod:`.naming` (with a prior on its size, most of the baseline's excess on the fit and
   the holdout records, a remainder clearly below the best other effect's); else
   ``unexplained``.
-* **Intervals** (:func:`model_form_interval`): an effect's value is widened by the
-  largest shift a discrepancy as large as the floor's 95 % quantile, or as what the named
-  effect leaves when that is larger, could cause (the discrepancy along the effect's
-  response, the baseline's columns projected out).
+* **The worst-case bound** (:func:`model_form_interval`): the largest shift of an effect's
+  value a discrepancy as large as the floor's 95 % quantile, or as what the named effect
+  leaves when that is larger, could cause (the discrepancy along the effect's response, the
+  baseline's columns projected out).  It is reported beside the interval; the interval's
+  model-form part is estimated from the records' own remainder (:mod:`.intervals`), and the
+  bound widens it only where no remainder is at hand.
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ its way is laid longer (2-2.5 mm on the dynamic world's movement 2 when the
 sheet's sag would cross the tool). One common length for every record, or
 each record's first-frame reading, leaves what a baseline knob shared by all
 records cannot take: on 5 of 20 effect-free calibration layings it left J - 1
-of 1-12 where the others left 0.05-0.13 (docs/diagnosis.md, the floor).
+of 1-12 where the others left 0.05-0.13 (the dynamic world's first floor calibration).
 
 So each laid record's model gets an offset of its rest length, fitted on that
 record alone to the frames of its first ``WINDOW`` seconds after the fall

@@ -5,7 +5,8 @@ default and switched on in the params YAML's ``effects`` section
 (:class:`~rheo_shaping.params.cell.EffectsParams`).  Its name is the same in the
 YAML, in this registry and in every diagnosis report.  The diagnosis fits an
 effect's ``fit`` parameters inside ``bounds``; the diagnosis benchmark draws
-true magnitudes from ``realistic`` (docs/diagnosis.md says why those ranges).
+true magnitudes from ``realistic`` (docs/diagnosis.md lists them beside the naming
+rule's prior ranges).
 """
 from __future__ import annotations
 
