@@ -289,10 +289,12 @@ def pick_stages(args: list[str]) -> tuple[list[str], list[str]]:
     return [s for s in STAGE_VENVS if s in (stages or DEFAULT_STAGES)], rest
 
 
-#: Stages that run side by side (``dev.py test --serial``: one after the other). The core
-#: stage keeps a core busy with numerics while the ros stage mostly waits on DDS and on
-#: simulated time, so two at once take about the time of the longer one.
-STAGE_JOBS = 2
+#: Stages that run side by side (``dev.py test --serial``: one after the other): all three
+#: at once. The core and noble stages each keep about one core busy with numerics while the
+#: ros stage mostly waits on DDS and on simulated time, so on two cores the three take about
+#: the time of the longest (the ros stage); run one after another the noble stage added
+#: its whole time to CI's.
+STAGE_JOBS = 3
 
 
 def run_stage(stage: str, env: dict, opts: list[str], paths: dict, live: bool,
