@@ -17,15 +17,22 @@ against the optimum (median ratio over the cells both shaped), the CPU cost of a
 (estimate + re-plan).  Progress with an ETA on stderr.
 
     .venv-core/bin/python benchmarks/closed_loop_campaign.py [--cells 40] [--seed 43]
-        [--world 6] [--json] [--save FILE.json] [--plot FILE.png]
+        [--world 6] [--jobs 1] [--json] [--save FILE.json] [--plot FILE.png]
+
+``--jobs N`` runs N cases at once (worker processes).  With ``--save`` every case is
+written as it ends; a campaign started again with the same file, seed and ``--world``
+goes on where it stopped (its cases are not run again).  The draws are those of
+``closed_loop_nodes.py`` with the same seed.
 
 Not through the ROS nodes: the node integration is not part of this core.
 """
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import json
 import math
+import resource
 import sys
 import time
 from dataclasses import replace
@@ -118,45 +125,82 @@ def rates(results: list[dict], arm: str) -> dict:
             "refresh_cost_mean_s": float(costs.mean()) if costs.size else 0.0}
 
 
+def _cpu_s() -> float:
+    """CPU time [s] of this process and its ended worker processes (user + system)."""
+    me, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cells", type=int, default=40)
     ap.add_argument("--seed", type=int, default=43)
     ap.add_argument("--world", type=int, default=0, help="first N draws also on the world")
+    ap.add_argument("--jobs", type=int, default=1, help="cases run at once (worker processes)")
     ap.add_argument("--json", action="store_true", help="print the summary as JSON")
     ap.add_argument("--save", metavar="FILE", help="write every case and the summary")
     ap.add_argument("--plot", metavar="FILE", help="the campaign's figure (PNG)")
     args = ap.parse_args(argv)
+    if args.jobs < 1:
+        ap.error(f"--jobs {args.jobs}: expected a whole number >= 1")
     rng = np.random.default_rng(args.seed)
     draws = [dict(draw(rng), seed=args.seed * 1000 + i) for i in range(args.cells)]
-    results: list[dict] = []
+    done_cases: dict[int, dict] = {}
+    if args.save and Path(args.save).exists():
+        old = json.loads(Path(args.save).read_text())
+        for r in old.get("cases", []):
+            i = int(r.get("draw", {}).get("seed", -1)) - args.seed * 1000
+            if not 0 <= i < len(draws) or \
+                    r["draw"] != json.loads(json.dumps(json_safe(draws[i]))):
+                ap.error(f"--save {args.save}: a case of another campaign (seed, cells); "
+                         "give another file to start a new one")
+            if ("world_adaptive" in r) == (i < args.world):
+                done_cases[i] = r          # the same case with the same arms: kept
+    results: dict[int, dict] = dict(done_cases)
+    todo = [i for i in range(len(draws)) if i not in results]
     wall0 = time.perf_counter()
-    cpu0 = time.process_time()
-    for i, d in enumerate(draws):
-        results.append(run_case(d, i < args.world))
+    cpu0 = _cpu_s()
+
+    def note(i: int, n: int) -> None:
         done = time.perf_counter() - wall0
-        eta = done / (i + 1) * (len(draws) - i - 1)
-        r = results[-1]
+        eta = done / n * (len(todo) - n)
+        d, r = draws[i], results[i]
         if args.save:                          # every case as it ends (a partial campaign)
-            Path(args.save).write_text(json.dumps(json_safe({"cases": results}), indent=1))
-        print(f"[{i + 1}/{len(draws)}] mv {d['movement']} x{d['speed_factor']:g} k1 "
+            ordered = [results[k] for k in sorted(results) if k < len(draws)]
+            Path(args.save).write_text(json.dumps(json_safe({"cases": ordered}), indent=1))
+        print(f"[{len(results)}/{len(draws)}] mv {d['movement']} x{d['speed_factor']:g} k1 "
               f"x{d['k1']:.2f} c2 x{d['c2']:.2f} m x{d['mass']:.2f}: fixed "
               f"{'shaped' if r['fixed']['shaped'] else 'NOT'} {r['fixed']['cycle_time']:.0f} s, "
               f"adaptive {'shaped' if r['adaptive']['shaped'] else 'NOT'} "
               f"{r['adaptive']['cycle_time']:.0f} s, optimum {r['optimum']['cycle_time']:.0f} s"
               f" | {done:.0f} s, ETA {eta:.0f} s", file=sys.stderr, flush=True)
+    if args.jobs == 1:
+        for n, i in enumerate(todo, 1):
+            results[i] = run_case(draws[i], i < args.world)
+            note(i, n)
+    else:
+        with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
+            futures = {pool.submit(run_case, draws[i], i < args.world): i for i in todo}
+            for n, fut in enumerate(concurrent.futures.as_completed(futures), 1):
+                i = futures[fut]
+                results[i] = fut.result()
+                note(i, n)
+    if args.save and not todo:
+        print("nothing left to run: the summary of the saved cases", file=sys.stderr)
+    results_list = [results[k] for k in sorted(results)]
     meta = {"seed": args.seed, "cells": args.cells, "world_cells": min(args.world, args.cells),
-            "wall_s": time.perf_counter() - wall0, "cpu_s": time.process_time() - cpu0,
+            "jobs": args.jobs, "resumed_cases": len(done_cases),
+            "wall_s": time.perf_counter() - wall0, "cpu_s": _cpu_s() - cpu0,
             "cpu": cpu_name(), "started": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(
                 time.time() - (time.perf_counter() - wall0)))}
-    summ = {"meta": meta, **{arm: rates(results, arm) for arm in
+    summ = {"meta": meta, **{arm: rates(results_list, arm) for arm in
                              ("fixed", "adaptive", "world_fixed", "world_adaptive")}}
     if args.save:
-        Path(args.save).write_text(json.dumps(json_safe({"summary": summ, "cases": results}),
+        Path(args.save).write_text(json.dumps(json_safe({"summary": summ, "cases": results_list}),
                                               indent=1))
     if args.plot:
         from closed_loop_plot import campaign_figure
-        campaign_figure(json.loads(json.dumps(json_safe(results))), args.plot)
+        campaign_figure(json.loads(json.dumps(json_safe(results_list))), args.plot)
     if args.json:
         print(json.dumps(json_safe(summ), indent=1))
     else:
