@@ -292,9 +292,12 @@ def test_a_frozen_monitor_of_a_managed_cell_with_a_forged_heartbeat_holds_the_to
     finally:
         monitor.proc.send_signal(signal.SIGCONT)
     print(f"\nsimulator: {message}\nmanager: {status}")
+    # the safe stops: the rogue named, the frozen monitor lost, the threshold, stale data; or,
+    # on a busy machine, the manager's stop on a node's silent heartbeat (the attack
+    # campaign saw one in 100 runs at x10: docs/safety.md)
     assert (f"a second writer of {ns}/shaping/checked: /rogue_beat" in message
             or "monitor lost" in message or "reached the abort threshold" in message
-            or "stale data" in message), message
+            or "stale data" in message or "lost: no heartbeat" in message), message
     assert status.get("phase") != "active", status
     # the forged beats were refused by name (logged once), never taken for the monitor's
     assert "/rogue_beat" in started["lifecycle_manager"].text(), logs()
