@@ -199,5 +199,6 @@ class StreamedLoop:
             except (RuntimeError, ValueError) as exc:
                 note = f"re-plan dropped ({exc}): "
         switched = note.startswith("re-planned")
-        data = dict(step.as_dict(), switched=switched, worker_cpu_s=self.process.cpu_s)
+        data = dict(step.as_dict(), switched=switched, worker_cpu_s=self.process.cpu_s,
+                    refresh_wall_s=self.refresh_wall_s)
         return Refresh(step=step, switched=switched, note=note, data=data)

@@ -12,6 +12,7 @@ import pytest
 pytest.importorskip("rclpy")
 
 
+from rheo_shaping.adaptive.streamed import PACE_WAIT_S  # noqa: E402
 from rheo_shaping.planning.movement import movement_plan  # noqa: E402
 
 from _support.cells import base_cell  # noqa: E402
@@ -74,10 +75,13 @@ def test_the_adaptive_cell_learns_a_soft_batch_and_follows_its_re_plans_without_
     log = out["adaptive"]
     assert log and all(e["estimate"]["status"] in ("prior", "ok") for e in log)
     assert any(e["switched"] for e in log)
-    # paced (cell --adaptive): the stream waits at each refresh's join, so no re-plan is
-    # dropped for a join the stream had passed
-    assert all(e["switched"] for e in log if e["replanned"]), [
-        (e["t"], e["t_join"]) for e in log if e["replanned"] and not e["switched"]]
+    # paced (cell --adaptive): the stream waits at each refresh's join, so a re-plan is
+    # dropped for a join the stream had passed only when its refresh outlasted the wait
+    # (PACE_WAIT_S of wall time: on a busy machine the stream goes on without it)
+    assert all(e["switched"] or e["refresh_wall_s"] > PACE_WAIT_S
+               for e in log if e["replanned"]), [
+        (e["t"], e["t_join"], e["refresh_wall_s"]) for e in log
+        if e["replanned"] and not e["switched"]]
     assert {e["reason"] for e in log} <= {"period", "boundary"}
     # the re-planned rest is what ran to the end (how much shorter depends on how many
     # refreshes land before their join at the machine's speed: 84-98 s of 101.4 s seen;
