@@ -90,6 +90,9 @@ class MonitorNode(Node):
         # from its planner (docs/ros.md, "Who may write what")
         self._owned = {t.contract: OwnedStream(self, t.name, "simulator")
                        for t in (T.TENSIONS, T.CONTACT_TENSION)}
+        # the state's stamp dates the tension samples only from the simulator (its other
+        # checks, zero, old and future stamps, hold for every writer)
+        self._profile_src = OwnedStream(self, T.PROFILE.name, "simulator")
         self._planner_src = OwnedStream(self, T.PLANNER_STATE.name, "planner")
         self._subscribe(s.max_data_age)
         self.create_subscription(T.PLANNER_STATE.type, T.PLANNER_STATE.name,
@@ -252,9 +255,10 @@ class MonitorNode(Node):
 
     def _on_stamped(self, topic: str, msg) -> None:
         steady = self._steady.now().nanoseconds
+        owned = topic == T.PROFILE.contract and self._profile_src.trust().trusted
         self.core.on_stamped(topic, m.stamp_ns(msg.header.stamp), steady,
                              self.get_clock().now().nanoseconds,
-                             sim_time_active(self))
+                             sim_time_active(self), owned)
 
     def _on_deadline(self, topic: str, event) -> None:
         self.core.on_deadline(topic)

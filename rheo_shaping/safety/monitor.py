@@ -101,7 +101,11 @@ class TensionMonitor:
         self._clock_seen = 0                   # the node clock at the newest tick [ns]
         #: staleness on the cell's clock (a lockstep cell), set by the node at each tick
         self.cell_clock = False
-        self._rx_clock: dict[str, int] = {}    # topic -> node clock at the newest sample [ns]
+        self._rx_clock: dict[str, int] = {}    # topic -> cell time of the newest sample [ns]
+        #: the header stamp of the newest state (the first stamped topic, the profile:
+        #: published before the tensions of its step) [ns]; dates a tension sample where
+        #: the node's best-effort /clock lost the messages of its step
+        self._state_stamp = 0
         self._start = steady
         self._rx: dict[str, int | None] = {t: None for t in self.tension_topics
                                            + self.stamped_topics}
@@ -143,8 +147,14 @@ class TensionMonitor:
         return (steady - rx) / NS
 
     def _received(self, topic: str, steady: int) -> None:
+        """A sample of ``topic`` arrived: its cell time is the node's clock, or the newest
+        state's stamp where that is later (the node's /clock is best effort: two lost /clock
+        messages in a row aged a fresh sample by three steps under 5 % UDP loss, a false
+        abort in seed 4731's campaign).  In a lockstep cell the simulator publishes no state
+        beyond ``monitor_lead`` unacknowledged samples, so the stamp dates the sample to
+        within ``monitor_lead - 1`` steps (exactly at the default 1)."""
         self._rx[topic] = steady
-        self._rx_clock[topic] = self._clock_seen
+        self._rx_clock[topic] = max(self._clock_seen, self._state_stamp)
 
     # -- data -------------------------------------------------------------------------
     def on_tensions(self, values: Sequence[float], steady: int, clock: int) -> None:
@@ -238,12 +248,15 @@ class TensionMonitor:
                        f"(detect_time + stop_time)")
 
     def on_stamped(self, topic: str, stamp: int, steady: int, clock: int,
-                   sim_time: bool) -> None:
-        """A message on a stamped topic with header stamp ``stamp`` [ns]."""
+                   sim_time: bool, owned: bool = True) -> None:
+        """A message on a stamped topic with header stamp ``stamp`` [ns]; ``owned``: from the
+        bound simulator (only its state's stamp dates the tension samples)."""
         self._rx[topic] = steady
         if stamp == 0:
             self.abort(f"zero header stamp on {topic}")
             return
+        if owned and topic == self.stamped_topics[0]:
+            self._state_stamp = stamp
         if clock <= 0:
             return                                        # no clock yet (use_sim_time, no /clock)
         age = (clock - stamp) / NS

@@ -280,6 +280,39 @@ def test_in_a_lockstep_cell_a_starved_machine_slows_the_cell_and_stale_is_on_its
     assert h.aborts == [f"stale data: no {TENSIONS} for 0.510 s (max_data_age 0.5 s)"]
 
 
+def test_on_the_cells_clock_lost_clock_messages_do_not_age_the_tensions():
+    """The node's /clock is best effort: two lost /clock messages in a row (5 % UDP loss,
+    seed 4731's false abort) left the monitor at the clock of two steps back while the link
+    tensions of those steps arrived; the next /clock then aged the newest sample by three
+    steps of 0.2 s (x20), 0.6 s > max_data_age.  The state's stamp (the profile, published
+    before the tensions of its step) dates the sample instead; a stream that truly stops
+    while the clock runs on is still stale."""
+    step = int(0.2 * NS)
+
+    def two_lost_clocks(owned: bool) -> Harness:
+        h = Harness(max_data_age=0.5)
+        h.mon.cell_clock = True
+        h.make_ready()
+        for k in (1, 2):                             # /clock of these steps lost
+            h.steady += int(0.01 * NS)
+            h.mon.on_stamped(PROFILE, h.clock + k * step, h.steady, h.clock, True, owned)
+            h.mon.on_tensions([0.05, 0.1], h.steady, h.clock)
+        h.steady += int(0.01 * NS)
+        h.clock += 3 * step                          # the next /clock, before its tensions
+        h.mon.tick(h.steady, h.clock)
+        return h
+
+    h = two_lost_clocks(owned=True)
+    assert h.mon.ready and not h.aborts
+    assert h.mon.age(TENSIONS, h.steady) == pytest.approx(0.2)
+    h.clock += 2 * step                              # no sample for 0.6 s of the cell's clock
+    assert not h.mon.tick(h.steady, h.clock)
+    assert h.aborts == [f"stale data: no {TENSIONS} for 0.600 s (max_data_age 0.5 s)"]
+    # a profile from another writer dates nothing: as before the fix, 0.6 s
+    h = two_lost_clocks(owned=False)
+    assert h.aborts == [f"stale data: no {TENSIONS} for 0.600 s (max_data_age 0.5 s)"]
+
+
 def test_on_the_cells_clock_a_sample_is_aged_from_the_clock_it_arrived_at():
     """A contact sample read before its step's tensions, 0.45 s of cell time after the last
     tick, is 0.1 s old 0.1 s later (not 0.55 s: the clock of the tick before); the
