@@ -43,7 +43,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import cpu_name  # noqa: E402
 
-from rheo_shaping.adaptive.estimator import material_cell  # noqa: E402
+from rheo_shaping.adaptive.settle import material_cell  # noqa: E402
 from rheo_shaping.adaptive.loop import (LoopConfig, LoopResult, replan_limits,  # noqa: E402
                                         run_closed_loop)
 from rheo_shaping.adaptive.optimum import offline_optimum  # noqa: E402

@@ -94,7 +94,7 @@ def campaign_figure(results: list[dict], path: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from rheo_shaping.adaptive.estimator import material_cell
+    from rheo_shaping.adaptive.settle import material_cell
     from rheo_shaping.adaptive.loop import LoopConfig, run_closed_loop
     from rheo_shaping.params.cell import CellParams
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

@@ -13,6 +13,7 @@ __all__, __getattr__, __dir__ = lazy_api(__name__, {
     'estimator': ['Estimator', 'EstimatorParams', 'Estimate', 'EstimateStatus'],
     'join': ['ToolState', 'plan_from_state', 'splice'],
     'schedule': ['Choice', 'Schedule', 'fixed_schedule'],
+    'settle': ['LinearSettle', 'material_cell'],
     'replan': ['replan', 'Replan', 'ReplanStatus', 'ReplanLimits', 'Prediction'],
     'loop': ['run_closed_loop', 'LoopConfig', 'LoopResult', 'monitor_threshold'],
     'online': ['OnlineShaper', 'OnlineConfig', 'OnlineStep', 'Reason'],

@@ -39,7 +39,7 @@ from ..sheet.chain import ConvergenceError
 from ..sheet.paths import PolylinePath
 from ..sheet.simulation import RunResult, run_scenario
 from .observe import NoiseModel, Sample, observation_matrix, predict
-from .settle import LinearSettle
+from .settle import LinearSettle, knobs_of, material_cell
 
 #: The knobs estimated, in the order of theta.
 KNOBS = ("k1", "c2", "mass_per_length")
@@ -152,25 +152,17 @@ class Estimate:
                 "cost_s": self.cost_s}
 
 
-def material_cell(base: CellParams, knobs: Sequence[float] | np.ndarray) -> CellParams:
-    """``base`` with k1 [N/m], c2 [N s/m] and mass per length [kg/m] = ``knobs``."""
-    k1, c2, m = (float(v) for v in knobs)
-    return replace(base, material=replace(base.material, k1=k1, c2=c2),
-                   sheet=replace(base.sheet, mass_per_length=m))
-
-
 class Estimator:
     """Online estimate of :data:`KNOBS` for the cell ``cell`` (the params file's)."""
 
     def __init__(self, cell: CellParams, params: EstimatorParams = EstimatorParams()):
         self.cell = cell
         self.params = params
-        self.nominal = np.array([cell.material.k1, cell.material.c2,
-                                 cell.sheet.mass_per_length])
+        self.nominal = knobs_of(cell)
         self.samples: list[Sample] = []
         self.theta = np.zeros(3)
         # the runs' settled sheets, to first order about the estimate (settle.py)
-        self.settle = LinearSettle(lambda th: material_cell(self.cell, self.nominal * np.exp(th)))
+        self.settle = LinearSettle.about(cell)
         self._cov = np.linalg.inv(params.prior_precision())
         self.bad = ""                       # latched reason of a bad status
         self._t_gap = -math.inf             # time of the newest gap kept

@@ -41,9 +41,9 @@ from ..params.validators import check_finite, check_positive
 from ..planning.scenarios import ScenarioPlan
 from ..sheet.chain import ConvergenceError
 from ..sheet.simulation import Simulation
-from .estimator import Estimate, material_cell
+from .estimator import Estimate
 from .schedule import Choice, Schedule
-from .settle import LinearSettle
+from .settle import LinearSettle, theta_of
 
 
 class ReplanStatus(enum.Enum):
@@ -162,12 +162,8 @@ def _corner_start(base: CellParams, corner: CellParams, z: tuple[float, float, f
     if key not in _SETTLES:
         if len(_SETTLES) >= 16:
             _SETTLES.clear()
-        nominal = np.array([base.material.k1, base.material.c2, base.sheet.mass_per_length])
-        _SETTLES[key] = LinearSettle(lambda th: material_cell(base, nominal * np.exp(th)))
-    s = _SETTLES[key]
-    knobs = np.array([corner.material.k1, corner.material.c2, corner.sheet.mass_per_length])
-    nominal = np.array([base.material.k1, base.material.c2, base.sheet.mass_per_length])
-    return s.follow(np.log(knobs / nominal))
+        _SETTLES[key] = LinearSettle.about(base)
+    return _SETTLES[key].follow(theta_of(base, corner))
 
 
 class _Corner:
@@ -187,14 +183,13 @@ class _Corner:
         :data:`CHUNK` at a time when it may stop (the same steps, the same states)."""
         peak = -math.inf
         knots = [k for k in path.knots() if self.sim.state.t < k < t_end] + [t_end]
-        chunk = CHUNK if stop_above < math.inf else 0
         for k in knots:
             if k <= self.sim.state.t:
                 continue
             dts, poses = self.sim.schedule(k, path.position(k), path.position)
-            for i in range(0, len(dts), chunk or max(len(dts), 1)):
-                rec = self.sim.advance_path(dts[i:i + (chunk or len(dts))],
-                                            poses[i:i + (chunk or len(dts))])
+            size = CHUNK if stop_above < math.inf else max(len(dts), 1)
+            for i in range(0, len(dts), size):
+                rec = self.sim.advance_path(dts[i:i + size], poses[i:i + size])
                 if len(rec):
                     peak = max(peak, float(np.max(rec.tension)))
                 if peak > stop_above:

@@ -22,12 +22,31 @@ noise is 0.2 mm, the force's 5 mN; test/adaptive/test_settle.py).  No ROS here.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Sequence
 
 import numpy as np
 
 from ..params.cell import CellParams
 from ..sheet.chain import SheetState
 from ..sheet.simulation import Simulation
+
+
+def material_cell(base: CellParams, knobs: Sequence[float] | np.ndarray) -> CellParams:
+    """``base`` with k1 [N/m], c2 [N s/m] and mass per length [kg/m] = ``knobs``."""
+    k1, c2, m = (float(v) for v in knobs)
+    return replace(base, material=replace(base.material, k1=k1, c2=c2),
+                   sheet=replace(base.sheet, mass_per_length=m))
+
+
+def knobs_of(cell: CellParams) -> np.ndarray:
+    """(3,) the cell's k1 [N/m], c2 [N s/m] and mass per length [kg/m]."""
+    return np.array([cell.material.k1, cell.material.c2, cell.sheet.mass_per_length])
+
+
+def theta_of(base: CellParams, cell: CellParams) -> np.ndarray:
+    """(3,) theta of ``cell``'s material about ``base``'s: ln of the knobs' ratios."""
+    return np.log(knobs_of(cell) / knobs_of(base))
+
 
 #: The state's arrays taken to first order (the rest: the reference's).
 FIELDS = ("x", "v", "e1", "p", "tension", "contact")
@@ -48,6 +67,12 @@ class LinearSettle:
         self._slopes: list[dict[str, np.ndarray]] = []
         self.exact_settles = 0          # settled states asked of the sheet core (the cost)
         self._last: np.ndarray | None = None     # follow()'s theta before
+
+    @classmethod
+    def about(cls, base: CellParams, **kw) -> "LinearSettle":
+        """Settled sheets of ``base`` with its knobs scaled by exp(theta)."""
+        nominal = knobs_of(base)
+        return cls(lambda th: material_cell(base, nominal * np.exp(th)), **kw)
 
     def exact(self, theta: np.ndarray) -> SheetState:
         """The settled sheet at ``theta``, settled (cached per material by the sheet core)."""

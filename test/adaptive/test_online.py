@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.adaptive.estimator import material_cell
+from rheo_shaping.adaptive.settle import material_cell
 from rheo_shaping.adaptive.observe import sample_of
 from rheo_shaping.adaptive.online import OnlineConfig, OnlineShaper, Reason
 from rheo_shaping.adaptive.schedule import Choice, fixed_schedule

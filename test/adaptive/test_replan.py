@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.adaptive.estimator import material_cell
+from rheo_shaping.adaptive.settle import material_cell
 from rheo_shaping.adaptive.join import ToolState
 from rheo_shaping.adaptive.optimum import truth
 from rheo_shaping.adaptive.replan import (GAP_CORNER, TENSION_CORNER, Prediction, ReplanLimits,

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from rheo_shaping.adaptive.estimator import material_cell
+from rheo_shaping.adaptive.settle import material_cell
 from rheo_shaping.adaptive.observe import NoiseModel
 from rheo_shaping.adaptive.optimum import truth
 from rheo_shaping.adaptive.replan import ReplanLimits, _Predictor
@@ -18,14 +18,9 @@ from rheo_shaping.adaptive.settle import LinearSettle
 from rheo_shaping.params.cell import CellParams
 
 
-def _settle(cell: CellParams) -> LinearSettle:
-    nominal = np.array([cell.material.k1, cell.material.c2, cell.sheet.mass_per_length])
-    return LinearSettle(lambda th: material_cell(cell, nominal * np.exp(th)))
-
-
 def test_the_first_order_settle_is_exact_at_its_reference_and_close_within_its_radius():
     cell = CellParams()
-    s = _settle(cell)
+    s = LinearSettle.about(cell)
     ref = np.array([0.1, -0.2, 0.05])
     s.recentre(ref)
     assert s.exact_settles == 4                   # the reference and one step per knob
@@ -48,7 +43,7 @@ def test_the_first_order_settle_is_exact_at_its_reference_and_close_within_its_r
 
 
 def test_beyond_its_radius_the_settle_is_exact_and_a_resting_point_moves_the_reference():
-    s = _settle(CellParams())
+    s = LinearSettle.about(CellParams())
     s.recentre(np.zeros(3))
     far = np.array([0.2, 0.0, 0.0])
     before = s.exact_settles
