@@ -13,7 +13,9 @@ publishes what it decides):
   ``max_stamp_age``), no data within ``startup_timeout``: abort (principles 1, 2);
 * in a lockstep cell (:attr:`TensionMonitor.cell_clock`: the simulator steps only on this
   monitor's acknowledgements) the stream that paces it (the link tensions) is stale when
-  the cell's clock has run ``max_data_age`` past its newest sample; the wall's age and the
+  the cell's clock has run ``max_data_age`` past its newest sample at two watchdog ticks
+  running (lost /clock messages date a sample early until the next one comes); the wall's
+  age and the
   QoS deadline count there only beyond :data:`LOCKSTEP_WALL_FACTOR` x ``max_data_age`` (a
   starved machine slows such a cell, its tool does not move unwatched; a clock that stands
   still that long has lost its simulator).  Where the monitor acknowledges, the contact
@@ -112,6 +114,7 @@ class TensionMonitor:
         self.stamp_age: dict[str, float] = {}
         self._old: dict[str, str] = {}        # topic -> why its newest stamp is too old
         self._old_prev: set[str] = set()      # the same at the previous tick
+        self._stale_prev: set[str] = set()    # paced streams stale on the cell's clock then
         self._future: dict[str, tuple[int, int]] = {}   # topic -> (stamp, steady arrival) [ns]
         self.tension = math.nan                # latest largest link tension [N]
         self.link = 0
@@ -320,6 +323,15 @@ class TensionMonitor:
             # excused only where the stream was fresh at the previous tick
             stale = [t for t in stale if previous is not None and (
                 (rx := self._rx[t]) is None or (previous - rx) / NS > s.max_data_age)]
+        # on the cell's clock a paced stream counts as stale at two ticks running: the
+        # node's clock is dated at each /clock it reads, the sample at the clock it arrived
+        # at, and lost /clock messages (best effort) date it too early until the next sample
+        # comes, a tick later at most (with the simulator waiting on its acknowledgements,
+        # the cell cannot move unwatched meanwhile)
+        on_cell = {t for t in stale if self.paced(t) and ages[t] > s.max_data_age
+                   and self.wall_age(t, steady) <= self._wall_limit}
+        stale = [t for t in stale if t not in on_cell or t in self._stale_prev]
+        self._stale_prev = on_cell
         persist = [t for t in self._old if t in self._old_prev]   # old at two ticks running
         self._old_prev = set(self._old)
         if self.state == "ready" and self._old and (not stalled or persist):

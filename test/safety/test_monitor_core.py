@@ -276,7 +276,9 @@ def test_in_a_lockstep_cell_a_starved_machine_slows_the_cell_and_stale_is_on_its
     h.clock += int(0.5 * NS)
     assert h.mon.tick(h.steady, h.clock) and not h.aborts           # 0.5 s of cell: fresh
     h.clock += int(0.01 * NS)
-    assert not h.mon.tick(h.steady, h.clock)
+    assert h.mon.tick(h.steady, h.clock) and not h.aborts     # stale at one tick: judged again
+    h.steady += int(0.05 * NS)
+    assert not h.mon.tick(h.steady, h.clock)                   # at two ticks running
     assert h.aborts == [f"stale data: no {TENSIONS} for 0.510 s (max_data_age 0.5 s)"]
 
 
@@ -285,8 +287,9 @@ def test_on_the_cells_clock_lost_clock_messages_do_not_age_the_tensions():
     seed 4731's false abort) left the monitor at the clock of two steps back while the link
     tensions of those steps arrived; the next /clock then aged the newest sample by three
     steps of 0.2 s (x20), 0.6 s > max_data_age.  The state's stamp (the profile, published
-    before the tensions of its step) dates the sample instead; a stream that truly stops
-    while the clock runs on is still stale."""
+    before the tensions of its step) dates the sample instead, and the cell's clock counts
+    only at two ticks running (the next sample clears a date too early); a stream that
+    truly stops while the clock runs on is still stale."""
     step = int(0.2 * NS)
 
     def two_lost_clocks(owned: bool) -> Harness:
@@ -306,11 +309,19 @@ def test_on_the_cells_clock_lost_clock_messages_do_not_age_the_tensions():
     assert h.mon.ready and not h.aborts
     assert h.mon.age(TENSIONS, h.steady) == pytest.approx(0.2)
     h.clock += 2 * step                              # no sample for 0.6 s of the cell's clock
+    assert h.mon.tick(h.steady, h.clock)
+    h.steady += int(0.05 * NS)                       # ... at two ticks running: stale
     assert not h.mon.tick(h.steady, h.clock)
     assert h.aborts == [f"stale data: no {TENSIONS} for 0.600 s (max_data_age 0.5 s)"]
-    # a profile from another writer dates nothing: as before the fix, 0.6 s
+    # a profile from another writer dates nothing: 0.6 s at that tick (the false abort of
+    # the code before), and the step's sample, which comes before the next tick, clears it
     h = two_lost_clocks(owned=False)
-    assert h.aborts == [f"stale data: no {TENSIONS} for 0.600 s (max_data_age 0.5 s)"]
+    assert h.mon.age(TENSIONS, h.steady) == pytest.approx(0.6)
+    assert h.mon.ready and not h.aborts
+    h.steady += int(0.001 * NS)
+    h.mon.on_tensions([0.05, 0.1], h.steady, h.clock)
+    h.steady += int(0.05 * NS)
+    assert h.mon.tick(h.steady, h.clock) and not h.aborts
 
 
 def test_on_the_cells_clock_a_sample_is_aged_from_the_clock_it_arrived_at():
@@ -358,6 +369,8 @@ def test_where_the_monitor_acknowledges_the_contact_tension_is_judged_on_the_wal
         h.steady += int(0.005 * NS)
         h.clock += int(0.05 * NS)
         h.mon.on_tensions([0.05, 0.1], h.steady, h.clock)
+    assert h.mon.tick(h.steady, h.clock)
+    h.steady += int(0.005 * NS)
     assert not h.mon.tick(h.steady, h.clock)
     assert h.aborts == [f"stale data: no {CONTACT} for 0.600 s (max_data_age 0.5 s)"]
 
