@@ -323,22 +323,23 @@ class TensionMonitor:
             # excused only where the stream was fresh at the previous tick
             stale = [t for t in stale if previous is not None and (
                 (rx := self._rx[t]) is None or (previous - rx) / NS > s.max_data_age)]
-        # on the cell's clock a paced stream counts as stale at two ticks running: the
-        # node's clock is dated at each /clock it reads, the sample at the clock it arrived
-        # at, and lost /clock messages (best effort) date it too early until the next sample
-        # comes, a tick later at most (with the simulator waiting on its acknowledgements,
-        # the cell cannot move unwatched meanwhile)
+        # an abort on the cell's clock asks a paced stream to be stale at two ticks running:
+        # the node's clock is dated at each /clock it reads, the sample at the clock it
+        # arrived at, and lost /clock messages (best effort) date it too early until the
+        # next sample comes, a tick later at most (with the simulator waiting on its
+        # acknowledgements, the cell cannot move unwatched meanwhile); readiness asks fresh
+        # data at this tick
         on_cell = {t for t in stale if self.paced(t) and ages[t] > s.max_data_age
                    and self.wall_age(t, steady) <= self._wall_limit}
-        stale = [t for t in stale if t not in on_cell or t in self._stale_prev]
+        abort_on = [t for t in stale if t not in on_cell or t in self._stale_prev]
         self._stale_prev = on_cell
         persist = [t for t in self._old if t in self._old_prev]   # old at two ticks running
         self._old_prev = set(self._old)
         if self.state == "ready" and self._old and (not stalled or persist):
             topic = persist[0] if persist else next(iter(self._old))
             self.abort(f"stale data: {self._old[topic]}")
-        elif self.state == "ready" and stale:
-            t = stale[0]
+        elif self.state == "ready" and abort_on:
+            t = abort_on[0]
             if self.paced(t) and ages[t] <= s.max_data_age:    # the cell's clock stood still
                 self.abort(f"stale data: no {t} for {self.wall_age(t, steady):.3f} s of wall "
                            f"time while the cell's clock stood still: its simulator is lost "

@@ -324,6 +324,17 @@ def test_on_the_cells_clock_lost_clock_messages_do_not_age_the_tensions():
     assert h.mon.tick(h.steady, h.clock) and not h.aborts
 
 
+def test_a_stream_stale_on_the_cells_clock_keeps_a_waiting_monitor_waiting():
+    """The two ticks are asked only of an abort: a monitor whose paced stream is stale on
+    the cell's clock at its first look does not become ready on it."""
+    h = Harness(max_data_age=0.5)
+    h.mon.cell_clock = True
+    h.sample()
+    h.clock += int(0.6 * NS)
+    assert not h.mon.tick(h.steady, h.clock)
+    assert h.mon.state == "waiting" and not h.aborts
+
+
 def test_on_the_cells_clock_a_sample_is_aged_from_the_clock_it_arrived_at():
     """A contact sample read before its step's tensions, 0.45 s of cell time after the last
     tick, is 0.1 s old 0.1 s later (not 0.55 s: the clock of the tick before); the
