@@ -71,8 +71,10 @@ def params_cell(d: dict) -> CellParams:
                                           speed=1e-3 * d["speed_factor"]))
 
 
-def run_one(d: dict, adaptive: bool, rtf: float, domain: int, folder: Path) -> dict:
-    """One cell run by the nodes; the figures of ``rheo-shaping cell --json``."""
+def cell_json(d: dict, adaptive: bool, rtf: float, domain: int, folder: Path
+              ) -> tuple[dict | None, dict]:
+    """Draw ``d`` run once by ``rheo-shaping cell --json`` in ROS domain ``domain``: (its
+    JSON, None on a failed run; {"wall_s": the run's wall time [s], "error": why})."""
     f = folder / f"cell_{domain}.yaml"
     f.write_text(PARAMS.format(speed=1e-3 * d["speed_factor"], **d))
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
@@ -80,11 +82,19 @@ def run_one(d: dict, adaptive: bool, rtf: float, domain: int, folder: Path) -> d
            "--real-time-factor", f"{rtf:g}", "--timeout", "900"] + (["--adaptive"] * adaptive)
     t0 = time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    wall = time.monotonic() - t0
+    wall = {"wall_s": time.monotonic() - t0}
     try:
-        out = json.loads(proc.stdout.strip().splitlines()[-1])
+        return json.loads(proc.stdout.strip().splitlines()[-1]), wall
     except (IndexError, json.JSONDecodeError):
-        return {"error": f"exit {proc.returncode}: {proc.stderr[-800:]}", "wall_s": wall}
+        return None, dict(wall, error=f"exit {proc.returncode}: {proc.stderr[-800:]}")
+
+
+def run_one(d: dict, adaptive: bool, rtf: float, domain: int, folder: Path) -> dict:
+    """One cell run by the nodes; the figures of ``rheo-shaping cell --json``."""
+    out, run = cell_json(d, adaptive, rtf, domain, folder)
+    if out is None:
+        return run
+    wall = run["wall_s"]
     cell = params_cell(d)
     fixed = movement_plan(cell).plan.duration
     settle = max(cell.movement.process_time - fixed, 0.0)
