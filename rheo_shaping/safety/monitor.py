@@ -15,15 +15,11 @@ publishes what it decides):
   monitor's acknowledgements) the stream that paces it (the link tensions) is stale when
   the cell's clock has run ``max_data_age`` past its newest sample at two watchdog ticks
   running (lost /clock messages date a sample early until the next one comes); the wall's
-  age and the
-  QoS deadline count there only beyond :data:`LOCKSTEP_WALL_FACTOR` x ``max_data_age`` (a
-  starved machine slows such a cell, its tool does not move unwatched; a clock that stands
-  still that long has lost its simulator).  Where the monitor acknowledges, the contact
-  tension is not acknowledged and holds nothing: its samples can reach the monitor later
-  than the link tensions of the same step (a reliable stream repairing a lost sample), so
-  it is judged on the wall only, by the same bound; the threshold loses nothing by it, the
-  contact tension is one of the link tensions
-  (:func:`~rheo_shaping.sheet.metrics.contact_tension`).
+  age and the QoS deadline count there only beyond :data:`LOCKSTEP_WALL_FACTOR` x
+  ``max_data_age`` (a starved machine slows such a cell; a clock that stands still that
+  long has lost its simulator).  The contact tension, not acknowledged, is judged on the
+  wall only, by the same bound (it is one of the link tensions, and its samples can come
+  later than theirs).
 
 Times are integer nanoseconds: ``steady`` on a steady clock, ``clock`` on the node's
 clock (simulated time when ``sim_time``; 0 while there is no clock yet).
@@ -31,7 +27,6 @@ clock (simulated time when ``sim_time``; 0 while there is no clock yet).
 from __future__ import annotations
 
 import math
-from collections import deque
 from typing import Callable, Sequence
 
 import numpy as np
@@ -39,6 +34,7 @@ import numpy as np
 from ..params.node_params import MonitorNodeParams
 from ..sheet.metrics import safety_factor
 from ..units import NS
+from .trend import TensionTrend
 
 
 def stale_on_cell_clock(settings: MonitorNodeParams, sim_time: bool) -> bool:
@@ -79,8 +75,7 @@ class TensionMonitor:
     @property
     def plausible(self) -> tuple[float, float]:
         """(lowest, highest) tension [N] that can be data: below ``-3 noise_sigma`` a link
-        would push (the contract's tensions are non-negative), above ``max_tension_ratio x
-        F_break`` the sheet would long have torn.  Outside: a lying source, abort."""
+        would push, above ``max_tension_ratio x F_break`` the sheet would long have torn."""
         s = self.settings
         return -3.0 * s.noise_sigma, s.max_tension_ratio * self.F_break
 
@@ -104,9 +99,8 @@ class TensionMonitor:
         #: staleness on the cell's clock (a lockstep cell), set by the node at each tick
         self.cell_clock = False
         self._rx_clock: dict[str, int] = {}    # topic -> cell time of the newest sample [ns]
-        #: the header stamp of the newest state (the first stamped topic, the profile:
-        #: published before the tensions of its step) [ns]; dates a tension sample where
-        #: the node's best-effort /clock lost the messages of its step
+        #: the newest state's header stamp [ns] (the profile, published before the tensions
+        #: of its step): dates a sample where the best-effort /clock lost its step's messages
         self._state_stamp = 0
         self._start = steady
         self._rx: dict[str, int | None] = {t: None for t in self.tension_topics
@@ -120,8 +114,7 @@ class TensionMonitor:
         self.link = 0
         self.contact = math.nan                # latest contact tension [N]
         self.F_seen = 0.0                      # largest tension since (re)start [N]
-        self.trend_rate = math.nan             # N/s
-        self._trend: deque[tuple[float, float]] = deque()
+        self._trend = TensionTrend()
 
     def abort(self, reason: str) -> bool:
         """Abort (once: the first reason latches); True if this call aborted."""
@@ -222,31 +215,19 @@ class TensionMonitor:
                        f"{self.threshold:.4f} N = {self.ratio:.3f} x F_break "
                        f"{self.F_break:g} N")
 
+    @property
+    def trend_rate(self) -> float:
+        """The largest tension's trend [N/s] (nan: too few samples yet)."""
+        return self._trend.rate
+
     def _check_trend(self, value: float, clock: int) -> None:
-        s = self.settings
-        now = clock / NS
+        s, now = self.settings, clock / NS
         if now <= 0.0:
             return
-        tr = self._trend
-        if tr and now < tr[-1][0]:
-            tr.clear()                                  # the clock went back: start again
-        tr.append((now, value))
-        while tr and tr[0][0] < now - s.trend_window:
-            tr.popleft()
-        if len(tr) < s.trend_min_samples:
-            self.trend_rate = math.nan
-            return
-        t = np.array([p[0] for p in tr])
-        f = np.array([p[1] for p in tr])
-        span = t[-1] - t[0]
-        if span < 0.5 * s.trend_window:
-            self.trend_rate = math.nan
-            return
-        tc = t - t.mean()
-        self.trend_rate = float(np.dot(tc, f - f.mean()) / np.dot(tc, tc))
-        if (s.trend_abort and self.state != "aborted" and self.trend_rate > 0.0
-                and value + self.trend_rate * self.horizon >= self.threshold):
-            self.abort(f"tension trend {self.trend_rate:.4f} N/s from {value:.4f} N predicts "
+        rate = self._trend.add(now, value, s.trend_window, s.trend_min_samples)
+        if (s.trend_abort and self.state != "aborted" and rate > 0.0
+                and value + rate * self.horizon >= self.threshold):
+            self.abort(f"tension trend {rate:.4f} N/s from {value:.4f} N predicts "
                        f"the abort threshold {self.threshold:.4f} N within {self.horizon:.3f} s "
                        f"(detect_time + stop_time)")
 
