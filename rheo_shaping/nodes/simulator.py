@@ -284,10 +284,10 @@ class SimulatorNode(SetpointIntake, SimulatorOutputs, Node):
             self._commander_ns = now                # the graph asked twice a second at most
             self._say_commander()
         self._bind_waiting()
-        s = self.settings
-        if not self.gate.held and self._lead.lost(self._steady.now().nanoseconds):
-            self._hold(f"monitor lost: no {T.CHECKED.contract} for over {s.monitor_timeout:g} s"
-                       f" (monitor_timeout)")
+        lost = self._lead.lost_reason(self._steady.now().nanoseconds, bool(self.run.cmds),
+                                      T.CHECKED.contract)
+        if lost and not self.gate.held:
+            self._hold(lost)
         self._pending = True
         self._try_step()
 

@@ -117,8 +117,9 @@ class SimulatorNodeParams:
         "for the first) stops the tool", "m", 0.0, 1.0, lo_open=True)
     monitor_timeout: float = param(
         0.5, "once the monitor has acknowledged samples (/shaping/checked), no acknowledgement "
-        "for this wall-clock time is a lost (frozen) monitor: the tool holds, the reason goes "
-        "out on /shaping/abort (on simulated time the sheet stands still meanwhile, "
+        "for this wall-clock time once a set-point came is a lost (frozen) monitor: the tool "
+        "holds, the reason goes out on /shaping/abort (before the first set-point the tool "
+        "stands still and nothing latches; on simulated time the sheet stands still meanwhile, "
         "at most monitor_lead samples past the newest acknowledgement; 0, never, tore the "
         "sheet with the monitor frozen)", "s", 0.0, 10.0, lo_open=True)
     camera: bool = param(

@@ -114,6 +114,17 @@ class MonitorLead:
         dead monitor)."""
         return self._fresh is not None and self._fresh.stale(steady_ns)
 
+    def lost_reason(self, steady_ns: int, commanded: bool, topic: str) -> str:
+        """Why the simulator must hold its tool for its monitor ("" none): acknowledgements
+        on ``topic`` came and stopped for over the timeout while the tool is ``commanded``
+        (a set-point came since the run began).  Before the first set-point a lapse holds
+        nothing: the tool stands still and the planner does not start it without the
+        monitor's heartbeat, and a latched hold would wedge a cell whose busy computer
+        starved its monitor for half a second at start-up."""
+        if not (commanded and self.lost(steady_ns)):
+            return ""
+        return f"monitor lost: no {topic} for over {self._timeout:g} s (monitor_timeout)"
+
     def behind(self, steady_ns: int) -> bool:
         """Whether a step must wait: ``lead`` published samples are unacknowledged while
         acknowledgements still arrive.  Counts the wait in :attr:`waits`."""

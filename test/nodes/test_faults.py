@@ -201,6 +201,33 @@ def test_monitor_killed_mid_run_planner_stops(ros, procs, tmp_path):
               f"test {took:.3f} s after the kill")
 
 
+def test_a_monitor_starved_before_the_start_holds_nothing_and_the_run_goes(
+        ros, procs, tmp_path):
+    """A busy computer starves the monitor for three times its 0.5 s timeout before the
+    first set-point (SIGSTOP): the tool stands still, so the simulator latches no hold;
+    once the monitor is back, the run starts and moves the tool (before, the simulator held
+    until ~/reset and the cell was wedged)."""
+    params = write_params(tmp_path / "cell.yaml", CellParams(),
+                          simulator={"real_time_factor": 4.0, "monitor_timeout": 0.5},
+                          planner={"autostart": False}, monitor={"max_data_age": 0.5})
+    c = Cell(ros, procs, params, streams=("/tool/command", "/tool/pose"),
+             sampled=("/sheet/profile", "/sheet/tensions"))
+    c.wait(lambda: len(c.rec["/sheet/tensions"]) >= 3, 60.0, "sheet data reaching the test")
+    c.monitor.proc.send_signal(signal.SIGSTOP)
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 1.5:           # the starvation itself, not a wait
+            ros.executor.spin_once(timeout_sec=0.05)
+    finally:
+        c.monitor.proc.send_signal(signal.SIGCONT)
+    c.start()
+    c.wait(lambda: c.state() == "running" and len(c.rec["/tool/command"]) > 50, 60.0,
+           "the tool moving")
+    sim_log = "".join(p.text() for p in procs.all if p.exe == "simulator")
+    assert "monitor lost" not in sim_log, sim_log
+    c.stop_all()
+
+
 def test_planner_restarted_mid_run_does_not_resume(ros, procs, tmp_path):
     c, params = running_cell(ros, procs, tmp_path)
     c.wait(lambda: len(c.rec["/tool/command"]) > 300, 60.0, "the tool well into the run")

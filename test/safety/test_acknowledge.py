@@ -134,3 +134,19 @@ def test_an_acknowledgement_counts_only_from_the_monitor_and_within_the_samples_
     assert lead.refusal(3, "") == ""
     assert lead.refusal(4, "") == "beyond the 3 samples published"
     assert lead.refusal(2, "not the bound monitor's") == "not the bound monitor's"
+
+
+def test_a_lost_monitor_holds_the_tool_only_once_it_is_commanded():
+    """A lapse of the acknowledgements before the first set-point holds nothing (the tool
+    stands still; a busy computer's half-second lapse at start-up must not wedge the cell);
+    once a set-point came, the same lapse holds with the reason named."""
+    lead = MonitorLead(1, 0.5)
+    topic = "/shaping/checked"
+    assert lead.lost_reason(10 * NS, True, topic) == ""            # no monitor ever seen
+    lead.on_checked(1, 0)
+    assert lead.lost_reason(NS // 2, True, topic) == ""             # within the timeout
+    assert lead.lost_reason(NS // 2 + 1, False, topic) == ""        # lapsed, not commanded
+    assert lead.lost_reason(NS // 2 + 1, True, topic) == (
+        "monitor lost: no /shaping/checked for over 0.5 s (monitor_timeout)")
+    lead.on_checked(2, NS)                                          # the monitor is back
+    assert lead.lost_reason(NS + 1, True, topic) == ""
