@@ -155,10 +155,13 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
                     break
                 time.sleep(0.2)                  # polling the logs of processes we wait for
         finally:                                 # the nodes end with the case, also on a signal
-            for p in procs.values():
+            # the planner first, then the monitor, then the simulator, each waited for: a
+            # monitor that left the graph while the planner still ran its plan would be a
+            # stop the case itself caused (the plan can run past the process end)
+            for n in ("planner", "monitor", "simulator"):
+                p = procs[n]
                 if p.poll() is None:
                     p.send_signal(signal.SIGINT)
-            for p in procs.values():
                 try:
                     p.wait(timeout=20)
                 except subprocess.TimeoutExpired:
@@ -195,6 +198,8 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
         "max_tension_after_abort_N": largest if aborted else None,
     })
     row["tore"] = bool(largest >= cell.material.F_break)
+    if row["false_abort"]:                   # its whole output, to tell why
+        row["logs"] = text
     return row
 
 
