@@ -17,10 +17,6 @@ class TensionTrend:
         self.rate = math.nan                                    # N/s
         self._samples: deque[tuple[float, float]] = deque()    # (t [s], tension [N])
 
-    def clear(self) -> None:
-        self.rate = math.nan
-        self._samples.clear()
-
     def add(self, now: float, value: float, window: float, min_samples: int) -> float:
         """The sample ``value`` [N] at ``now`` [s] (the cell's clock); returns ``rate``."""
         tr = self._samples
