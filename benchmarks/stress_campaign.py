@@ -32,6 +32,8 @@ namespace are removed on exit, also on Ctrl-C.
     sudo .venv/bin/python benchmarks/stress_campaign.py [--runs 300] [--seeds 1,2]
         [--conditions idle,cpu,loss] [--loss 5] [--jobs 2] [--json] [--save FILE]
     sudo .venv/bin/python benchmarks/stress_campaign.py --fault-tests --conditions cpu,loss
+    sudo .venv/bin/python benchmarks/stress_campaign.py --conditions loss --seeds 4742 \
+        --cases 274 --repeat 8 [--end-order monitor,planner,simulator] --save FILE
 """
 from __future__ import annotations
 
@@ -112,9 +114,12 @@ def lossy_namespace(loss_percent: int):
 
 
 # -- one case with three node processes ---------------------------------------------------
-def run_case_processes(index: int, cell, prefix: list[str], domain: int,
-                       timeout: float) -> dict:
-    """Offline run, then the cell as three processes (inside ``prefix``); figures from logs."""
+def run_case_processes(index: int, cell, prefix: list[str], domain: int, timeout: float,
+                       end_order: tuple[str, ...] = ("planner", "monitor", "simulator"),
+                       keep_logs: bool = False) -> dict:
+    """Offline run, then the cell as three processes (inside ``prefix``); figures from logs.
+    The nodes are interrupted in ``end_order`` at the case's end, each waited for; the logs
+    are kept in the row on a false abort, or always with ``keep_logs``."""
     import yaml
 
     from rheo_shaping.params.config import dump_cell
@@ -158,7 +163,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
             # the planner first, then the monitor, then the simulator, each waited for: a
             # monitor that left the graph while the planner still ran its plan would be a
             # stop the case itself caused (the plan can run past the process end)
-            for n in ("planner", "monitor", "simulator"):
+            for n in end_order:
                 p = procs[n]
                 if p.poll() is None:
                     p.send_signal(signal.SIGINT)
@@ -198,7 +203,7 @@ def run_case_processes(index: int, cell, prefix: list[str], domain: int,
         "max_tension_after_abort_N": largest if aborted else None,
     })
     row["tore"] = bool(largest >= cell.material.F_break)
-    if row["false_abort"]:                   # its whole output, to tell why
+    if row["false_abort"] or keep_logs:      # its whole output, to tell why
         row["logs"] = text
     return row
 
@@ -210,6 +215,9 @@ def run_condition(condition: str, seed: int, args) -> dict:
     from rheo_shaping.params.cell import CellParams
     rng = random.Random(seed)
     cells = [campaign.sample_cell(CellParams(), rng) for _ in range(args.runs)]
+    order = list(range(len(cells)))
+    if args.cases:                       # a rerun of chosen cases of the seed, --repeat times
+        order = [int(i) for i in args.cases.split(",")] * args.repeat
     t0 = time.monotonic()
     done = 0
 
@@ -218,8 +226,8 @@ def run_condition(condition: str, seed: int, args) -> dict:
         nonlocal done
         done += k
         elapsed = time.monotonic() - t0
-        eta = elapsed * (len(cells) - done) / done
-        print(f"  {condition} seed {seed}: {done}/{len(cells)} runs, {elapsed / 60:.1f} min, "
+        eta = elapsed * (len(order) - done) / done
+        print(f"  {condition} seed {seed}: {done}/{len(order)} runs, {elapsed / 60:.1f} min, "
               f"ETA {eta / 60:.1f} min", file=sys.stderr, flush=True)
     if condition in ("idle", "cpu"):
         from rheo_shaping.parallel import executor_from_spec, run_tasks
@@ -229,21 +237,24 @@ def run_condition(condition: str, seed: int, args) -> dict:
             rows = run_tasks(ex, campaign._campaign_task, shared, list(enumerate(cells)),
                              progress=progress, chunks_per_worker=8)
     else:
-        rows = [None] * len(cells)
+        end_order = tuple(args.end_order.split(","))
+        rows = [None] * len(order)
         domains = queue.Queue()                   # one ROS domain per case running at once
         for k in range(max(args.jobs, 1)):
             domains.put(args.domain + k)
 
-        def one(i: int) -> None:
+        def one(k: int) -> None:
+            i = order[k]
             domain = domains.get()
             try:
-                rows[i] = run_case_processes(i, cells[i], prefix, domain, args.timeout)
+                rows[k] = run_case_processes(i, cells[i], prefix, domain, args.timeout,
+                                             end_order=end_order, keep_logs=bool(args.cases))
             finally:
                 domains.put(domain)
             progress(1)
         with lossy_namespace(args.loss) as prefix, \
                 concurrent.futures.ThreadPoolExecutor(max(args.jobs, 1)) as pool:
-            futures = [pool.submit(one, i) for i in range(len(cells))]
+            futures = [pool.submit(one, k) for k in range(len(order))]
             try:
                 for future in futures:
                     future.result()
@@ -328,6 +339,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fault-tests", action="store_true",
                     help="run test/nodes/test_faults.py under each condition instead of the "
                          "campaign (once per condition; --runs and --seeds unused)")
+    ap.add_argument("--cases", default="",
+                    help="loss only: rerun these comma-separated case indices of the seed "
+                         "(--repeat times each), keeping every node's log in the saved rows")
+    ap.add_argument("--repeat", type=int, default=1, help="reruns of each of --cases")
+    ap.add_argument("--end-order", default="planner,monitor,simulator",
+                    help="loss only: the order the nodes are interrupted in at a case's end "
+                         "(default planner,monitor,simulator)")
     ap.add_argument("--save", metavar="FILE",
                     help="write every run to FILE (JSON), after each condition and seed; "
                          "an existing FILE is never overwritten")
@@ -341,6 +359,15 @@ def main(argv: list[str] | None = None) -> int:
     if bad or args.runs < 1 or not (0 <= args.loss <= 100):
         print(f"stress_campaign: error: conditions from idle,cpu,loss (got {bad}), --runs >= 1, "
               f"--loss in [0, 100]", file=sys.stderr)
+        return 2
+    if sorted(args.end_order.split(",")) != ["monitor", "planner", "simulator"]:
+        print(f"stress_campaign: error: --end-order {args.end_order!r}: expected the three "
+              f"names planner, monitor, simulator in some order", file=sys.stderr)
+        return 2
+    if args.cases and (conditions != ["loss"] or args.repeat < 1 or not all(
+            c.isdigit() and int(c) < args.runs for c in args.cases.split(","))):
+        print(f"stress_campaign: error: --cases {args.cases!r}: expected case indices below "
+              f"--runs ({args.runs}), with --conditions loss and --repeat >= 1", file=sys.stderr)
         return 2
     if "loss" in conditions and (os.geteuid() != 0 or not shutil.which("nft")):
         print("stress_campaign: error: the loss condition needs root and nftables (nft)",
