@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rheo_shaping.diagnosis.baseline import SHEET, with_sheet
+from rheo_shaping.diagnosis.baseline import SYMMETRIC, with_sheet
 from rheo_shaping.params.gapwatch_params import GapWatchNodeParams
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
@@ -77,7 +77,7 @@ def run_case(shared: tuple, case: Case, keep_delta: bool = False) -> dict:
         # stream of draws: the effect's sign below is the same as without)
         crng = np.random.default_rng((case.seed, 7))
         truth = with_sheet(cell, {k.name: crng.uniform(-commissioning, commissioning)
-                                  for k in SHEET})
+                                  for k in SYMMETRIC})
     values: tuple = ()
     if case.effect:
         values = mid_magnitude(case.effect, rng)

@@ -6,8 +6,11 @@ Two kinds of baseline parameter, each fitted in units of its tolerance
 * :data:`SHEET` (cell side, each needs a simulation per Jacobian column):
   the material constants within their identification intervals, the mass per
   length (weighed), the bond positions, the sheet's initial sag (how it was
-  laid: ``sheet.excess_length``) and the cake geometry within what a ruler
-  gives (+-1 mm).  Bounded to |u| <= 1: the written value +- tolerance.
+  laid: ``sheet.excess_length``), the cake geometry within what a ruler
+  gives (+-1 mm), and the contact's stiffness (a sponge cake, a soft tool pad: on a log
+  scale, u = 0, where the diagnosis starts, three decades softer than the written, rigid
+  penalty, u = 1 six).  Bounded to ``lower <= u <= upper`` (-1 <= u <= 1: the written
+  value +- tolerance; the contact 0 <= u <= 1, only softer than the start).
 * :data:`CHAIN` (measurement side, linear in the residuals, no simulation):
   the vision system's offset (x, z), the load cell's bias (x, z), gain and
   time lag.  Fitted within the wider ``limit`` (so a chain error beyond its
@@ -31,6 +34,10 @@ class Knob:
     relative: bool = False
     limit: float = 1.0    # fit bound in units of the tolerance
     description: str = ""
+    lower: float = -1.0   # the sheet knob's box in units of the tolerance: lower <= u <= upper
+    upper: float = 1.0
+    log: bool = False     # value = written x 10**(offset + u x tolerance), both in decades
+    offset: float = 0.0
 
 
 SHEET: tuple[Knob, ...] = (
@@ -46,6 +53,10 @@ SHEET: tuple[Knob, ...] = (
          "drape (how the sheet was laid, +-1 mm)"),
     Knob("cake.height", 1e-3, "m", description="cake height (ruler, +-1 mm)"),
     Knob("cake.fillet_radius", 1e-3, "m", description="radius of the cake's top edge (+-1 mm)"),
+    Knob("solver.contact_stiffness", -3.0, "decades", log=True, offset=-3.0, lower=0.0,
+         description="contact stiffness of the mould and the tool [N/m]: three decades "
+                     "softer than the written (rigid) penalty at u 0, six at u 1 (a sponge "
+                     "cake, a soft pad)"),
 )
 
 CHAIN: tuple[Knob, ...] = (
@@ -58,6 +69,11 @@ CHAIN: tuple[Knob, ...] = (
 )
 
 KNOBS: dict[str, Knob] = {k.name: k for k in SHEET + CHAIN}
+
+#: The sheet knobs known within a tolerance either side of their written value (a
+#: benchmark's cell draws its truth within these); the contact's stiffness is written as
+#: rigid and may only be softer.
+SYMMETRIC: tuple[Knob, ...] = tuple(k for k in SHEET if not k.log)
 
 #: How the sheet knobs are taken (:class:`.options.BaselineMode`): fitted within their
 #: tolerances, or held as written (the scenario is a calibrated cell; the measurement chain
@@ -72,9 +88,26 @@ def written(params: CellParams, name: str) -> float:
 
 
 def step_of(params: CellParams, knob: Knob, base: CellParams | None = None) -> float:
-    """One tolerance of ``knob`` in its unit (relative ones of the written value in ``base``)."""
+    """One tolerance of ``knob`` in its unit (relative ones of the written value in ``base``;
+    a log knob's in decades)."""
     ref = params if base is None else base
     return knob.tolerance * abs(written(ref, knob.name)) if knob.relative else knob.tolerance
+
+
+def value_at(ref: CellParams, knob: Knob, u: float) -> float:
+    """Sheet knob ``knob``'s value [its unit] ``u`` tolerances from its written value in
+    ``ref`` (a log knob: the written value times 10**(offset + u x tolerance))."""
+    if knob.log:
+        return written(ref, knob.name) * 10.0 ** (knob.offset + u * knob.tolerance)
+    return written(ref, knob.name) + u * step_of(ref, knob)
+
+
+def sheet_box(scale: float = 1.0):
+    """The sheet knobs' bounds (lower, upper) [tolerances], each knob's box times ``scale``
+    (0: held as written)."""
+    import numpy as np
+    return (scale * np.array([k.lower for k in SHEET]),
+            scale * np.array([k.upper for k in SHEET]))
 
 
 def with_sheet(params: CellParams, u: dict[str, float],
@@ -87,16 +120,22 @@ def with_sheet(params: CellParams, u: dict[str, float],
         if knob.name not in u:
             continue
         section, field = knob.name.split(".")
-        value = written(ref, knob.name) + u[knob.name] * step_of(ref, knob)
+        value = value_at(ref, knob, u[knob.name])
         out = replace(out, **{section: replace(getattr(out, section), **{field: value})})
     return out
+
+
+def reference(params: CellParams) -> CellParams:
+    """The cell at u = 0 of every sheet knob, where the diagnosis starts: ``params`` as
+    written but for the log knobs' offsets (the contact three decades softer)."""
+    return with_sheet(params, {k.name: 0.0 for k in SHEET if k.log})
 
 
 def values(params: CellParams, u: dict[str, float]) -> dict[str, float]:
     """Physical values [knob unit] of the sheet knobs at ``u`` (and the chain's: u x tolerance)."""
     out = {}
     for knob in SHEET:
-        out[knob.name] = written(params, knob.name) + u.get(knob.name, 0.0) * step_of(params, knob)
+        out[knob.name] = value_at(params, knob, u.get(knob.name, 0.0))
     for knob in CHAIN:
         out[knob.name] = u.get(knob.name, 0.0) * knob.tolerance
     return out

@@ -177,8 +177,8 @@ def check(cands: list[Explanation], ctx: FitContext, base: Baseline, *, m: int,
     """
     points = []
     for c in cands:
-        points.append((c, np.clip(base.u_s + c.fitted_u[:ctx.n_s], -ctx.sheet_lim,
-                                  ctx.sheet_lim), c.values))
+        points.append((c, np.clip(base.u_s + c.fitted_u[:ctx.n_s], ctx.sheet_lo,
+                                  ctx.sheet_hi), c.values))
     simulate_points(points, ctx, base, m=m, first=True)
     for _ in range(BACKTRACK):
         # a first point whose runs fail (a linearised fit far out: a tool offset at its
@@ -225,7 +225,7 @@ def refine_points(cands: list[Explanation], ctx: FitContext, base: Baseline, *, 
             if c.chain_free or not math.isfinite(c.J) or c.search.z_raw is None:
                 continue
             A_c = c.search.jacobian if c.search.jacobian is not None else base.A_sheet
-            step = chord(c, A_c, ctx.G, responses, ctx.sheet_lim)
+            step = chord(c, A_c, ctx.G, responses, (ctx.sheet_lo, ctx.sheet_hi))
             if step is not None:
                 points.append((c, *step))
         if not points:
@@ -346,9 +346,11 @@ def simulate_points(points, ctx: FitContext, base: Baseline, *, m: int, first: b
         c.checked = True
 
 
-def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict, box: float = 1.0):
+def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict,
+          box: tuple | None = None):
     """The next point (sheet u, values) of candidate ``c``: one linearised step from its run
-    (the sheet knobs' Jacobian ``A_sheet`` within |u| <= ``box``, the effects' probe
+    (the sheet knobs' Jacobian ``A_sheet`` within ``box`` (lower, upper) [tolerances],
+    default |u| <= 1, the effects' probe
     responses; a curve effect of a single candidate by the secant through its last two
     simulated points); None when an effect has too few probe responses."""
     n_s = A_sheet.shape[1]
@@ -384,10 +386,11 @@ def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict, box: f
     u_cur = c.fitted_u[:n_s]
     solver = G.solver(A_sheet)
     lim = np.ones(G.chain.shape[1])
-    du, _ = solver.solve(s.simulated_z, np.r_[-box - u_cur, -lim], np.r_[box - u_cur, lim],
+    lo_s, hi_s = (-np.ones(n_s), np.ones(n_s)) if box is None else box
+    du, _ = solver.solve(s.simulated_z, np.r_[lo_s - u_cur, -lim], np.r_[hi_s - u_cur, lim],
                          np.column_stack(cols), (np.array(lo_e), np.array(hi_e)))
     du = du * s.damp
-    u_new = np.clip(u_cur + du[:n_s], -box, box)
+    u_new = np.clip(u_cur + du[:n_s], lo_s, hi_s)
     vals = {n: list(v) for n, v in c.values.items()}
     for (name, k, is_curve), x in zip(slots, du[solver.A.shape[1]:]):
         if is_curve:

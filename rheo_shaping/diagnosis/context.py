@@ -10,7 +10,7 @@ import numpy as np
 from ..params.cell import CellParams
 from ..params.schema import ParameterError
 from . import stats
-from .baseline import CHAIN, SHEET, with_sheet
+from .baseline import CHAIN, SHEET, sheet_box, with_sheet
 from .candidates import LinearFit
 from .compare import RecordData
 from .evaluate import Outcome, Runner, Task, all_ok
@@ -79,7 +79,7 @@ class FitContext:
     run: Runner
     sp: float                       # m, profile noise
     sf: float                       # N, tool force noise
-    sheet_lim: float = 1.0          # the sheet knobs' box, |u| <= this (0: held as written)
+    sheet_lim: float = 1.0          # the sheet knobs' box times this (0: held as written)
 
     @property
     def data(self) -> list[RecordData]:
@@ -93,6 +93,16 @@ class FitContext:
     def n_s(self) -> int:
         """Number of sheet knobs (their u come first in every fitted vector)."""
         return len(SHEET)
+
+    @property
+    def sheet_lo(self) -> np.ndarray:
+        """The sheet knobs' lower bounds [tolerances] (:func:`.baseline.sheet_box`)."""
+        return sheet_box(self.sheet_lim)[0]
+
+    @property
+    def sheet_hi(self) -> np.ndarray:
+        """The sheet knobs' upper bounds [tolerances]."""
+        return sheet_box(self.sheet_lim)[1]
 
     @property
     def chain_lim(self) -> np.ndarray:
@@ -140,9 +150,8 @@ class Baseline:
         """The linearised model at this baseline (knobs within their box, chain within
         tolerance), what the effects are fitted on."""
         lim = ctx.chain_lim
-        b = ctx.sheet_lim
-        return LinearFit(self.z_raw, self.solver, np.r_[-b - self.u_s, -lim],
-                         np.r_[b - self.u_s, lim], ctx.G.stack, self.n_eff, self.parts)
+        return LinearFit(self.z_raw, self.solver, np.r_[ctx.sheet_lo - self.u_s, -lim],
+                         np.r_[ctx.sheet_hi - self.u_s, lim], ctx.G.stack, self.n_eff, self.parts)
 
 
 def forward_jacobian(ctx: FitContext, z_ref: np.ndarray, at: Callable[[int, float], list],

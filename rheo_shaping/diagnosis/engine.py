@@ -59,6 +59,7 @@ import numpy as np
 from ..records.record import Record
 from ..sheet.effects import EFFECT_NAMES
 from . import floor as fl_mod, intervals, naming as naming_mod, stats
+from .baseline import reference
 from .compare import RecordData, residuals
 from .context import Baseline, FitContext
 from .evaluate import Runner, apply
@@ -174,7 +175,7 @@ def _start(data: list, nf: int, run: Runner, sheet_lim: float) -> tuple:
     models and the baseline; with laid records, their lengths again with the calibrated cell
     (its bonds and sag move them) and the baseline from there on the same Jacobian.
     Returns (data, nominal, fit context, baseline)."""
-    data = laid_lengths(data, [d.record.scenario for d in data], run)
+    data = laid_lengths(data, [reference(d.record.scenario) for d in data], run)
     nominal, ctx = nominal_stage(data, nf, run, sheet_lim)
     base = baseline_stage(ctx, nominal)
     if any(d.initial is not None and d.initial.mode == "laid" for d in data):

@@ -164,8 +164,9 @@ def baseline_table(scenario: CellParams, u: np.ndarray) -> dict:
     vals = knob_values(scenario, {k.name: float(x) for k, x in zip(SHEET + CHAIN, u)})
     out = {}
     for k, x in zip(SHEET + CHAIN, u):
+        inside = k.lower - 1e-9 <= float(x) <= k.upper + 1e-9
         out[k.name] = {"value": vals[k.name], "u": float(x), "tolerance": k.tolerance,
-                       "relative": k.relative, "unit": k.unit, "outside": abs(float(x)) > 1 + 1e-9}
+                       "relative": k.relative, "unit": k.unit, "outside": not inside}
         if k in SHEET:
             from .baseline import written
             out[k.name]["written"] = written(scenario, k.name)

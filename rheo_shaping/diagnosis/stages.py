@@ -9,7 +9,7 @@ import numpy as np
 
 from ..params.schema import ParameterError
 from . import replay, stats
-from .baseline import CHAIN, SHEET, with_sheet
+from .baseline import CHAIN, SHEET, reference
 from .candidates import Explanation
 from .compare import RecordData, noise_level
 from .context import Baseline, FitContext, Group, forward_jacobian
@@ -28,6 +28,10 @@ JACOBIAN_STEP = 0.5
 #: not linear over the whole step: seen on a laid sheet at N = 63, a full step to J - 1 of
 #: 12.5 from the nominal 1.4).
 STEP_HALVINGS = 2
+#: Steps the baseline takes on each Jacobian (the linear step, then chord steps), each kept
+#: only when it lowers J, and the Jacobians it takes (the second at its best point).
+BASELINE_STEPS = 2
+BASELINE_JACOBIANS = 2
 
 
 @dataclass(frozen=True)
@@ -46,7 +50,7 @@ def nominal_stage(data: list[RecordData], nf: int, run: Runner,
     """Stage 1: the nominal models, the noise (MAD of second differences), the fit context
     (the sheet knobs fitted within +-``sheet_lim`` tolerances; 0: held as written)."""
     run.stage("nominal models", len(data))
-    nominal = run([Task(d, d.record.scenario, keep_run=True) for d in data])
+    nominal = run([Task(d, reference(d.record.scenario), keep_run=True) for d in data])
     bad = [d.record.name for d, o in zip(data, nominal) if not o.ok]
     if bad:
         raise ValueError(f"the nominal model of record '{bad[0]}' does not run: "
@@ -75,13 +79,14 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     """The sheet knobs' Jacobian (forward differences of half a tolerance; ``A_sheet``, one
     already measured near this point, when given), a bounded least-squares step on it,
     checked by simulation (halved up to ``STEP_HALVINGS`` times while it fits worse than the
-    nominal point), one chord step from there, checked again; the best of the points tried
-    (nominal included) with the chain refitted."""
+    best point so far), one chord step from there, checked again; then once more from a
+    Jacobian at the best point when the first lowered J (``BASELINE_JACOBIANS``); the best
+    of the points tried (nominal included) with the chain refitted."""
     G, nf, n_s, run = ctx.G, ctx.nf, ctx.n_s, ctx.run
     z0 = G.z(nominal.outs[:nf])
 
     def at(j: int, h: float) -> list:
-        return [with_sheet(d.record.scenario, {SHEET[j].name: h}) for d in ctx.fit_d]
+        return [ctx.params(d, h * np.eye(n_s)[j]) for d in ctx.fit_d]
 
     def invalid(j: int) -> list:
         raise ValueError(f"baseline knob {SHEET[j].name}: no valid step of half a tolerance")
@@ -91,8 +96,7 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     solver = G.solver(A_sheet)
     chain_lim = ctx.chain_lim
     b = ctx.sheet_lim
-    lo = np.r_[-b * np.ones(n_s), -chain_lim]
-    hi = np.r_[b * np.ones(n_s), chain_lim]
+    slo, shi = ctx.sheet_lo, ctx.sheet_hi
     chain_solver = Solver(G.chain)
 
     def tried_point(u_s: np.ndarray, outs: list) -> tuple:
@@ -103,33 +107,50 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
         u_c, J = chain_solver.solve(G.z(outs[:nf]), -chain_lim, chain_lim)
         return u_s, outs, float(J), u_c
 
-    u_lin, _ = solver.solve(z0, lo, hi)
     tried = [tried_point(np.zeros(n_s), nominal.outs)]
-    best_u, best_J = np.zeros(n_s), tried[0][2]
+    best_u, best_J, best_z = np.zeros(n_s), tried[0][2], z0
     # held knobs (b = 0): the nominal point, already run, is the only point in the box
     run.stage("baseline fit", (2 + STEP_HALVINGS) * len(ctx.data) if b > 0 else 0)
-    u_try, steps, halvings = np.clip(u_lin[:n_s], -b, b), 0, 0
-    while steps < 2 and b > 0:
-        try:
-            outs = run([Task(d, ctx.params(d, u_try), keep_run=True) for d in ctx.data])
-        except ParameterError:
-            break
-        tried.append(tried_point(u_try, outs))
-        J_try = tried[-1][2]
-        if not J_try < best_J and halvings < STEP_HALVINGS:
-            # the model is not linear that far: half the step from the best point so far
-            halvings += 1
-            u_try = best_u + 0.5 * (u_try - best_u)
-            continue
-        if not math.isfinite(J_try):
-            break
-        if J_try < best_J:
-            best_u, best_J = u_try, J_try
-        steps += 1
-        zb = G.z(outs[:nf])
-        # chord step: same Jacobian from the new point
-        du, _ = solver.solve(zb, np.r_[-b - u_try, -chain_lim], np.r_[b - u_try, chain_lim])
-        u_try = np.clip(u_try + du[:n_s], -b, b)
+    for rnd in range(BASELINE_JACOBIANS if b > 0 else 1):
+        if rnd:
+            # the knobs act differently where the first Jacobian's steps went (the contact's
+            # stiffness on a log scale, a laid sheet's sag): once more from the best point
+            if not best_J < tried[0][2]:
+                break
+            u0 = best_u.copy()
+
+            def at_best(j: int, h: float, u0=u0) -> list:
+                return [ctx.params(d, u0 + h * np.eye(n_s)[j]) for d in ctx.fit_d]
+            steps_j = [(JACOBIAN_STEP if u0[j] + JACOBIAN_STEP <= shi[j] else -JACOBIAN_STEP,)
+                       for j in range(n_s)]
+            A_sheet = forward_jacobian(ctx, best_z, at_best, steps_j, invalid,
+                                       announce=lambda n: run.stage("baseline Jacobian", n))
+            solver = G.solver(A_sheet)
+        du0, _ = solver.solve(best_z, np.r_[slo - best_u, -chain_lim],
+                              np.r_[shi - best_u, chain_lim])
+        u_try, steps, halvings = np.clip(best_u + du0[:n_s], slo, shi), 0, 0
+        while steps < BASELINE_STEPS and b > 0:
+            try:
+                outs = run([Task(d, ctx.params(d, u_try), keep_run=True) for d in ctx.data])
+            except ParameterError:
+                break
+            tried.append(tried_point(u_try, outs))
+            J_try = tried[-1][2]
+            if not J_try < best_J and halvings < STEP_HALVINGS:
+                # the model is not linear that far: half the step from the best point so far
+                halvings += 1
+                u_try = best_u + 0.5 * (u_try - best_u)
+                continue
+            if not math.isfinite(J_try):
+                break
+            zb = G.z(outs[:nf])
+            if J_try < best_J:
+                best_u, best_J, best_z = u_try, J_try, zb
+            steps += 1
+            # chord step: same Jacobian from the new point
+            du, _ = solver.solve(zb, np.r_[slo - u_try, -chain_lim],
+                                 np.r_[shi - u_try, chain_lim])
+            u_try = np.clip(u_try + du[:n_s], slo, shi)
     best = None
     for u_try, outs, J, u in tried:
         if not math.isfinite(J) or (ctx.H and not all_ok(outs[nf:])):
@@ -183,9 +204,8 @@ def sensor_stage(ctx: FitContext, base: Baseline) -> Explanation:
     baseline.  Checked by simulation with the effects (:func:`verdict.candidates_stage`)."""
     n_s = ctx.n_s
     free = ctx.chain_free
-    b = ctx.sheet_lim
-    u_ch, J_ch = base.solver.solve(base.z_raw, np.r_[-b - base.u_s, -free],
-                                   np.r_[b - base.u_s, free])
+    u_ch, J_ch = base.solver.solve(base.z_raw, np.r_[ctx.sheet_lo - base.u_s, -free],
+                                   np.r_[ctx.sheet_hi - base.u_s, free])
     chain_c = Explanation((), {}, J_ch,
                           ctx.G.stack.J_parts(base.solver.residual(base.z_raw, u_ch)),
                           baseline_u=u_ch, chain_free=True)

@@ -139,7 +139,7 @@ class SolverParams:
     max_tool_step: float = param(5e-4, "largest tool travel in one step",
                                  "m", 0.0, 0.01, lo_open=True)
     contact_stiffness: float = param(
-        1e7, "penalty stiffness of the unilateral contacts", "N/m", 1e3, 1e12)
+        1e7, "penalty stiffness of the unilateral contacts", "N/m", 1.0, 1e12)
     force_tol: float = param(1e-8, "Newton tolerance on the force residual",
                              "N", 0.0, 1e-2, lo_open=True)
     max_newton: int = param(50, "Newton iterations allowed per step", "", 1, 1000)

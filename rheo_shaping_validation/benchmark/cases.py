@@ -3,8 +3,9 @@ about (the record's ``scenario``) as a real cell would.
 
 * the world (:mod:`.world`): the sheet model on finer numerics, or the dynamic world, a
   simulator of another form;
-* the written scenario: every baseline knob (:data:`~rheo_shaping.diagnosis.baseline.SHEET`)
-  is written off its true value by a draw within +-0.8 of its tolerance;
+* the written scenario: every two-sided baseline knob
+  (:data:`~rheo_shaping.diagnosis.baseline.SYMMETRIC`) is written off its true value by a
+  draw within +-0.8 of its tolerance (the contact's stiffness is the model's, rigid);
 * the measurement chain: the vision offset and the load cell's bias, gain and lag are off by
   draws within +-0.8 of their tolerances.
 
@@ -23,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from rheo_shaping.diagnosis.baseline import CHAIN, SHEET, with_sheet
+from rheo_shaping.diagnosis.baseline import CHAIN, SYMMETRIC, with_sheet
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.planning.movement import movement_plan
 from rheo_shaping.records.measurement import MeasurementParams
@@ -89,7 +90,7 @@ def make_case(index: int, kind: str, seed: int, base: CellParams,
                                 % len(EFFECT_NAMES)] if kind == "out_of_library" else \
                 EFFECT_NAMES[(index // 2 + index) % len(EFFECT_NAMES)]
             truth_effects = ((name, draw_value(name, rng)),)
-        perturb = {k.name: rng.uniform(-0.8, 0.8) for k in SHEET}
+        perturb = {k.name: rng.uniform(-0.8, 0.8) for k in SYMMETRIC}
         chain = {k.name: rng.uniform(-0.8, 0.8) * k.tolerance for k in CHAIN}
         sensor = None
         if kind == "sensor":
