@@ -110,7 +110,9 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     tried = [tried_point(np.zeros(n_s), nominal.outs)]
     best_u, best_J, best_z = np.zeros(n_s), tried[0][2], z0
     # held knobs (b = 0): the nominal point, already run, is the only point in the box
-    run.stage("baseline fit", (2 + STEP_HALVINGS) * len(ctx.data) if b > 0 else 0)
+    # at most: each round's steps and halvings on every record, the later rounds' Jacobians
+    run.stage("baseline fit", BASELINE_JACOBIANS * (2 + STEP_HALVINGS) * len(ctx.data)
+              + (BASELINE_JACOBIANS - 1) * n_s * nf if b > 0 else 0)
     for rnd in range(BASELINE_JACOBIANS if b > 0 else 1):
         if rnd:
             # the knobs act differently where the first Jacobian's steps went (the contact's
@@ -123,8 +125,7 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
                 return [ctx.params(d, u0 + h * np.eye(n_s)[j]) for d in ctx.fit_d]
             steps_j = [(JACOBIAN_STEP if u0[j] + JACOBIAN_STEP <= shi[j] else -JACOBIAN_STEP,)
                        for j in range(n_s)]
-            A_sheet = forward_jacobian(ctx, best_z, at_best, steps_j, invalid,
-                                       announce=lambda n: run.stage("baseline Jacobian", n))
+            A_sheet = forward_jacobian(ctx, best_z, at_best, steps_j, invalid)
             solver = G.solver(A_sheet)
         du0, _ = solver.solve(best_z, np.r_[slo - best_u, -chain_lim],
                               np.r_[shi - best_u, chain_lim])

@@ -41,7 +41,7 @@ def test_a_first_point_whose_runs_fail_is_run_halfway_back_to_the_baseline(monke
     seen: list = []
     monkeypatch.setattr(check_mod, "simulate_points", _stub_runs(seen))
     base = SimpleNamespace(u_s=np.array([0.2, -0.4]))
-    ctx = SimpleNamespace(n_s=2, sheet_lim=1.0)
+    ctx = SimpleNamespace(n_s=2, sheet_lim=1.0, sheet_lo=-np.ones(2), sheet_hi=np.ones(2))
     c = Explanation(("tool_offset",), {"tool_offset": (-4e-3, -4e-3)}, 3.0, checked=False,
                     baseline_u=np.array([0.8, 0.6, 0.0]))      # the linearised step
     check_mod.check([c], ctx, base, m=1)
