@@ -29,9 +29,11 @@ JACOBIAN_STEP = 0.5
 #: 12.5 from the nominal 1.4).
 STEP_HALVINGS = 2
 #: Steps the baseline takes on each Jacobian (the linear step, then chord steps), each kept
-#: only when it lowers J, and the Jacobians it takes (the second at its best point).
+#: only when it lowers J; the Jacobians it takes at most (each later one at the best point
+#: so far, while the last round lowered J - 1 by more than ``BASELINE_CONVERGED`` of it).
 BASELINE_STEPS = 2
-BASELINE_JACOBIANS = 2
+BASELINE_JACOBIANS = 5
+BASELINE_CONVERGED = 0.05
 
 
 @dataclass(frozen=True)
@@ -79,9 +81,10 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     """The sheet knobs' Jacobian (forward differences of half a tolerance; ``A_sheet``, one
     already measured near this point, when given), a bounded least-squares step on it,
     checked by simulation (halved up to ``STEP_HALVINGS`` times while it fits worse than the
-    best point so far), one chord step from there, checked again; then once more from a
-    Jacobian at the best point when the first lowered J (``BASELINE_JACOBIANS``); the best
-    of the points tried (nominal included) with the chain refitted."""
+    best point so far), one chord step from there, checked again; then again from a
+    Jacobian at the best point while the last round lowered J enough (``BASELINE_JACOBIANS``,
+    ``BASELINE_CONVERGED``); the best of the points tried (nominal included) with the chain
+    refitted."""
     G, nf, n_s, run = ctx.G, ctx.nf, ctx.n_s, ctx.run
     z0 = G.z(nominal.outs[:nf])
 
@@ -113,12 +116,15 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     # at most: each round's steps and halvings on every record, the later rounds' Jacobians
     run.stage("baseline fit", BASELINE_JACOBIANS * (2 + STEP_HALVINGS) * len(ctx.data)
               + (BASELINE_JACOBIANS - 1) * n_s * nf if b > 0 else 0)
+    J_round = tried[0][2]                  # J where the round began
     for rnd in range(BASELINE_JACOBIANS if b > 0 else 1):
         if rnd:
-            # the knobs act differently where the first Jacobian's steps went (the contact's
-            # stiffness on a log scale, a laid sheet's sag): once more from the best point
-            if not best_J < tried[0][2]:
+            # the knobs act differently where the last Jacobian's steps went (the contact's
+            # stiffness on a log scale, a laid sheet's sag): again from the best point, while
+            # the last round lowered the excess J - 1 by more than BASELINE_CONVERGED of it
+            if not J_round - best_J > BASELINE_CONVERGED * max(J_round - 1.0, 0.0):
                 break
+            J_round = best_J
             u0 = best_u.copy()
 
             def at_best(j: int, h: float, u0=u0) -> list:
