@@ -350,9 +350,8 @@ def chord(c: Explanation, A_sheet: np.ndarray, G: Group, responses: dict,
           box: tuple | None = None):
     """The next point (sheet u, values) of candidate ``c``: one linearised step from its run
     (the sheet knobs' Jacobian ``A_sheet`` within ``box`` (lower, upper) [tolerances],
-    default |u| <= 1, the effects' probe
-    responses; a curve effect of a single candidate by the secant through its last two
-    simulated points); None when an effect has too few probe responses."""
+    default |u| <= 1, the effects' probe responses; a curve effect of a single candidate by
+    the secant through its last two simulated points); None when an effect has too few."""
     n_s = A_sheet.shape[1]
     s = c.search
     cols, lo_e, hi_e, slots = [], [], [], []
