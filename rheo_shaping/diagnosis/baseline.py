@@ -125,17 +125,24 @@ def with_sheet(params: CellParams, u: dict[str, float],
     return out
 
 
-def reference(params: CellParams) -> CellParams:
+def reference(params: CellParams, sheet_lim: float = 1.0) -> CellParams:
     """The cell at u = 0 of every sheet knob, where the diagnosis starts: ``params`` as
-    written but for the log knobs' offsets (the contact three decades softer)."""
+    written but for the log knobs' offsets (the contact three decades softer); with the
+    sheet held as written (``sheet_lim`` 0), ``params`` itself."""
+    if sheet_lim <= 0:
+        return params
     return with_sheet(params, {k.name: 0.0 for k in SHEET if k.log})
 
 
-def values(params: CellParams, u: dict[str, float]) -> dict[str, float]:
-    """Physical values [knob unit] of the sheet knobs at ``u`` (and the chain's: u x tolerance)."""
+def values(params: CellParams, u: dict[str, float],
+           sheet_lim: float = 1.0) -> dict[str, float]:
+    """Physical values [knob unit] of the sheet knobs at ``u`` (and the chain's: u x tolerance);
+    with the sheet held (``sheet_lim`` 0) the log knobs are as written."""
     out = {}
     for knob in SHEET:
-        out[knob.name] = value_at(params, knob, u.get(knob.name, 0.0))
+        held = knob.log and sheet_lim <= 0
+        out[knob.name] = (written(params, knob.name) if held
+                          else value_at(params, knob, u.get(knob.name, 0.0)))
     for knob in CHAIN:
         out[knob.name] = u.get(knob.name, 0.0) * knob.tolerance
     return out

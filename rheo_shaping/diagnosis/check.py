@@ -32,7 +32,7 @@ from ..params.cell import CellParams
 from ..sheet.effects import EFFECTS
 from . import stats
 from .candidates import PROBES, REFINE_STEPS, Explanation, magnitude, side_columns
-from .context import Baseline, FitContext, Group, forward_jacobian
+from .context import Baseline, FitContext, Group, forward_jacobian, inward_steps
 from .evaluate import Task, all_ok, apply
 
 #: One refinement of the diagnosis's discretisation: factors on the solver's steps (the chain
@@ -289,8 +289,8 @@ def relinearise(cands: list[Explanation], ctx: FitContext) -> None:
 
         def invalid(j: int, c=c, u=u) -> list:
             return [apply(ctx.params(d, u), c.candidate) for d in ctx.fit_d]
-        steps = [(0.5 if u[j] <= 0.5 else -0.5,) for j in range(ctx.n_s)]
-        c.search.jacobian = forward_jacobian(ctx, c.search.simulated_z, at, steps, invalid)
+        c.search.jacobian = forward_jacobian(ctx, c.search.simulated_z, at,
+                                             inward_steps(u, np.ones(ctx.n_s), 0.5), invalid)
         c.search.prev, c.search.damp = None, 1.0
 
 

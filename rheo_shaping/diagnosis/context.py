@@ -115,8 +115,10 @@ class FitContext:
         return np.array([k.limit for k in CHAIN])
 
     def params(self, d: RecordData, u_s: np.ndarray) -> CellParams:
-        """``d``'s written cell with the sheet knobs at ``u_s`` (tolerances)."""
-        return with_sheet(d.record.scenario, {k.name: float(v) for k, v in zip(SHEET, u_s)})
+        """``d``'s written cell with the sheet knobs at ``u_s`` (tolerances); with the sheet
+        held (``sheet_lim`` 0) the log knobs stay as written, offset and all."""
+        return with_sheet(d.record.scenario, {k.name: float(v) for k, v in zip(SHEET, u_s)
+                                              if self.sheet_lim > 0 or not k.log})
 
 
 @dataclass(frozen=True)
@@ -185,3 +187,9 @@ def forward_jacobian(ctx: FitContext, z_ref: np.ndarray, at: Callable[[int, floa
         ok = all_ok(o) and h != 0.0
         cols.append((ctx.G.z(o) - z_ref) / h if ok else np.zeros_like(z_ref))
     return np.column_stack(cols)
+
+
+def inward_steps(u: np.ndarray, hi: np.ndarray, h: float) -> list[tuple[float]]:
+    """One forward-difference step per knob for :func:`forward_jacobian`: ``h`` tolerances
+    from ``u``, or ``-h`` where ``+h`` would pass the box's upper bound ``hi`` [tolerances]."""
+    return [(h if u[j] + h <= hi[j] else -h,) for j in range(len(u))]

@@ -175,7 +175,7 @@ def _start(data: list, nf: int, run: Runner, sheet_lim: float) -> tuple:
     models and the baseline; with laid records, their lengths again with the calibrated cell
     (its bonds and sag move them) and the baseline from there on the same Jacobian.
     Returns (data, nominal, fit context, baseline)."""
-    data = laid_lengths(data, [reference(d.record.scenario) for d in data], run)
+    data = laid_lengths(data, [reference(d.record.scenario, sheet_lim) for d in data], run)
     nominal, ctx = nominal_stage(data, nf, run, sheet_lim)
     base = baseline_stage(ctx, nominal)
     if any(d.initial is not None and d.initial.mode == "laid" for d in data):
@@ -254,7 +254,8 @@ def _assemble(ctx: FitContext, nominal: Nominal, base: Baseline, p_gap: float, r
     corrected = (apply(ctx.params(fit_d[0], vfc.fitted_u[:n_s]), vfc.candidate)
                  if vfc else ctx.params(fit_d[0], base.u_s))
     baseline_tab = baseline_table(fit_d[0].record.scenario,
-                                  vfc.fitted_u if vfc else np.r_[base.u_s, base.u_c])
+                                  vfc.fitted_u if vfc else np.r_[base.u_s, base.u_c],
+                                  ctx.sheet_lim)
     nom_res = [residuals(d, o.kept_run) for d, o in zip(data, nominal.outs)]
     base_runs = [o.run for o in base.outs]
     base_res = [chain_correct(residuals(d, o.kept_run), o, base.u_c)

@@ -160,8 +160,9 @@ def num(v):
     return None if v is None or not math.isfinite(v) else float(v)
 
 
-def baseline_table(scenario: CellParams, u: np.ndarray) -> dict:
-    vals = knob_values(scenario, {k.name: float(x) for k, x in zip(SHEET + CHAIN, u)})
+def baseline_table(scenario: CellParams, u: np.ndarray, sheet_lim: float = 1.0) -> dict:
+    vals = knob_values(scenario, {k.name: float(x) for k, x in zip(SHEET + CHAIN, u)},
+                       sheet_lim)
     out = {}
     for k, x in zip(SHEET + CHAIN, u):
         inside = k.lower - 1e-9 <= float(x) <= k.upper + 1e-9

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -12,7 +13,7 @@ from . import replay, stats
 from .baseline import CHAIN, SHEET, reference
 from .candidates import Explanation
 from .compare import RecordData, noise_level
-from .context import Baseline, FitContext, Group, forward_jacobian
+from .context import Baseline, FitContext, Group, forward_jacobian, inward_steps
 from .evaluate import Outcome, Runner, Task, all_ok
 from .linear import Solver
 
@@ -52,7 +53,8 @@ def nominal_stage(data: list[RecordData], nf: int, run: Runner,
     """Stage 1: the nominal models, the noise (MAD of second differences), the fit context
     (the sheet knobs fitted within +-``sheet_lim`` tolerances; 0: held as written)."""
     run.stage("nominal models", len(data))
-    nominal = run([Task(d, reference(d.record.scenario), keep_run=True) for d in data])
+    nominal = run([Task(d, reference(d.record.scenario, sheet_lim), keep_run=True)
+                   for d in data])
     bad = [d.record.name for d, o in zip(data, nominal) if not o.ok]
     if bad:
         raise ValueError(f"the nominal model of record '{bad[0]}' does not run: "
@@ -88,13 +90,15 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
     G, nf, n_s, run = ctx.G, ctx.nf, ctx.n_s, ctx.run
     z0 = G.z(nominal.outs[:nf])
 
-    def at(j: int, h: float) -> list:
-        return [ctx.params(d, h * np.eye(n_s)[j]) for d in ctx.fit_d]
+    def stepped_from(u0: np.ndarray) -> Callable[[int, float], list]:
+        """The fit records' cells with sheet knob j at ``u0[j] + h`` (tolerances)."""
+        return lambda j, h: [ctx.params(d, u0 + h * np.eye(n_s)[j]) for d in ctx.fit_d]
 
     def invalid(j: int) -> list:
         raise ValueError(f"baseline knob {SHEET[j].name}: no valid step of half a tolerance")
     if A_sheet is None:
-        A_sheet = forward_jacobian(ctx, z0, at, [(JACOBIAN_STEP, -JACOBIAN_STEP)] * n_s,
+        A_sheet = forward_jacobian(ctx, z0, stepped_from(np.zeros(n_s)),
+                                   [(JACOBIAN_STEP, -JACOBIAN_STEP)] * n_s,
                                    invalid, announce=lambda n: run.stage("baseline Jacobian", n))
     solver = G.solver(A_sheet)
     chain_lim = ctx.chain_lim
@@ -125,13 +129,8 @@ def baseline_stage(ctx: FitContext, nominal: Nominal,
             if not J_round - best_J > BASELINE_CONVERGED * max(J_round - 1.0, 0.0):
                 break
             J_round = best_J
-            u0 = best_u.copy()
-
-            def at_best(j: int, h: float, u0=u0) -> list:
-                return [ctx.params(d, u0 + h * np.eye(n_s)[j]) for d in ctx.fit_d]
-            steps_j = [(JACOBIAN_STEP if u0[j] + JACOBIAN_STEP <= shi[j] else -JACOBIAN_STEP,)
-                       for j in range(n_s)]
-            A_sheet = forward_jacobian(ctx, best_z, at_best, steps_j, invalid)
+            A_sheet = forward_jacobian(ctx, best_z, stepped_from(best_u.copy()),
+                                       inward_steps(best_u, shi, JACOBIAN_STEP), invalid)
             solver = G.solver(A_sheet)
         du0, _ = solver.solve(best_z, np.r_[slo - best_u, -chain_lim],
                               np.r_[shi - best_u, chain_lim])

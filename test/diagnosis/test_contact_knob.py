@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rheo_shaping.diagnosis.baseline import (KNOBS, SHEET, SYMMETRIC, reference, sheet_box,
+from rheo_shaping.diagnosis.baseline import (CHAIN, KNOBS, SHEET, SYMMETRIC, reference, sheet_box,
                                              values, with_sheet)
 from rheo_shaping.params.cell import CellParams
 from rheo_shaping.sheet.paths import PolylinePath
@@ -56,3 +56,27 @@ def test_a_softer_contact_sinks_each_resting_mass_by_its_force_over_the_stiffnes
     sink = rigid.x[-1, flat, 1] - soft.x[-1, flat, 1]
     np.testing.assert_allclose(sink, f_s[flat, 1] / k_s - f_r[flat, 1] / k_r, rtol=2e-3)
     assert np.all(sink > 0.0) and sink.max() > 4e-6     # a thousand times softer: microns
+
+
+def test_a_sheet_held_as_written_keeps_the_written_contact():
+    """``--baseline held`` (the sheet knobs' box times 0, the gap watch's default on rigid
+    sheet-model records): the diagnosis runs the cell exactly as written, the contact at its
+    written stiffness, not three decades softer; the table reports the written value."""
+    from types import SimpleNamespace
+
+    from rheo_shaping.diagnosis.context import FitContext
+    from rheo_shaping.diagnosis.result import baseline_table
+
+    cell = CellParams()
+    kc = cell.solver.contact_stiffness
+    assert reference(cell, 0.0) == cell
+    record = SimpleNamespace(record=SimpleNamespace(scenario=cell))
+    u0 = np.zeros(len(SHEET))
+    held = FitContext([], [], None, None, None, 1e-4, 1e-3, 0.0)   # type: ignore[arg-type]
+    fitted = replace(held, sheet_lim=1.0)
+    assert held.params(record, u0) == cell                          # type: ignore[arg-type]
+    assert fitted.params(record, u0).solver.contact_stiffness == pytest.approx(kc * 1e-3)
+    n_all = len(SHEET) + len(CHAIN)
+    table = baseline_table(cell, np.zeros(n_all), 0.0)
+    assert table[NAME]["value"] == kc and table[NAME]["written"] == kc
+    assert baseline_table(cell, np.zeros(n_all))[NAME]["value"] == pytest.approx(kc * 1e-3)

@@ -169,7 +169,7 @@ def test_a_candidate_is_judged_on_holdout_records_with_lengths_fitted_under_its_
     (d,) = with_offsets([d], fit_offsets([d], [p]))     # the length under the written cell
     u = np.zeros(len(SHEET) + 6)
     u[[k.name for k in SHEET].index("sheet.top_bond_x")] = 1.0
-    params = partial(FitContext.params, None)
+    params = partial(FitContext.params, SimpleNamespace(sheet_lim=1.0))
     run = Runner(jobs=1)
     (nominal,) = run([Task(d, p)])
     H = Group.of([d], 2e-4, 5e-3, [nominal])
