@@ -133,12 +133,14 @@ class TensionMonitor:
 
     def age(self, topic: str, steady: int) -> float:
         """Time [s] since the newest sample on ``topic`` (inf: none yet): on the wall's
-        steady clock, or on the cell's clock when :meth:`paced` (and it has run)."""
+        steady clock, or on the cell's clock when :meth:`paced` and the clock has run (a
+        sample that came before the first /clock dated at the cell's time 0, never younger
+        than it is: attack campaign seed 4753, run 96)."""
         rx = self._rx[topic]
         if rx is None:
             return math.inf
         seen = self._rx_clock.get(topic, 0)
-        if self.paced(topic) and seen > 0 and self._clock_seen > 0:
+        if self.paced(topic) and self._clock_seen > 0:
             return max(self._clock_seen - seen, 0) / NS
         return (steady - rx) / NS
 

@@ -282,6 +282,32 @@ def test_in_a_lockstep_cell_a_starved_machine_slows_the_cell_and_stale_is_on_its
     assert h.aborts == [f"stale data: no {TENSIONS} for 0.510 s (max_data_age 0.5 s)"]
 
 
+def test_in_a_lockstep_cell_a_sample_from_before_the_first_clock_is_aged_on_the_cell():
+    """The attack campaign's seed 4753, run 96 (x10, load 10-15): the link tensions' newest
+    sample had arrived before the monitor's first /clock (no cell time to date it), the
+    cell's clock then held for the start, and the starved simulator's next re-publication
+    came 0.56 s of wall later; the sample was aged on the wall and the monitor aborted
+    before the start.  Such a sample is dated at the cell's time 0 (never younger than it
+    is): the held clock keeps it fresh, the running clock ages it, the wall's bound holds."""
+    h = Harness(max_data_age=0.5)
+    h.mon.cell_clock = True
+    h.clock = 0                                      # no /clock yet
+    h.steady += int(0.01 * NS)
+    h.mon.on_tensions([0.05, 0.1], h.steady, 0)
+    h.mon.on_contact(0.05, h.steady)
+    h.clock = int(0.1 * NS)                          # the first step's /clock, then held
+    assert h.mon.tick(h.steady, h.clock) and h.mon.state == "ready"
+    for _ in range(6):                               # 0.9 s of wall: the cell stands still
+        h.steady += int(0.15 * NS)
+        h.mon.on_contact(0.05, h.steady)
+        assert h.mon.tick(h.steady, h.clock) and not h.aborts
+    h.clock = int(0.55 * NS)                         # the cell runs: 0.55 s past time 0
+    h.mon.tick(h.steady, h.clock)
+    h.steady += int(0.01 * NS)
+    assert not h.mon.tick(h.steady, h.clock)         # stale at two ticks running
+    assert h.aborts == [f"stale data: no {TENSIONS} for 0.550 s (max_data_age 0.5 s)"]
+
+
 def test_on_the_cells_clock_lost_clock_messages_do_not_age_the_tensions():
     """The node's /clock is best effort: two lost /clock messages in a row (5 % UDP loss,
     seed 4731's false abort) left the monitor at the clock of two steps back while the link
