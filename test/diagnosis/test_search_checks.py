@@ -23,6 +23,10 @@ from rheo_shaping_validation.worlds.forms import FormParams
 from rheo_shaping_validation.worlds.params import LayParams
 from rheo_shaping_validation.worlds.sensors import world_record
 
+#: long runs of the worlds' or the diagnosis's numerics: the core stage runs them, the
+#: noble stage leaves them out (dev.py NOBLE_MARKS, docs/development.md)
+pytestmark = pytest.mark.heavy
+
 FORM = FormParams(mould_softness=300.0, tool_softness=100.0, thickness_variation=0.08,
                   thickness_seed=11)
 LAY = LayParams(mode2=0.2, lift=5e-4, prestrain=-1e-3)

@@ -17,6 +17,10 @@ from rheo_shaping.sheet.effects import EFFECTS
 from rheo_shaping_validation.worlds.forms import FormParams
 from rheo_shaping_validation.worlds.params import WORLD_EFFECTS
 
+#: long runs of the worlds' or the diagnosis's numerics: the core stage runs them, the
+#: noble stage leaves them out (dev.py NOBLE_MARKS, docs/development.md)
+pytestmark = pytest.mark.heavy
+
 
 def test_unknown_world_is_a_one_line_error(capsys):
     assert main(["diagnose-benchmark", "--world", "flat-earth", "--n", "1", "--quiet"]) == 2

@@ -23,6 +23,10 @@ from rheo_shaping_validation.worlds.params import LayParams
 from rheo_shaping_validation.worlds.sensors import SensorParams, _visible, measure_world
 from rheo_shaping_validation.worlds.verify import run_gap
 
+#: long runs of the worlds' or the diagnosis's numerics: the core stage runs them, the
+#: noble stage leaves them out (dev.py NOBLE_MARKS, docs/development.md)
+pytestmark = pytest.mark.heavy
+
 LAY = LayParams(mode2=0.3, lift=1e-3, prestrain=-2e-3)
 #: docs/diagnosis.md's sizes at the high end (movement 1, 120 s): tool force RMS [mN],
 #: profile RMS [mm], profile's largest per-frame RMS [mm] against the default form

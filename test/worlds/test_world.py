@@ -18,6 +18,10 @@ from rheo_shaping_validation.worlds.params import (WORLD_EFFECTS, WORLD_EFFECT_N
 from rheo_shaping_validation.worlds.sensors import SensorParams, measure_world
 from rheo_shaping_validation.worlds.verify import run_gap
 
+#: long runs of the worlds' or the diagnosis's numerics: the core stage runs them, the
+#: noble stage leaves them out (dev.py NOBLE_MARKS, docs/development.md)
+pytestmark = pytest.mark.heavy
+
 NOISE = SensorParams()
 LAID = LayParams(mode2=0.3, lift=1e-3, prestrain=-2e-3)      # a laying off the default
 
