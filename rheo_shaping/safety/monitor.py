@@ -18,8 +18,7 @@ publishes what it decides):
   age and the QoS deadline count there only beyond :data:`LOCKSTEP_WALL_FACTOR` x
   ``max_data_age`` (a starved machine slows such a cell; a clock that stands still that
   long has lost its simulator).  The contact tension, not acknowledged, is judged on the
-  wall only, by the same bound (it is one of the link tensions, and its samples can come
-  later than theirs).
+  wall only, by the same bound (one of the link tensions, its samples may come later).
 
 Times are integer nanoseconds: ``steady`` on a steady clock, ``clock`` on the node's
 clock (simulated time when ``sim_time``; 0 while there is no clock yet).
@@ -46,8 +45,8 @@ def stale_on_cell_clock(settings: MonitorNodeParams, sim_time: bool) -> bool:
     return settings.stale_clock == "cell" or settings.acknowledge
 
 
-#: In a lockstep cell, the wall time [in max_data_age] after which a stream counts as stale
-#: even though the cell's clock stood still: the simulator (the clock) is lost.
+#: In a lockstep cell, the wall time [in max_data_age] after which a stream is stale though
+#: the cell's clock stood still: the simulator (the clock) is lost.
 LOCKSTEP_WALL_FACTOR = 10.0
 
 
@@ -134,8 +133,7 @@ class TensionMonitor:
     def age(self, topic: str, steady: int) -> float:
         """Time [s] since the newest sample on ``topic`` (inf: none yet): on the wall's
         steady clock, or on the cell's clock when :meth:`paced` and the clock has run (a
-        sample that came before the first /clock dated at the cell's time 0, never younger
-        than it is: attack campaign seed 4753, run 96)."""
+        sample from before the first /clock dated at the cell's time 0: never younger)."""
         rx = self._rx[topic]
         if rx is None:
             return math.inf

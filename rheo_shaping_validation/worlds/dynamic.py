@@ -194,6 +194,8 @@ def run_world(params: CellParams, path, t_end: float | None = None,
         nm = replace(nm, air_damping=nm.air_damping * form.damping_scale,
                      contact_damping=nm.contact_damping * form.damping_scale)
     s, mat, eff = params.sheet, params.material, params.effects
+    if eff.friction_mould > 0.0 or eff.friction_tool > 0.0:
+        nm = replace(nm, dt=min(nm.dt, nm.dt_friction))     # the stick springs converge
     line = laid_shape(params, lay, np.asarray(path.position(0.0), float)
                       + np.asarray(eff.tool_offset, float), extra.tool_tilt)
     total = _polyline_length(line)

@@ -219,7 +219,10 @@ def test_aggressive_plan_is_aborted_before_the_sheet_tears(ros, procs, tmp_path,
     stop_plan = stop_from_state(pos, vel, acc, plan.limits)
     assert stop_plan.duration == pytest.approx((t_rest - t_abort) / NS, abs=2e-6)
     in_stop = (t >= t_abort) & (t <= t_rest)
-    assert in_stop.sum() >= 3
+    assert in_stop.sum() >= 3, (f"{in_stop.sum()} set-points seen in the stop of "
+                                f"{stop_plan.duration:.4f} s from {(t_abort - t0) / NS:.3f} s; "
+                                f"first off the plan {(t[k_dev] - t_abort) / NS:.4f} s after the "
+                                f"abort; {missed} missed; {reason}")
     on_stop, _, _ = stop_plan.sample_many((t[in_stop] - t_abort) / NS)
     assert np.abs(p[in_stop] - on_stop).max() <= 1e-8
     mv = cell.movement
