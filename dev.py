@@ -289,16 +289,12 @@ def pick_stages(args: list[str]) -> tuple[list[str], list[str]]:
     return [s for s in STAGE_VENVS if s in (stages or DEFAULT_STAGES)], rest
 
 
-#: Stages that run side by side (``dev.py test --serial``: one after the other): all of
-#: them at once. The core and noble stages each keep about one core busy with numerics while
-#: the ros stage mostly waits on DDS, on node start-up and on simulated time; run one after
-#: another the noble stage added its whole time to CI's.
-STAGE_JOBS = 4
-
-#: The ros stage runs as this many pytest processes side by side (``ros.1``, ``ros.2``),
-#: each in a ROS domain of its own: one process alone was the longest stage (690 s of
-#: mostly waiting, beside a campaign), over the ten minutes the suite is given.
-ROS_SHARDS = 2
+#: Stages that run side by side (``dev.py test --serial``: one after the other): all three
+#: at once. The core and noble stages each keep about one core busy with numerics while the
+#: ros stage mostly waits on DDS and on simulated time, so on two cores the three take about
+#: the time of the longest (the ros stage); run one after another the noble stage added
+#: its whole time to CI's.
+STAGE_JOBS = 3
 
 #: The noble stage leaves out the tests marked ``heavy`` (the benchmark worlds' and the
 #: diagnosis's long searches): they run in the core stage; the noble stage checks the
@@ -306,64 +302,32 @@ ROS_SHARDS = 2
 NOBLE_MARKS = "not heavy"
 
 
-def shards(files: list[Path], n: int) -> list[list[Path]]:
-    """``files`` in at most ``n`` groups of about equal size in bytes (the largest file
-    first, each to the lightest group so far): a test file's size stands for its time."""
-    groups: list[list[Path]] = [[] for _ in range(n)]
-    load = [0] * n
-    for f in sorted(files, key=lambda f: (-f.stat().st_size, f.name)):
-        i = load.index(min(load))
-        groups[i].append(f)
-        load[i] += f.stat().st_size
-    return [sorted(g) for g in groups if g]
-
-
-def stage_units(stages: list[str], paths: dict) -> list[tuple[str, str, list[str], bool]]:
-    """(label, stage, test paths, a ROS domain of its own) of each pytest process to run:
-    one per stage, the ros stage in :data:`ROS_SHARDS` when it runs all its folders (each
-    shard after the first in a domain of its own)."""
-    units = []
-    for stage in stages:
-        tests = STAGE_VENVS[stage][1]
-        chosen = paths[tests] or [str(d) for d in folders(tests)]
-        if tests == "ros" and not paths[tests] and ROS_SHARDS > 1:
-            files = [f for d in folders(tests) for f in d.rglob("test_*.py")]
-            groups = shards(files, ROS_SHARDS)
-            units += [(f"{stage}.{i + 1}", stage, [str(f) for f in g], i > 0)
-                      for i, g in enumerate(groups)]
-        else:
-            units.append((stage, stage, chosen, False))
-    return units
-
-
-def run_stage(label: str, stage: str, chosen: list[str], own_domain: bool, env: dict,
-              opts: list[str], live: bool, logdir: Path) -> tuple[bool, dict, float]:
-    """Run one pytest process of ``stage`` on the test paths ``chosen`` (output live, or
-    into ``logdir/<label>.log`` and printed when it ends); (ok, counts, seconds)."""
+def run_stage(stage: str, env: dict, opts: list[str], paths: dict, live: bool,
+              logdir: Path) -> tuple[bool, dict, float]:
+    """Run one stage's pytest (output live, or into ``logdir/<stage>.log`` and printed when
+    it ends); (ok, counts, seconds)."""
     venv, tests = STAGE_VENVS[stage]
     t0 = time.monotonic()
-    if own_domain:
-        env = dict(env, ROS_DOMAIN_ID=str(claim_domain_id()))
     if stage == "noble" and "-m" not in opts:
         opts = [*opts, "-m", NOBLE_MARKS]
     if tests == "core" and subprocess.run([str(venv.python), "-c", "import rclpy"],
                                           env=env, capture_output=True).returncode == 0:
-        say(f"{label}: FAIL (`import rclpy` succeeds in {venv.path.name}: it must not)")
+        say(f"{stage}: FAIL (`import rclpy` succeeds in {venv.path.name}: it must not)")
         return False, {"failed": 1}, 0.0
-    xml = logdir / f"{label}.xml"
+    xml = logdir / f"{stage}.xml"
     cmd = [str(venv.python), "-m", "pytest", f"--stage={tests}", f"--junitxml={xml}",
-           *opts, *chosen]
-    say(f"{label}: ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} $ "
+           *opts, *(paths[tests] or [str(d) for d in folders(tests)])]
+    say(f"{stage}: ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} $ "
         + " ".join(shlex.quote(c) for c in cmd))
     if live:
         rc = subprocess.run(cmd, cwd=ROOT, env=env).returncode
     else:
-        log = logdir / f"{label}.log"
-        say(f"{label}: its output follows when it ends (meanwhile: tail -f {log})")
+        log = logdir / f"{stage}.log"
+        say(f"{stage}: its output follows when it ends (meanwhile: tail -f {log})")
         with open(log, "w") as out:
             rc = subprocess.run(cmd, cwd=ROOT, env=env, stdout=out,
                                 stderr=subprocess.STDOUT).returncode
-        say(f"{label}: output ({time.monotonic() - t0:.0f} s)")
+        say(f"{stage}: output ({time.monotonic() - t0:.0f} s)")
         sys.stdout.write(log.read_text(errors="replace"))
         sys.stdout.flush()
     counts = junit_counts(xml)
@@ -382,22 +346,20 @@ def cmd_test(args: list[str], verbose: bool) -> int:
     env, (opts, paths) = ros_env(), split_pytest_args(args)
     lines = [f"setup: ok ({time.monotonic() - t_all:.0f} s)"]
     totals, failed = {"passed": 0, "failed": 0, "skipped": 0}, []
-    todo = stage_units([s for s in stages
-                        if not (any(paths.values()) and not paths[STAGE_VENVS[s][1]])], paths)
+    todo = [s for s in stages if not (any(paths.values()) and not paths[STAGE_VENVS[s][1]])]
     jobs = 1 if serial or len(todo) < 2 else STAGE_JOBS
     if jobs > 1:
-        say(f"test: {', '.join(u[0] for u in todo)}, {jobs} at a time (--serial: one after "
-            "the other)")
+        say(f"test: stages {', '.join(todo)}, {jobs} at a time (--serial: one after the other)")
     with tempfile.TemporaryDirectory() as tmp, \
             concurrent.futures.ThreadPoolExecutor(jobs) as pool:
-        futures = {u[0]: pool.submit(run_stage, *u, env, opts, jobs == 1, Path(tmp))
-                   for u in todo}
-        for label, *_ in todo:                # the summary in stage order
-            ok, counts, seconds = futures[label].result()
+        futures = {s: pool.submit(run_stage, s, env, opts, paths, jobs == 1, Path(tmp))
+                   for s in todo}
+        for stage in todo:                    # the summary in stage order
+            ok, counts, seconds = futures[stage].result()
             for k in totals:
                 totals[k] += counts.get(k, 0)
-            failed += [] if ok else [label]
-            lines.append(f"{label}: {'ok' if ok else 'FAIL'} ({counts.get('passed', 0)} "
+            failed += [] if ok else [stage]
+            lines.append(f"{stage}: {'ok' if ok else 'FAIL'} ({counts.get('passed', 0)} "
                          f"passed, {counts.get('failed', 0)} failed, "
                          f"{counts.get('skipped', 0)} skipped; {seconds:.0f} s)")
     print()
