@@ -125,13 +125,18 @@ def with_sheet(params: CellParams, u: dict[str, float],
     return out
 
 
+def moves(knob: Knob, sheet_lim: float) -> bool:
+    """Whether ``knob`` leaves its written value: every sheet knob while the sheet is fitted
+    (``sheet_lim`` > 0); held as written (0), a log knob's offset, the fit's start, is not
+    applied either."""
+    return sheet_lim > 0 or not knob.log
+
+
 def reference(params: CellParams, sheet_lim: float = 1.0) -> CellParams:
     """The cell at u = 0 of every sheet knob, where the diagnosis starts: ``params`` as
     written but for the log knobs' offsets (the contact three decades softer); with the
-    sheet held as written (``sheet_lim`` 0), ``params`` itself."""
-    if sheet_lim <= 0:
-        return params
-    return with_sheet(params, {k.name: 0.0 for k in SHEET if k.log})
+    sheet held as written (``sheet_lim`` 0), ``params`` itself (:func:`moves`)."""
+    return with_sheet(params, {k.name: 0.0 for k in SHEET if k.log and moves(k, sheet_lim)})
 
 
 def values(params: CellParams, u: dict[str, float],
@@ -140,9 +145,8 @@ def values(params: CellParams, u: dict[str, float],
     with the sheet held (``sheet_lim`` 0) the log knobs are as written."""
     out = {}
     for knob in SHEET:
-        held = knob.log and sheet_lim <= 0
-        out[knob.name] = (written(params, knob.name) if held
-                          else value_at(params, knob, u.get(knob.name, 0.0)))
+        out[knob.name] = (value_at(params, knob, u.get(knob.name, 0.0))
+                          if moves(knob, sheet_lim) else written(params, knob.name))
     for knob in CHAIN:
         out[knob.name] = u.get(knob.name, 0.0) * knob.tolerance
     return out

@@ -10,7 +10,7 @@ import numpy as np
 from ..params.cell import CellParams
 from ..params.schema import ParameterError
 from . import stats
-from .baseline import CHAIN, SHEET, sheet_box, with_sheet
+from .baseline import CHAIN, SHEET, moves, sheet_box, with_sheet
 from .candidates import LinearFit
 from .compare import RecordData
 from .evaluate import Outcome, Runner, Task, all_ok
@@ -118,7 +118,7 @@ class FitContext:
         """``d``'s written cell with the sheet knobs at ``u_s`` (tolerances); with the sheet
         held (``sheet_lim`` 0) the log knobs stay as written, offset and all."""
         return with_sheet(d.record.scenario, {k.name: float(v) for k, v in zip(SHEET, u_s)
-                                              if self.sheet_lim > 0 or not k.log})
+                                              if moves(k, self.sheet_lim)})
 
 
 @dataclass(frozen=True)
